@@ -1,0 +1,190 @@
+//! `imunoise settings`: the MPU-6050's DLPF table, or the exact register values for an output
+//! rate and a bandwidth (with the nearest valid choices when there are none).
+
+use anyhow::{Context, Result};
+use protocol::mpu6050::{AccelRange, DLPF_TABLE, GyroRange, SensorSettings};
+use serde_json::json;
+
+#[derive(clap::Args, Debug)]
+pub struct SettingsArgs {
+    /// Output sample rate in Hz (e.g. 200); with --bandwidth, resolves to register values
+    #[arg(long, requires = "bandwidth")]
+    pub rate: Option<f64>,
+    /// DLPF bandwidth in Hz, gyro (256 188 98 42 20 10 5) or accel (260 184 94 44 21 10 5)
+    #[arg(long, requires = "rate")]
+    pub bandwidth: Option<f64>,
+    /// Gyro full scale in deg/s: 250, 500, 1000 or 2000
+    #[arg(long, default_value_t = 250)]
+    pub gyro_range: u32,
+    /// Accel full scale in g: 2, 4, 8 or 16
+    #[arg(long, default_value_t = 2)]
+    pub accel_range: u32,
+    /// Print JSON instead of a table
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &SettingsArgs) -> Result<()> {
+    match (args.rate, args.bandwidth) {
+        (Some(rate), Some(bandwidth)) => {
+            let settings = SensorSettings::for_rate_and_bandwidth(rate, bandwidth)
+                .map_err(|e| anyhow::anyhow!("--rate {rate} --bandwidth {bandwidth}: {e}"))?
+                .with_ranges(gyro_range(args.gyro_range)?, accel_range(args.accel_range)?);
+            if args.json {
+                println!("{:#}", settings_json(&settings));
+            } else {
+                print_settings(&settings);
+            }
+        }
+        _ if args.json => println!("{:#}", table_json()),
+        _ => print_table(),
+    }
+    Ok(())
+}
+
+pub fn gyro_range(dps: u32) -> Result<GyroRange> {
+    GyroRange::ALL
+        .into_iter()
+        .find(|r| r.full_scale_dps() == f64::from(dps))
+        .with_context(|| {
+            format!(
+                "--gyro-range {dps}: the MPU-6050's gyro ranges are 250, 500, 1000 and 2000 deg/s"
+            )
+        })
+}
+
+pub fn accel_range(g: u32) -> Result<AccelRange> {
+    AccelRange::ALL
+        .into_iter()
+        .find(|r| r.full_scale_g() == f64::from(g))
+        .with_context(|| {
+            format!("--accel-range {g}: the MPU-6050's accel ranges are 2, 4, 8 and 16 g")
+        })
+}
+
+/// True when the gyro bandwidth exceeds half the output rate: noise between the Nyquist
+/// frequency and the bandwidth then folds back into the band, since the chip decimates
+/// without an anti-alias filter.
+pub fn aliases(settings: &SensorSettings) -> bool {
+    settings
+        .dlpf
+        .row()
+        .is_some_and(|r| r.gyro_bandwidth_hz > settings.output_rate_hz() / 2.0)
+}
+
+fn print_settings(s: &SensorSettings) {
+    let r = s.registers();
+    println!("{s}");
+    println!("registers:");
+    println!(
+        "  SMPLRT_DIV   (0x19) = {:#04x}  ({})",
+        r.smplrt_div, r.smplrt_div
+    );
+    println!(
+        "  CONFIG       (0x1A) = {:#04x}  (DLPF_CFG {})",
+        r.config,
+        s.dlpf.bits()
+    );
+    println!(
+        "  GYRO_CONFIG  (0x1B) = {:#04x}  (FS_SEL {}, {} LSB per deg/s)",
+        r.gyro_config,
+        s.gyro_range.bits(),
+        s.gyro_range.lsb_per_dps()
+    );
+    println!(
+        "  ACCEL_CONFIG (0x1C) = {:#04x}  (AFS_SEL {}, {} LSB per g)",
+        r.accel_config,
+        s.accel_range.bits(),
+        s.accel_range.lsb_per_g()
+    );
+    if aliases(s) {
+        println!(
+            "note: the gyro bandwidth exceeds half the output rate ({} Hz): noise above it folds back (aliasing), which inflates the angle random walk",
+            s.output_rate_hz() / 2.0
+        );
+    }
+}
+
+fn settings_json(s: &SensorSettings) -> serde_json::Value {
+    let r = s.registers();
+    let row = s.dlpf.row();
+    json!({
+        "output_rate_hz": s.output_rate_hz(),
+        "dlpf_cfg": s.dlpf.bits(),
+        "smplrt_div": s.smplrt_div,
+        "gyro_internal_rate_hz": s.dlpf.gyro_internal_rate_hz(),
+        "gyro_bandwidth_hz": row.map(|r| r.gyro_bandwidth_hz),
+        "gyro_delay_ms": row.map(|r| r.gyro_delay_ms),
+        "accel_bandwidth_hz": row.map(|r| r.accel_bandwidth_hz),
+        "accel_delay_ms": row.map(|r| r.accel_delay_ms),
+        "gyro_full_scale_dps": s.gyro_range.full_scale_dps(),
+        "gyro_lsb_per_dps": s.gyro_range.lsb_per_dps(),
+        "accel_full_scale_g": s.accel_range.full_scale_g(),
+        "accel_lsb_per_g": s.accel_range.lsb_per_g(),
+        "bandwidth_exceeds_half_rate": aliases(s),
+        "registers": {
+            "SMPLRT_DIV": r.smplrt_div,
+            "CONFIG": r.config,
+            "GYRO_CONFIG": r.gyro_config,
+            "ACCEL_CONFIG": r.accel_config,
+        },
+    })
+}
+
+fn rate_span(internal_hz: f64) -> (f64, f64) {
+    (internal_hz / 256.0, internal_hz)
+}
+
+fn print_table() {
+    println!("MPU-6050 digital low-pass filter (register map rev 4.2, register 26)");
+    println!(
+        "{:>8} {:>12} {:>13} {:>13} {:>14} {:>15} {:>22}",
+        "DLPF_CFG",
+        "gyro BW Hz",
+        "gyro delay ms",
+        "accel BW Hz",
+        "accel delay ms",
+        "gyro int. Hz",
+        "output rate Hz"
+    );
+    for r in &DLPF_TABLE {
+        let (lo, hi) = rate_span(r.gyro_internal_rate_hz);
+        println!(
+            "{:>8} {:>12} {:>13} {:>13} {:>14} {:>15} {:>22}",
+            r.cfg.bits(),
+            r.gyro_bandwidth_hz,
+            r.gyro_delay_ms,
+            r.accel_bandwidth_hz,
+            r.accel_delay_ms,
+            r.gyro_internal_rate_hz,
+            format!("{lo}..{hi}")
+        );
+    }
+    println!(
+        "{:>8} {:>12}  (reserved by the datasheet; gyro internal rate 8000 Hz)",
+        7, "-"
+    );
+    println!(
+        "output rate = gyro internal rate / (1 + SMPLRT_DIV), SMPLRT_DIV 0..255; the accelerometer samples at 1000 Hz"
+    );
+}
+
+fn table_json() -> serde_json::Value {
+    let rows: Vec<_> = DLPF_TABLE
+        .iter()
+        .map(|r| {
+            let (lo, hi) = rate_span(r.gyro_internal_rate_hz);
+            json!({
+                "dlpf_cfg": r.cfg.bits(),
+                "gyro_bandwidth_hz": r.gyro_bandwidth_hz,
+                "gyro_delay_ms": r.gyro_delay_ms,
+                "accel_bandwidth_hz": r.accel_bandwidth_hz,
+                "accel_delay_ms": r.accel_delay_ms,
+                "gyro_internal_rate_hz": r.gyro_internal_rate_hz,
+                "min_output_rate_hz": lo,
+                "max_output_rate_hz": hi,
+            })
+        })
+        .collect();
+    json!({ "dlpf": rows })
+}

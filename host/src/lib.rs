@@ -1,0 +1,7 @@
+//! imunoise, the host side: talk to the board, keep sessions, analyse IMU noise.
+//!
+//! The CLI (`src/main.rs`) is a thin layer over this library; every command's work lives in
+//! [`cli`], and the pieces it calls are the modules below.
+
+pub mod cli;
+pub mod link;

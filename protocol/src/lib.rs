@@ -1,0 +1,308 @@
+//! The contract between the imunoise board and the host.
+//!
+//! Read this file as an interface control document: every message that crosses the USB
+//! serial link is declared here, in the order its bytes appear on the wire (postcard encodes
+//! struct fields in declaration order and enum variants by their index). How a message
+//! becomes bytes is in [`frame`]; what a sensor setting means is in [`mpu6050`].
+//!
+//! `no_std`, no allocation: the firmware and the host share these very types.
+#![no_std]
+#![forbid(unsafe_code)]
+
+pub mod cobs;
+pub mod frame;
+pub mod mpu6050;
+
+use serde::{Deserialize, Serialize};
+
+pub use mpu6050::SensorSettings;
+
+/// Version of everything in this crate that shapes bytes on the wire.
+///
+/// Bump it on any change to a message, the framing or the meaning of a setting. The host
+/// refuses a board whose [`DeviceInfo::protocol_version`] differs. To make that refusal
+/// possible across versions, two things never change: [`DeviceMessage::Info`] is variant 0
+/// and `protocol_version` is the first field of [`DeviceInfo`] (see [`peek_info_version`]).
+pub const PROTOCOL_VERSION: u16 = 1;
+
+/// Most samples one [`SampleBatch`] carries: 32 samples are 32 ms at 1 kHz, so a batch
+/// leaves the board at least every 32 ms at the top rate while one frame stays well under
+/// [`frame::MAX_FRAME_LEN`] (checked by a test with worst-case values).
+pub const MAX_SAMPLES_PER_BATCH: usize = 32;
+
+// ----------------------------------------------------------------------------------------
+// Host -> device
+// ----------------------------------------------------------------------------------------
+
+/// One command from the host. `seq` is chosen by the host and echoed in the reply
+/// ([`DeviceMessage::Ack`], [`DeviceMessage::Nack`], [`DeviceMessage::Pong`]) so replies can
+/// be matched to requests even when sample batches arrive in between.
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Request {
+    pub seq: u16,
+    pub command: Command,
+}
+
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Command {
+    /// Reply: [`DeviceMessage::Info`].
+    GetInfo,
+    /// Write these settings to the sensor (only while stopped). Reply: Ack or Nack.
+    Configure(SensorSettings),
+    /// Reset the FIFO and the sample index, then stream [`DeviceMessage::Samples`].
+    /// Reply: Ack or Nack.
+    Start,
+    /// Stop streaming; a final [`DeviceMessage::Status`] follows the Ack.
+    Stop,
+    /// Reply: [`DeviceMessage::Pong`] with the same `seq`.
+    Ping,
+    /// Reply: [`DeviceMessage::Status`].
+    GetStatus,
+}
+
+// ----------------------------------------------------------------------------------------
+// Device -> host
+// ----------------------------------------------------------------------------------------
+
+/// Everything the board sends.
+// Samples is far larger than the other variants; boxing it would need an allocator, which
+// the board has not, and the board builds one message at a time anyway.
+#[allow(clippy::large_enum_variant)]
+#[derive(Serialize, Deserialize, Debug, Clone, PartialEq, Eq)]
+pub enum DeviceMessage {
+    /// Must stay variant 0 (see [`PROTOCOL_VERSION`]).
+    Info(DeviceInfo),
+    /// The command with this `seq` was carried out.
+    Ack {
+        seq: u16,
+    },
+    /// The command with this `seq` was refused, and why.
+    Nack {
+        seq: u16,
+        error: ErrorCode,
+    },
+    Samples(SampleBatch),
+    Status(Status),
+    Pong {
+        seq: u16,
+    },
+    /// Something went wrong that no command asked about (e.g. the sensor stopped answering
+    /// while streaming). Streaming stops; counters in the next [`Status`] say how much.
+    Fault(ErrorCode),
+}
+
+/// Who the board is and what it is doing.
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DeviceInfo {
+    /// Must stay the first field (see [`PROTOCOL_VERSION`]).
+    pub protocol_version: u16,
+    pub firmware_version: FirmwareVersion,
+    /// A unique id of the board (the RP2040's flash unique id).
+    pub board_id: u64,
+    /// What the sensor answered to WHO_AM_I (0x68 for an MPU-6050); 0 if it did not answer.
+    pub who_am_i: u8,
+    /// The settings in force on the sensor.
+    pub settings: SensorSettings,
+    pub streaming: bool,
+    /// [`MAX_SAMPLES_PER_BATCH`] as compiled into this firmware.
+    pub max_samples_per_batch: u16,
+}
+
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub struct FirmwareVersion {
+    pub major: u16,
+    pub minor: u16,
+    pub patch: u16,
+}
+
+impl core::fmt::Display for FirmwareVersion {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "{}.{}.{}", self.major, self.minor, self.patch)
+    }
+}
+
+/// Consecutive samples as the sensor's FIFO delivered them.
+///
+/// Sample `k` of `samples` is sample number `first_index + k` since the last
+/// [`Command::Start`]. Indices are never reused: samples the board could not deliver leave a
+/// gap in the indices, so the host can count every lost sample exactly.
+#[derive(Serialize, Deserialize, Debug, Clone, PartialEq, Eq)]
+pub struct SampleBatch {
+    /// Index of `samples[0]` since start (0-based).
+    pub first_index: u64,
+    /// Board clock (microseconds since boot) when `samples[0]` was read from the FIFO, less
+    /// the FIFO's backlog at that moment (an estimate of when the sensor sampled it).
+    pub first_timestamp_us: u64,
+    pub samples: heapless::Vec<RawSample, MAX_SAMPLES_PER_BATCH>,
+}
+
+/// One FIFO sample, as the MPU-6050 register counts, in FIFO order: accel X, Y, Z,
+/// temperature, gyro X, Y, Z (each a big-endian i16 in the FIFO, 14 bytes in all).
+/// [`mpu6050`] converts counts to SI units.
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RawSample {
+    pub accel: [i16; 3],
+    pub temp: i16,
+    pub gyro: [i16; 3],
+}
+
+impl RawSample {
+    /// Bytes per sample in the FIFO with accel, temperature and gyro enabled.
+    pub const FIFO_BYTES: usize = 14;
+
+    /// Parse the 14 bytes the FIFO (or the ACCEL_XOUT_H..GYRO_ZOUT_L burst) delivers.
+    pub fn from_fifo_bytes(b: &[u8; Self::FIFO_BYTES]) -> Self {
+        let word = |i: usize| i16::from_be_bytes([b[2 * i], b[2 * i + 1]]);
+        RawSample {
+            accel: [word(0), word(1), word(2)],
+            temp: word(3),
+            gyro: [word(4), word(5), word(6)],
+        }
+    }
+
+    /// The inverse of [`RawSample::from_fifo_bytes`] (used by the simulated sensor).
+    pub fn to_fifo_bytes(&self) -> [u8; Self::FIFO_BYTES] {
+        let words = [
+            self.accel[0],
+            self.accel[1],
+            self.accel[2],
+            self.temp,
+            self.gyro[0],
+            self.gyro[1],
+            self.gyro[2],
+        ];
+        let mut out = [0u8; Self::FIFO_BYTES];
+        for (chunk, w) in out.chunks_exact_mut(2).zip(words) {
+            chunk.copy_from_slice(&w.to_be_bytes());
+        }
+        out
+    }
+}
+
+/// Cumulative counters since the board powered up (they never reset, so the host can take
+/// differences between any two reports).
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Status {
+    pub streaming: bool,
+    /// Board clock, microseconds since boot.
+    pub uptime_us: u64,
+    /// Samples read from the FIFO and put into batches.
+    pub samples_acquired: u64,
+    /// Times the sensor's 1024-byte FIFO overflowed (and was reset).
+    pub fifo_overflows: u32,
+    /// Samples the sensor produced that never reached a batch (FIFO overflows, sensor
+    /// faults), counted from elapsed time and the output rate.
+    pub samples_lost: u64,
+    /// I2C transactions that failed (each retry that fails counts).
+    pub i2c_errors: u32,
+    /// Batches discarded because the USB link could not take them (back-pressure)...
+    pub batches_dropped: u32,
+    /// ...and the samples they held.
+    pub samples_dropped: u64,
+    /// Frames from the host that were rejected (bad COBS, CRC or content).
+    pub frames_rejected: u32,
+}
+
+/// Why a command was refused or what fault occurred.
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ErrorCode {
+    /// Configure or Start while streaming: send Stop first.
+    Busy,
+    /// Stop while not streaming.
+    NotStreaming,
+    /// The settings are not valid for this sensor (e.g. the reserved DLPF_CFG 7).
+    InvalidSettings,
+    /// The sensor did not answer on I2C (after retries).
+    SensorNotResponding,
+    /// WHO_AM_I gave a value that is not an MPU-6050's.
+    WrongSensor { who_am_i: u8 },
+    /// A register read back a different value than was written.
+    VerifyFailed { register: u8, wrote: u8, read: u8 },
+    /// I2C errors persisted beyond the retry budget.
+    I2cFailure,
+}
+
+impl core::fmt::Display for ErrorCode {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ErrorCode::Busy => f.write_str("the board is streaming; send stop first"),
+            ErrorCode::NotStreaming => f.write_str("the board is not streaming"),
+            ErrorCode::InvalidSettings => f.write_str("the settings are not valid for an MPU-6050"),
+            ErrorCode::SensorNotResponding => f.write_str("the sensor does not answer on I2C"),
+            ErrorCode::WrongSensor { who_am_i } => write!(
+                f,
+                "WHO_AM_I is {who_am_i:#04x}, not an MPU-6050's {:#04x}",
+                mpu6050::WHO_AM_I_VALUE
+            ),
+            ErrorCode::VerifyFailed {
+                register,
+                wrote,
+                read,
+            } => write!(
+                f,
+                "register {register:#04x} read back {read:#04x} after writing {wrote:#04x}"
+            ),
+            ErrorCode::I2cFailure => f.write_str("I2C errors persisted after retries"),
+        }
+    }
+}
+
+impl core::error::Error for ErrorCode {}
+
+/// The protocol version inside a frame body that holds a [`DeviceMessage::Info`] of *any*
+/// protocol version, or `None` if the body is not an Info message.
+///
+/// This works across versions because Info is variant 0 and `protocol_version` its first
+/// field, so a host can say "board speaks version 3, host speaks 1" instead of failing to
+/// decode.
+pub fn peek_info_version(body: &[u8]) -> Option<u16> {
+    let (variant, rest): (u32, &[u8]) = postcard::take_from_bytes(body).ok()?;
+    if variant != 0 {
+        return None;
+    }
+    let (version, _): (u16, &[u8]) = postcard::take_from_bytes(rest).ok()?;
+    Some(version)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fifo_bytes_are_big_endian_in_fifo_order() {
+        // Datasheet order: ACCEL_XOUT_H, ACCEL_XOUT_L, ..., TEMP_OUT_H, TEMP_OUT_L, GYRO_XOUT_H...
+        let bytes = [
+            0x01, 0x02, 0xFF, 0xFE, 0x40, 0x00, 0xF2, 0x50, 0x00, 0x83, 0x80, 0x00, 0x7F, 0xFF,
+        ];
+        let s = RawSample::from_fifo_bytes(&bytes);
+        assert_eq!(s.accel, [0x0102, -2, 16384]);
+        assert_eq!(s.temp, -3504);
+        assert_eq!(s.gyro, [131, i16::MIN, i16::MAX]);
+        assert_eq!(s.to_fifo_bytes(), bytes);
+    }
+
+    #[test]
+    fn info_version_can_be_read_without_decoding_the_rest() {
+        let info = DeviceMessage::Info(DeviceInfo {
+            protocol_version: 0x1234,
+            firmware_version: FirmwareVersion {
+                major: 1,
+                minor: 2,
+                patch: 3,
+            },
+            board_id: 7,
+            who_am_i: 0x68,
+            settings: SensorSettings::default(),
+            streaming: false,
+            max_samples_per_batch: 32,
+        });
+        let mut buf = [0u8; 64];
+        let body = postcard::to_slice(&info, &mut buf).unwrap();
+        assert_eq!(peek_info_version(body), Some(0x1234));
+        // A body from a future version with extra fields after the version still peeks.
+        let future = [0u8, 0x05, 0xAA, 0xBB, 0xCC];
+        assert_eq!(peek_info_version(&future), Some(5));
+        let pong = postcard::to_slice(&DeviceMessage::Pong { seq: 3 }, &mut buf).unwrap();
+        assert_eq!(peek_info_version(pong), None);
+    }
+}
