@@ -106,7 +106,13 @@ export RUSTC_BOOTSTRAP=1
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$repo_root/target/debian-rustc}
 if [ "$subcommand" = "clippy" ]; then
   # rustup's clippy-driver cannot lint with another compiler; Debian's clippy (same version) can.
+  # cargo-clippy passes the lint arguments to clippy-driver in CLIPPY_ARGS, each followed
+  # by __CLIPPY_HACKERY__; plain `cargo check` with the wrapper needs them the same way.
   export RUSTC_WORKSPACE_WRAPPER="$dir/usr/bin/clippy-driver"
+  clippy_args=""
+  for arg in ${tool_args[@]+"${tool_args[@]}"}; do clippy_args+="${arg}__CLIPPY_HACKERY__"; done
+  export CLIPPY_ARGS="$clippy_args"
+  tool_args=()
   subcommand=check
 fi
 echo "thumbv6m.sh: using Debian rustc-web $version with -Zbuild-std=core" >&2

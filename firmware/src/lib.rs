@@ -3,6 +3,11 @@
 //! board, on the host's virtual board and in tests. `no_std`, no allocation.
 #![no_std]
 #![forbid(unsafe_code)]
+// Nothing on the data path may panic: errors are values sent to the other side.
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
+)]
 
 use protocol::FirmwareVersion;
 

@@ -8,6 +8,11 @@
 //! `no_std`, no allocation: the firmware and the host share these very types.
 #![no_std]
 #![forbid(unsafe_code)]
+// Nothing on the data path may panic: errors are values sent to the other side.
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
+)]
 
 pub mod cobs;
 pub mod frame;

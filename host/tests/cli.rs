@@ -1,0 +1,120 @@
+//! The `imunoise` binary as a user runs it: output, JSON, errors and exit codes.
+
+use std::process::{Command, Output};
+
+fn imunoise(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .args(args)
+        .output()
+        .expect("the imunoise binary runs")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn settings_resolves_the_papers_settings_to_registers() {
+    let out = imunoise(&["settings", "--rate", "200", "--bandwidth", "42", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    assert_eq!(v["output_rate_hz"], 200.0);
+    assert_eq!(v["dlpf_cfg"], 3);
+    assert_eq!(v["smplrt_div"], 4);
+    assert_eq!(v["registers"]["CONFIG"], 3);
+    assert_eq!(v["gyro_bandwidth_hz"], 42.0);
+    assert_eq!(v["bandwidth_exceeds_half_rate"], false);
+
+    let out = imunoise(&[
+        "settings",
+        "--rate",
+        "50",
+        "--bandwidth",
+        "256",
+        "--gyro-range",
+        "2000",
+        "--accel-range",
+        "16",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    assert_eq!(
+        (v["dlpf_cfg"].as_u64(), v["smplrt_div"].as_u64()),
+        (Some(0), Some(159))
+    );
+    assert_eq!(v["registers"]["GYRO_CONFIG"], 0x18);
+    assert_eq!(v["registers"]["ACCEL_CONFIG"], 0x18);
+    assert_eq!(v["gyro_lsb_per_dps"], 16.4);
+    assert_eq!(v["bandwidth_exceeds_half_rate"], true);
+}
+
+#[test]
+fn settings_table_lists_every_dlpf_row() {
+    let out = imunoise(&["settings", "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let rows = v["dlpf"].as_array().unwrap();
+    assert_eq!(rows.len(), 7);
+    assert_eq!(rows[0]["gyro_internal_rate_hz"], 8000.0);
+    assert_eq!(rows[6]["gyro_bandwidth_hz"], 5.0);
+    let text = stdout(&imunoise(&["settings"]));
+    assert!(text.contains("reserved"), "{text}");
+}
+
+#[test]
+fn unreachable_settings_fail_with_the_nearest_choices() {
+    let out = imunoise(&["settings", "--rate", "150", "--bandwidth", "42"]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = stderr(&out);
+    assert!(err.contains("--rate 150 --bandwidth 42"), "{err}");
+    assert!(
+        err.contains("166.667 Hz (SMPLRT_DIV 5) or 142.857 Hz (SMPLRT_DIV 6)"),
+        "{err}"
+    );
+
+    let out = imunoise(&["settings", "--rate", "100", "--bandwidth", "40"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains("nearest: 42 Hz (DLPF_CFG 3)"),
+        "{}",
+        stderr(&out)
+    );
+
+    let out = imunoise(&[
+        "settings",
+        "--rate",
+        "100",
+        "--bandwidth",
+        "42",
+        "--gyro-range",
+        "300",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains("--gyro-range 300"),
+        "{}",
+        stderr(&out)
+    );
+
+    // A rate without a bandwidth is a usage error (clap's exit code 2).
+    let out = imunoise(&["settings", "--rate", "100"]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn demo_accounts_for_every_sample() {
+    let out = imunoise(&["demo"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = stdout(&out);
+    // 10 s at 200 Hz = 2000 samples in 63 batches; one flipped and one truncated frame lose
+    // two full batches of 32; the noise burst is rejected on its own.
+    assert!(text.contains("2000 samples"), "{text}");
+    assert!(text.contains("frames decoded: 61; rejected: 3"), "{text}");
+    assert!(
+        text.contains("2000 numbered by the board, 1936 received, 64 lost in 2 gaps"),
+        "{text}"
+    );
+}
