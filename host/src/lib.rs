@@ -3,5 +3,6 @@
 //! The CLI (`src/main.rs`) is a thin layer over this library; every command's work lives in
 //! [`cli`], and the pieces it calls are the modules below.
 
+pub mod analysis;
 pub mod cli;
 pub mod link;

@@ -1,0 +1,150 @@
+//! The analysis engine: the Allan family of deviations with confidence intervals, the power
+//! spectral density, and the IEEE-952 noise terms read from both.
+//!
+//! Conventions (DESIGN.md, Conventions):
+//! - Estimators work on **phase** data x (for an IMU: the integrated rate, i.e. angle or
+//!   velocity) sampled every `tau0` seconds. Rate data y (rad/s, m/s^2) becomes phase with
+//!   [`phase_from_rate`]: `x[0] = 0, x[k+1] = x[k] + (y[k] - mean(y)) * tau0` — the mean is
+//!   subtracted first for precision; it does not change any deviation.
+//! - Averaging factor m, tau = m * tau0.
+//! - PSDs are one-sided; white rate noise with Allan coefficient N has one-sided PSD 2 N^2.
+
+pub mod allan;
+pub mod ci;
+pub mod noise_id;
+pub mod psd;
+pub mod taus;
+
+use serde::{Deserialize, Serialize};
+
+/// Whether samples are rates (fractional frequency y; for an IMU rad/s or m/s^2) or phase
+/// (time error x; for an IMU the integrated angle or velocity).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DataType {
+    Rate,
+    Phase,
+}
+
+/// The estimators of the Allan family. Definitions: NIST SP 1065 (Riley 2008), section 5.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Estimator {
+    /// Non-overlapping Allan deviation (SP 1065 eq. 7).
+    Adev,
+    /// Overlapping Allan deviation (SP 1065 eq. 11).
+    Oadev,
+    /// Modified Allan deviation (SP 1065 eq. 14).
+    Mdev,
+    /// Non-overlapping Hadamard deviation (SP 1065 eq. 17).
+    Hdev,
+    /// Overlapping Hadamard deviation (SP 1065 eq. 18).
+    Ohdev,
+    /// Time deviation, tau * mdev / sqrt(3) (SP 1065 eq. 15).
+    Tdev,
+    /// Total deviation (SP 1065 eq. 25), with reflected extension of the phase data.
+    Totdev,
+}
+
+impl Estimator {
+    pub const ALL: [Estimator; 7] = [
+        Estimator::Adev,
+        Estimator::Oadev,
+        Estimator::Mdev,
+        Estimator::Hdev,
+        Estimator::Ohdev,
+        Estimator::Tdev,
+        Estimator::Totdev,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Estimator::Adev => "adev",
+            Estimator::Oadev => "oadev",
+            Estimator::Mdev => "mdev",
+            Estimator::Hdev => "hdev",
+            Estimator::Ohdev => "ohdev",
+            Estimator::Tdev => "tdev",
+            Estimator::Totdev => "totdev",
+        }
+    }
+}
+
+impl std::fmt::Display for Estimator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Estimator {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Estimator::ALL
+            .into_iter()
+            .find(|e| e.name().eq_ignore_ascii_case(s))
+            .ok_or_else(|| {
+                let names: Vec<_> = Estimator::ALL.iter().map(|e| e.name()).collect();
+                format!("unknown estimator '{s}': one of {}", names.join(", "))
+            })
+    }
+}
+
+/// One deviation curve: for each averaging factor m that the data allow, tau = m * tau0, the
+/// deviation, and the number of terms summed (Stable32's `#` column).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Deviation {
+    pub estimator: Estimator,
+    pub m: Vec<usize>,
+    pub tau: Vec<f64>,
+    pub dev: Vec<f64>,
+    pub n: Vec<usize>,
+}
+
+/// Phase from rate data: `x[0] = 0, x[k+1] = x[k] + (y[k] - mean(y)) * tau0`; N rates give
+/// N + 1 phase points. Summation is compensated (Neumaier) so that 10^7-sample records
+/// lose no digits.
+pub fn phase_from_rate(y: &[f64], tau0: f64) -> Vec<f64> {
+    let mean = neumaier_sum(y.iter().copied()) / y.len().max(1) as f64;
+    let mut x = Vec::with_capacity(y.len() + 1);
+    x.push(0.0);
+    let (mut sum, mut carry) = (0.0f64, 0.0f64);
+    for &v in y {
+        let term = (v - mean) * tau0;
+        let t = sum + term;
+        carry += if sum.abs() >= term.abs() { (sum - t) + term } else { (term - t) + sum };
+        sum = t;
+        x.push(sum + carry);
+    }
+    x
+}
+
+/// Sum with Neumaier's compensation.
+pub fn neumaier_sum(values: impl IntoIterator<Item = f64>) -> f64 {
+    let (mut sum, mut carry) = (0.0f64, 0.0f64);
+    for v in values {
+        let t = sum + v;
+        carry += if sum.abs() >= v.abs() { (sum - t) + v } else { (v - t) + sum };
+        sum = t;
+    }
+    sum + carry
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn phase_is_the_centred_cumulative_sum() {
+        let x = phase_from_rate(&[1.0, 3.0, 2.0], 0.5);
+        assert_eq!(x, vec![0.0, -0.5, 0.0, 0.0]);
+        assert_eq!(phase_from_rate(&[], 1.0), vec![0.0]);
+    }
+
+    #[test]
+    fn estimator_names_parse() {
+        for e in Estimator::ALL {
+            assert_eq!(e.name().parse::<Estimator>(), Ok(e));
+        }
+        assert!("avar".parse::<Estimator>().unwrap_err().contains("oadev"));
+    }
+}
