@@ -5,4 +5,7 @@
 
 pub mod analysis;
 pub mod cli;
+pub mod input;
 pub mod link;
+pub mod record;
+pub mod report;

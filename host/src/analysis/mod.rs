@@ -12,6 +12,7 @@
 pub mod allan;
 pub mod ci;
 pub mod noise_id;
+pub mod pipeline;
 pub mod psd;
 pub mod taus;
 
@@ -104,18 +105,35 @@ pub struct Deviation {
 /// N + 1 phase points. Summation is compensated (Neumaier) so that 10^7-sample records
 /// lose no digits.
 pub fn phase_from_rate(y: &[f64], tau0: f64) -> Vec<f64> {
-    let mean = neumaier_sum(y.iter().copied()) / y.len().max(1) as f64;
     let mut x = Vec::with_capacity(y.len() + 1);
-    x.push(0.0);
+    x.extend_from_slice(y);
+    into_phase(x, tau0)
+}
+
+/// [`phase_from_rate`] in place: the rate buffer becomes the phase buffer, so converting a
+/// long record costs no second copy of it.
+pub fn into_phase(mut y: Vec<f64>, tau0: f64) -> Vec<f64> {
+    let n = y.len();
+    let mean = neumaier_sum(y.iter().copied()) / n.max(1) as f64;
+    y.push(0.0);
+    // x[k + 1] overwrites y[k + 1], so y[k] is carried in `pending` one step ahead.
+    let mut pending = y[0];
+    y[0] = 0.0;
     let (mut sum, mut carry) = (0.0f64, 0.0f64);
-    for &v in y {
-        let term = (v - mean) * tau0;
+    for k in 0..n {
+        let next = y[k + 1];
+        let term = (pending - mean) * tau0;
         let t = sum + term;
-        carry += if sum.abs() >= term.abs() { (sum - t) + term } else { (term - t) + sum };
+        carry += if sum.abs() >= term.abs() {
+            (sum - t) + term
+        } else {
+            (term - t) + sum
+        };
         sum = t;
-        x.push(sum + carry);
+        y[k + 1] = sum + carry;
+        pending = next;
     }
-    x
+    y
 }
 
 /// Sum with Neumaier's compensation.
@@ -123,7 +141,11 @@ pub fn neumaier_sum(values: impl IntoIterator<Item = f64>) -> f64 {
     let (mut sum, mut carry) = (0.0f64, 0.0f64);
     for v in values {
         let t = sum + v;
-        carry += if sum.abs() >= v.abs() { (sum - t) + v } else { (v - t) + sum };
+        carry += if sum.abs() >= v.abs() {
+            (sum - t) + v
+        } else {
+            (v - t) + sum
+        };
         sum = t;
     }
     sum + carry
@@ -138,6 +160,7 @@ mod tests {
         let x = phase_from_rate(&[1.0, 3.0, 2.0], 0.5);
         assert_eq!(x, vec![0.0, -0.5, 0.0, 0.0]);
         assert_eq!(phase_from_rate(&[], 1.0), vec![0.0]);
+        assert_eq!(into_phase(vec![1.0, 3.0, 2.0], 0.5), x);
     }
 
     #[test]

@@ -1,7 +1,9 @@
 //! The command line: argument definitions and one module per subcommand.
 
+mod analyze;
+mod bench;
 mod demo;
-mod settings;
+pub(crate) mod settings;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -23,6 +25,10 @@ pub enum Command {
     Settings(settings::SettingsArgs),
     /// A tour of what works today, on generated data: settings, framing, loss accounting
     Demo(demo::DemoArgs),
+    /// Allan deviations with confidence intervals, PSD and IEEE-952 noise terms of a record
+    Analyze(analyze::AnalyzeArgs),
+    /// Time the analysis engine against allantools on the same generated data
+    Bench(bench::BenchArgs),
 }
 
 /// Run the CLI: errors go to stderr with their causes, and the exit code is 1.
@@ -31,6 +37,8 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Settings(args) => settings::run(&args),
         Command::Demo(args) => demo::run(&args),
+        Command::Analyze(args) => analyze::run(&args),
+        Command::Bench(args) => bench::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

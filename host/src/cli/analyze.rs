@@ -1,0 +1,176 @@
+//! `imunoise analyze INPUT`: Allan family with confidence intervals, PSD and IEEE-952 noise
+//! terms for every channel of a record; a table on stdout, and on request JSON, a plot,
+//! Kalibr's IMU YAML and a self-contained HTML report.
+
+use crate::analysis::pipeline::{self, Options};
+use crate::analysis::psd::Window;
+use crate::analysis::taus::TauGrid;
+use crate::analysis::{DataType, Estimator};
+use crate::cli::settings::{accel_range, gyro_range};
+use crate::input::{self, CountScale, LoadOptions};
+use crate::report;
+use anyhow::{Context, Result};
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct AnalyzeArgs {
+    /// A text/CSV table (optional header, `#` comments, optional time column) or a NumPy .npy
+    pub input: PathBuf,
+    /// Sample rate in Hz (needed when the file has no time column and no rate in its header)
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Whether the samples are rates (rad/s, m/s^2) or phase (integrated: rad, m/s)
+    #[arg(long, value_enum, default_value_t = DataTypeArg::Rate)]
+    pub data_type: DataTypeArg,
+    /// Analyse only this channel (repeatable); default: every channel
+    #[arg(long = "column", value_name = "NAME")]
+    pub columns: Vec<String>,
+    /// Channel names, comma-separated, for inputs without a header (e.g. gx,gy,gz,ax,ay,az)
+    #[arg(long, value_delimiter = ',')]
+    pub names: Vec<String>,
+    /// The values are raw MPU-6050 counts: convert with --gyro-range and --accel-range
+    #[arg(long)]
+    pub counts: bool,
+    /// Gyro full scale of the raw counts, deg/s (250, 500, 1000, 2000)
+    #[arg(long, default_value_t = 250, requires = "counts")]
+    pub gyro_range: u32,
+    /// Accel full scale of the raw counts, g (2, 4, 8, 16)
+    #[arg(long, default_value_t = 2, requires = "counts")]
+    pub accel_range: u32,
+    /// Multiply a channel by a factor, e.g. gx=0.001 (repeatable)
+    #[arg(long, value_name = "NAME=FACTOR", value_parser = parse_scale)]
+    pub scale: Vec<(String, f64)>,
+    /// Estimator (repeatable): oadev adev mdev hdev ohdev tdev totdev; default oadev
+    #[arg(long = "estimator", value_name = "NAME")]
+    pub estimators: Vec<Estimator>,
+    /// Tau grid: octave, decade, all, or per-decade:K
+    #[arg(long, default_value = "per-decade:10")]
+    pub taus: TauGrid,
+    /// Confidence of the intervals (two-sided)
+    #[arg(long, default_value_t = 0.683)]
+    pub confidence: f64,
+    /// Welch segment length in samples (default: chosen from the record length)
+    #[arg(long)]
+    pub psd_segment: Option<usize>,
+    /// Welch window: hann, hamming, blackman, rectangular
+    #[arg(long, default_value = "hann")]
+    pub psd_window: Window,
+    /// Write the results as JSON to PATH (`-` for stdout, which then carries only the JSON)
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<PathBuf>,
+    /// Write the figures (Allan deviation and PSD, one row per sensor) to PATH.svg or PATH.png
+    #[arg(long, value_name = "PATH")]
+    pub plot: Option<PathBuf>,
+    /// Write Kalibr's IMU noise YAML to PATH
+    #[arg(long, value_name = "PATH")]
+    pub kalibr: Option<PathBuf>,
+    /// Write a self-contained HTML report to PATH
+    #[arg(long, value_name = "PATH")]
+    pub report: Option<PathBuf>,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum DataTypeArg {
+    Rate,
+    Phase,
+}
+
+fn parse_scale(s: &str) -> Result<(String, f64), String> {
+    let (name, factor) = s
+        .split_once('=')
+        .ok_or_else(|| format!("'{s}': expected NAME=FACTOR, e.g. gx=0.001"))?;
+    let factor: f64 = factor
+        .parse()
+        .map_err(|_| format!("'{s}': '{factor}' is not a number"))?;
+    if !factor.is_finite() {
+        return Err(format!("'{s}': the factor must be finite"));
+    }
+    Ok((name.to_string(), factor))
+}
+
+pub fn run(args: &AnalyzeArgs) -> Result<()> {
+    let counts = if args.counts {
+        Some(CountScale {
+            rad_s_per_lsb: gyro_range(args.gyro_range)?.rad_s_per_lsb(),
+            m_s2_per_lsb: accel_range(args.accel_range)?.m_s2_per_lsb(),
+        })
+    } else {
+        None
+    };
+    let load = LoadOptions {
+        rate_hz: args.rate,
+        names: args.names.clone(),
+        counts,
+        scales: args.scale.clone(),
+    };
+    let record = input::load(&args.input, &load)?;
+    let record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
+    let options = options(args)?;
+    let steps = record.channels.len() * pipeline::steps_per_channel(&options);
+    let bar = report::progress::bar(steps as u64, "analysing");
+    let results = pipeline::analyze(&record, &options, &|| bar.inc(1))
+        .with_context(|| format!("{}", args.input.display()))?;
+    bar.finish_and_clear();
+    let document = report::json::document(&record, &options, &results);
+    let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    if !json_to_stdout {
+        print!("{}", report::table::render(&record, &options, &results));
+    }
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&document)?;
+        if json_to_stdout {
+            println!("{text}");
+        } else {
+            write(path, &text)?;
+        }
+    }
+    if let Some(path) = &args.plot {
+        report::plot::write(path, &report::figures::figures(&results))?;
+        note(json_to_stdout, path, "figures");
+    }
+    if let Some(path) = &args.kalibr {
+        let yaml = report::kalibr::yaml(&record, &results)?;
+        write(path, &yaml)?;
+        note(json_to_stdout, path, "Kalibr IMU YAML");
+    }
+    if let Some(path) = &args.report {
+        write(path, &report::html::page(&record, &options, &results)?)?;
+        note(json_to_stdout, path, "HTML report");
+    }
+    Ok(())
+}
+
+fn options(args: &AnalyzeArgs) -> Result<Options> {
+    let mut estimators = args.estimators.clone();
+    if estimators.is_empty() {
+        estimators.push(Estimator::Oadev);
+    }
+    let mut seen = std::collections::HashSet::new();
+    estimators.retain(|e| seen.insert(*e));
+    Ok(Options {
+        data_type: match args.data_type {
+            DataTypeArg::Rate => DataType::Rate,
+            DataTypeArg::Phase => DataType::Phase,
+        },
+        estimators,
+        taus: args.taus,
+        confidence: args.confidence,
+        psd_segment: args.psd_segment,
+        psd_window: args.psd_window,
+        ..Options::default()
+    })
+}
+
+fn write(path: &std::path::Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Say where an output went (stderr when stdout carries JSON).
+fn note(to_stderr: bool, path: &std::path::Path, what: &str) {
+    let line = format!("wrote {what}: {}", path.display());
+    if to_stderr {
+        eprintln!("{line}");
+    } else {
+        println!("{line}");
+    }
+}

@@ -1,0 +1,235 @@
+//! `imunoise bench`: our engine against the reference tool on the same generated data.
+//!
+//! 1. Overlapping Allan deviation of 10^7 white-noise rate samples at ~100 log-spaced taus:
+//!    imunoise (in process, best of three) and allantools (`scripts/bench_allantools.py`,
+//!    run with `python3`), their wall times and ratio, and the largest relative difference of
+//!    the deviations; plus imunoise's peak memory over the input's size (Linux).
+//! 2. A full `analyze` (six channels, oadev with CIs, PSD, fit) of an 8-hour 200 Hz record.
+
+use crate::analysis::pipeline::{self, Options};
+use crate::analysis::{Estimator, allan, into_phase};
+use crate::input;
+use crate::record::{Channel, Record};
+use anyhow::{Context, Result, bail};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
+use std::path::Path;
+use std::process::Command;
+use std::time::Instant;
+
+const REFERENCE_SCRIPT: &str = include_str!("../../../scripts/bench_allantools.py");
+
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Samples for the Allan deviation comparison
+    #[arg(long, default_value_t = 10_000_000)]
+    pub samples: usize,
+    /// Number of log-spaced taus
+    #[arg(long, default_value_t = 100)]
+    pub taus: usize,
+    /// Hours of 200 Hz six-axis data for the full-analysis benchmark
+    #[arg(long, default_value_t = 8.0)]
+    pub hours: f64,
+    /// Python interpreter with allantools and numpy installed
+    #[arg(long, default_value = "python3")]
+    pub python: String,
+    /// Skip allantools (time imunoise only)
+    #[arg(long)]
+    pub no_reference: bool,
+}
+
+pub fn run(args: &BenchArgs) -> Result<()> {
+    if args.samples < 100 || args.taus == 0 {
+        bail!("--samples at least 100 and --taus at least 1");
+    }
+    println!(
+        "imunoise bench ({} threads)\n",
+        rayon::current_num_threads()
+    );
+    let y = white(args.samples, 1);
+    let factors = log_factors(allan::max_factor(Estimator::Oadev, y.len() + 1), args.taus);
+    println!(
+        "1. Overlapping Allan deviation, {} white-noise samples, {} taus",
+        y.len(),
+        factors.len()
+    );
+    let ours = time_oadev(&y, &factors);
+    println!("   imunoise:   {:>8.3} s (best of 3)", ours.seconds);
+    match peak_over_input(&y, &factors) {
+        Some(ratio) => println!("   imunoise peak memory: {ratio:.2} x the input (VmHWM)"),
+        None => println!("   imunoise peak memory: not measurable on this OS"),
+    }
+    if args.no_reference {
+        println!("   allantools: skipped (--no-reference)");
+    } else {
+        match reference(&args.python, &y, &factors) {
+            Ok((seconds, devs, version)) => {
+                let max_rel = ours
+                    .devs
+                    .iter()
+                    .zip(&devs)
+                    .map(|(a, b)| ((a - b) / b).abs())
+                    .fold(0.0, f64::max);
+                println!("   allantools: {seconds:>8.3} s (version {version})");
+                println!(
+                    "   ratio:      {:>8.1} x faster; largest relative difference {max_rel:.1e}",
+                    seconds / ours.seconds
+                );
+            }
+            Err(e) => println!("   allantools: not run ({e:#})"),
+        }
+    }
+    full_analysis(args.hours)
+}
+
+struct Timed {
+    seconds: f64,
+    devs: Vec<f64>,
+}
+
+/// Best of three: rate to phase (in place) and the deviation at every factor.
+fn time_oadev(y: &[f64], factors: &[usize]) -> Timed {
+    let mut best = f64::INFINITY;
+    let mut devs = Vec::new();
+    for _ in 0..3 {
+        let input = y.to_vec();
+        let start = Instant::now();
+        let phase = into_phase(input, 1.0);
+        let d = allan::deviation(Estimator::Oadev, &phase, 1.0, factors);
+        best = best.min(start.elapsed().as_secs_f64());
+        devs = d.dev;
+    }
+    Timed {
+        seconds: best,
+        devs,
+    }
+}
+
+/// Peak resident memory while computing (input copy + phase in place + estimator), over the
+/// input's size. Linux: VmHWM after resetting it through /proc/self/clear_refs.
+fn peak_over_input(y: &[f64], factors: &[usize]) -> Option<f64> {
+    let rss = |key: &str| -> Option<f64> {
+        let status = std::fs::read_to_string("/proc/self/status").ok()?;
+        let line = status.lines().find(|l| l.starts_with(key))?;
+        let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kb * 1024.0)
+    };
+    let input_bytes = std::mem::size_of_val(y) as f64;
+    let baseline = rss("VmRSS:")? - input_bytes;
+    std::fs::write("/proc/self/clear_refs", "5").ok()?;
+    let phase = into_phase(y.to_vec(), 1.0);
+    let d = allan::deviation(Estimator::Oadev, &phase, 1.0, factors);
+    drop((phase, d));
+    let peak = rss("VmHWM:")?;
+    // What the analysis holds beyond the process's baseline (code, the benchmark's own copy
+    // of the data excluded), relative to the input it was given.
+    Some((peak - baseline - input_bytes) / input_bytes)
+}
+
+/// `count` log-spaced averaging factors from 1 to `max_m`, deduplicated.
+fn log_factors(max_m: usize, count: usize) -> Vec<usize> {
+    let top = (max_m.max(1) as f64).log10();
+    let mut f: Vec<usize> = (0..count)
+        .map(|i| {
+            10f64
+                .powf(top * i as f64 / (count.max(2) - 1) as f64)
+                .round() as usize
+        })
+        .map(|m| m.clamp(1, max_m.max(1)))
+        .collect();
+    f.dedup();
+    f
+}
+
+fn white(n: usize, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n).map(|_| StandardNormal.sample(&mut rng)).collect()
+}
+
+fn reference(python: &str, y: &[f64], factors: &[usize]) -> Result<(f64, Vec<f64>, String)> {
+    let dir = std::env::temp_dir().join(format!("imunoise-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let result = run_reference(python, &dir, y, factors);
+    let _ = std::fs::remove_dir_all(&dir);
+    result
+}
+
+fn run_reference(
+    python: &str,
+    dir: &Path,
+    y: &[f64],
+    factors: &[usize],
+) -> Result<(f64, Vec<f64>, String)> {
+    let script = dir.join("bench_allantools.py");
+    std::fs::write(&script, REFERENCE_SCRIPT)?;
+    input::write_npy(&dir.join("y.npy"), y)?;
+    let list: String = factors.iter().map(|m| format!("{m}\n")).collect();
+    std::fs::write(dir.join("factors.txt"), list)?;
+    let out = Command::new(python)
+        .arg(&script)
+        .arg(dir.join("y.npy"))
+        .arg(dir.join("factors.txt"))
+        .arg("1.0")
+        .arg(dir.join("out.json"))
+        .output()
+        .with_context(|| format!("running {python}"))?;
+    if !out.status.success() {
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let last = stderr.lines().last().unwrap_or("").to_string();
+        bail!("{python} failed: {last} (pip install allantools numpy)");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out.json"))?)?;
+    let seconds = json["seconds"]
+        .as_f64()
+        .context("no seconds in the reference output")?;
+    let devs = json["devs"]
+        .as_array()
+        .context("no devs in the reference output")?
+        .iter()
+        .filter_map(|v| v.as_f64())
+        .collect();
+    let version = json["version"].as_str().unwrap_or("unknown").to_string();
+    Ok((seconds, devs, version))
+}
+
+/// A six-axis record of white plus random-walk rate noise, analysed as `analyze` does.
+fn full_analysis(hours: f64) -> Result<()> {
+    let rate_hz = 200.0;
+    let n = (hours * 3600.0 * rate_hz).round() as usize;
+    if n < pipeline::MIN_SAMPLES {
+        bail!("--hours {hours}: too short");
+    }
+    let names = ["gx", "gy", "gz", "ax", "ay", "az"];
+    let channels: Vec<Channel> = names
+        .par_iter()
+        .enumerate()
+        .map(|(i, name)| {
+            let mut values = white(n, 100 + i as u64);
+            let walk = white(n, 200 + i as u64);
+            let mut bias = 0.0;
+            for (v, w) in values.iter_mut().zip(walk) {
+                bias += 1e-3 * w;
+                *v = 0.01 * *v + 1e-4 * bias;
+            }
+            Channel::named(*name, values)
+        })
+        .collect();
+    let record = Record {
+        source: "bench".into(),
+        rate_hz,
+        channels,
+    };
+    println!(
+        "\n2. Full analysis: 6 channels x {n} samples ({hours} h at 200 Hz): oadev with CIs, PSD, fit"
+    );
+    let start = Instant::now();
+    let results = pipeline::analyze(&record, &Options::default(), &|| {})?;
+    let seconds = start.elapsed().as_secs_f64();
+    println!("   imunoise:   {seconds:>8.3} s");
+    let fitted = results.iter().filter(|r| r.fit.is_ok()).count();
+    println!("   ({fitted} of 6 channels fitted)");
+    Ok(())
+}

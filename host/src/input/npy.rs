@@ -1,0 +1,285 @@
+//! NumPy `.npy` arrays (format versions 1.0 to 3.0, numpy.lib.format): 1-D (one channel) or
+//! 2-D with one column per channel, C or Fortran order, float64/32 or any integer type of
+//! either byte order. Channels are named `c0`, `c1`, ... unless `--names` says otherwise.
+
+use super::{InputError, Table};
+use std::path::Path;
+
+const MAGIC: &[u8] = b"\x93NUMPY";
+
+pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<Table, InputError> {
+    let err = |m: String| InputError::file(path, m);
+    let (header, data) = split_header(bytes).map_err(err)?;
+    let descr = dict_value(header, "descr").ok_or_else(|| err("header has no 'descr'".into()))?;
+    let dtype = Dtype::parse(descr.trim_matches(['\'', '"'])).map_err(err)?;
+    let fortran = dict_value(header, "fortran_order")
+        .ok_or_else(|| err("header has no 'fortran_order'".into()))?
+        == "True";
+    let shape = parse_shape(
+        dict_value(header, "shape").ok_or_else(|| err("header has no 'shape'".into()))?,
+    )
+    .map_err(err)?;
+    let (rows, cols) = match shape[..] {
+        [n] => (n, 1),
+        [n, c] => (n, c),
+        _ => {
+            return Err(err(format!(
+                "shape {shape:?}: only 1-D or 2-D (samples x channels) arrays"
+            )));
+        }
+    };
+    let count = rows
+        .checked_mul(cols)
+        .ok_or_else(|| err("shape too large".into()))?;
+    let need = count.saturating_mul(dtype.size);
+    if data.len() < need {
+        return Err(err(format!(
+            "data truncated: shape {shape:?} of {} needs {need} bytes, the file has {}",
+            dtype.name,
+            data.len()
+        )));
+    }
+    if count == 0 {
+        return Err(err("the array is empty".into()));
+    }
+    let values: Vec<f64> = data[..need]
+        .chunks_exact(dtype.size)
+        .map(|b| dtype.read(b))
+        .collect();
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        let (row, col) = if fortran {
+            (i % rows, i / rows)
+        } else {
+            (i / cols, i % cols)
+        };
+        return Err(err(format!(
+            "element [{row}, {col}] is {}: the data must be finite",
+            values[i]
+        )));
+    }
+    let channels = (0..cols)
+        .map(|c| {
+            let column: Vec<f64> = if fortran {
+                values[c * rows..(c + 1) * rows].to_vec()
+            } else {
+                values.iter().skip(c).step_by(cols).copied().collect()
+            };
+            (format!("c{c}"), column)
+        })
+        .collect();
+    Ok(Table {
+        channels,
+        rate_hz: None,
+    })
+}
+
+/// Write a 1-D float64 array as `.npy` (format 1.0): the bench hands data to numpy this way.
+pub fn write_f64(path: &Path, values: &[f64]) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut header = format!(
+        "{{'descr': '<f8', 'fortran_order': False, 'shape': ({},), }}",
+        values.len()
+    );
+    // The data must start on a 64-byte boundary; the header ends with a newline.
+    while (MAGIC.len() + 4 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+    out.write_all(MAGIC)?;
+    out.write_all(&[1, 0])?;
+    out.write_all(&(header.len() as u16).to_le_bytes())?;
+    out.write_all(header.as_bytes())?;
+    for v in values {
+        out.write_all(&v.to_le_bytes())?;
+    }
+    out.flush()
+}
+
+/// The header dictionary text and the data after it.
+fn split_header(bytes: &[u8]) -> Result<(&str, &[u8]), String> {
+    if !bytes.starts_with(MAGIC) || bytes.len() < 10 {
+        return Err("not a NumPy .npy file (bad magic)".into());
+    }
+    let (len, start): (usize, usize) = match bytes[6] {
+        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        2 | 3 if bytes.len() >= 12 => (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        ),
+        v => return Err(format!("unsupported .npy format version {v}")),
+    };
+    let end = start
+        .checked_add(len)
+        .filter(|&e| e <= bytes.len())
+        .ok_or("header truncated")?;
+    let header = std::str::from_utf8(&bytes[start..end]).map_err(|_| "header is not text")?;
+    Ok((header, &bytes[end..]))
+}
+
+/// The text of `key`'s value in the header's Python dict literal.
+fn dict_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {
+    let at = header
+        .find(&format!("'{key}'"))
+        .or_else(|| header.find(&format!("\"{key}\"")))?;
+    let rest = header[at + key.len() + 2..]
+        .trim_start()
+        .strip_prefix(':')?;
+    let rest = rest.trim_start();
+    let end = if rest.starts_with('(') {
+        rest.find(')')? + 1
+    } else {
+        rest.find([',', '}']).unwrap_or(rest.len())
+    };
+    Some(rest[..end].trim())
+}
+
+fn parse_shape(text: &str) -> Result<Vec<usize>, String> {
+    text.trim_matches(['(', ')'])
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().map_err(|_| format!("bad shape {text}")))
+        .collect()
+}
+
+/// The element types we read, all converted to f64 (exact for every integer up to 2^53).
+struct Dtype {
+    name: String,
+    size: usize,
+    big_endian: bool,
+    kind: char,
+}
+
+impl Dtype {
+    fn parse(descr: &str) -> Result<Dtype, String> {
+        let unsupported =
+            || format!("dtype '{descr}' is not supported: use float64/32 or an integer type");
+        let mut chars = descr.chars();
+        let order = chars.next().ok_or_else(unsupported)?;
+        let kind = chars.next().ok_or_else(unsupported)?;
+        let size: usize = chars.as_str().parse().map_err(|_| unsupported())?;
+        let ok = match kind {
+            'f' => matches!(size, 4 | 8),
+            'i' | 'u' => matches!(size, 1 | 2 | 4 | 8),
+            _ => false,
+        };
+        if !ok || !matches!(order, '<' | '>' | '|' | '=') {
+            return Err(unsupported());
+        }
+        Ok(Dtype {
+            name: descr.to_string(),
+            size,
+            big_endian: order == '>',
+            kind,
+        })
+    }
+
+    fn read(&self, b: &[u8]) -> f64 {
+        let mut buf = [0u8; 8];
+        buf[..self.size].copy_from_slice(b);
+        if self.big_endian {
+            buf[..self.size].reverse();
+        }
+        match (self.kind, self.size) {
+            ('f', 8) => f64::from_le_bytes(buf),
+            ('f', _) => f64::from(f32::from_le_bytes([buf[0], buf[1], buf[2], buf[3]])),
+            ('u', _) => u64::from_le_bytes(buf) as f64,
+            // Sign-extend a narrower integer from its top bit.
+            (_, n) => {
+                let shift = 64 - 8 * n as u32;
+                ((i64::from_le_bytes(buf) << shift) >> shift) as f64
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn npy(descr: &str, fortran: bool, shape: &str, data: &[u8]) -> Vec<u8> {
+        let mut header = format!(
+            "{{'descr': '{descr}', 'fortran_order': {}, 'shape': {shape}, }}",
+            if fortran { "True" } else { "False" }
+        );
+        while (10 + header.len() + 1) % 64 != 0 {
+            header.push(' ');
+        }
+        header.push('\n');
+        let mut out = MAGIC.to_vec();
+        out.extend_from_slice(&[1, 0]);
+        out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+        out.extend_from_slice(header.as_bytes());
+        out.extend_from_slice(data);
+        out
+    }
+
+    fn parse_bytes(b: &[u8]) -> Result<Table, InputError> {
+        parse(Path::new("a.npy"), b)
+    }
+
+    #[test]
+    fn two_d_c_and_fortran_order() {
+        let data: Vec<u8> = [1.0f64, 2.0, 3.0, 4.0, 5.0, 6.0]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let c = parse_bytes(&npy("<f8", false, "(3, 2)", &data)).unwrap();
+        assert_eq!(c.channels[0].1, [1.0, 3.0, 5.0]);
+        assert_eq!(c.channels[1].0, "c1");
+        let f = parse_bytes(&npy("<f8", true, "(3, 2)", &data)).unwrap();
+        assert_eq!(f.channels[0].1, [1.0, 2.0, 3.0]);
+        assert_eq!(f.channels[1].1, [4.0, 5.0, 6.0]);
+    }
+
+    #[test]
+    fn written_arrays_read_back() {
+        let path = std::env::temp_dir().join(format!("imunoise-npy-{}.npy", std::process::id()));
+        write_f64(&path, &[1.5, -2.0, 1e-300]).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!((bytes.len() - 3 * 8) % 64, 0);
+        let t = parse_bytes(&bytes).unwrap();
+        assert_eq!(t.channels[0].1, [1.5, -2.0, 1e-300]);
+    }
+
+    #[test]
+    fn integer_and_float_types() {
+        let i16s: Vec<u8> = [-2i16, 300].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let t = parse_bytes(&npy("<i2", false, "(2,)", &i16s)).unwrap();
+        assert_eq!(t.channels[0].1, [-2.0, 300.0]);
+        let be: Vec<u8> = [-7i32, 9].iter().flat_map(|v| v.to_be_bytes()).collect();
+        let t = parse_bytes(&npy(">i4", false, "(2,)", &be)).unwrap();
+        assert_eq!(t.channels[0].1, [-7.0, 9.0]);
+        let f32s: Vec<u8> = [0.5f32, -1.25]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let t = parse_bytes(&npy("<f4", false, "(2,)", &f32s)).unwrap();
+        assert_eq!(t.channels[0].1, [0.5, -1.25]);
+        let t = parse_bytes(&npy("|u1", false, "(2,)", &[255, 1])).unwrap();
+        assert_eq!(t.channels[0].1, [255.0, 1.0]);
+    }
+
+    #[test]
+    fn bad_files_say_why() {
+        let nan: Vec<u8> = [1.0f64, f64::NAN]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let e = parse_bytes(&npy("<f8", false, "(1, 2)", &nan)).unwrap_err();
+        assert!(e.to_string().contains("element [0, 1] is NaN"), "{e}");
+        let e = parse_bytes(&npy("<c16", false, "(1,)", &[0; 16])).unwrap_err();
+        assert!(
+            e.to_string().contains("dtype '<c16' is not supported"),
+            "{e}"
+        );
+        let e = parse_bytes(&npy("<f8", false, "(4,)", &[0; 8])).unwrap_err();
+        assert!(e.to_string().contains("truncated"), "{e}");
+        let e = parse_bytes(b"hello").unwrap_err();
+        assert!(e.to_string().contains("bad magic"), "{e}");
+        let e = parse_bytes(&npy("<f8", false, "(1, 1, 1)", &[0; 8])).unwrap_err();
+        assert!(e.to_string().contains("only 1-D or 2-D"), "{e}");
+    }
+}

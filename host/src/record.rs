@@ -1,0 +1,177 @@
+//! The decoded, columnar form every analysis takes: named channels of equally spaced samples
+//! in SI units, whatever they came from (a text or NumPy file, a session, a simulation).
+
+use serde::Serialize;
+
+/// What a channel measures; decides its SI unit and how its noise terms are labelled in
+/// conventional units (deg/h for a gyro, ug for an accelerometer).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Quantity {
+    /// Angular rate, rad/s.
+    AngularRate,
+    /// Specific force, m/s^2.
+    Acceleration,
+    /// Die temperature, degC.
+    Temperature,
+    /// Anything else, in the unit the input gave it (unknown to us).
+    Other,
+}
+
+impl Quantity {
+    /// Recognise the usual IMU column names: `gx`, `gyro_x`, `wx` are rates; `ax`, `acc_x`,
+    /// `accel_x` are accelerations; `temp`, `temperature` is the die temperature.
+    pub fn from_name(name: &str) -> Quantity {
+        let n = name.trim().to_ascii_lowercase();
+        let axis = |prefixes: &[&str]| {
+            prefixes.iter().any(|p| {
+                n.strip_prefix(p)
+                    .map(|rest| matches!(rest.trim_start_matches(['_', '.']), "x" | "y" | "z"))
+                    .unwrap_or(false)
+            })
+        };
+        if axis(&["g", "gyro", "gyr", "w", "omega"]) {
+            Quantity::AngularRate
+        } else if axis(&["a", "acc", "accel"]) {
+            Quantity::Acceleration
+        } else if matches!(
+            n.as_str(),
+            "temp" | "temperature" | "temp_c" | "temperature_c"
+        ) {
+            Quantity::Temperature
+        } else {
+            Quantity::Other
+        }
+    }
+
+    /// The SI unit of the channel's values; `u` (unit of the input) for [`Quantity::Other`].
+    pub fn si_unit(self) -> &'static str {
+        match self {
+            Quantity::AngularRate => "rad/s",
+            Quantity::Acceleration => "m/s^2",
+            Quantity::Temperature => "degC",
+            Quantity::Other => "u",
+        }
+    }
+}
+
+/// One named channel of samples.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Channel {
+    pub name: String,
+    pub quantity: Quantity,
+    pub values: Vec<f64>,
+}
+
+impl Channel {
+    /// A channel whose quantity is guessed from its name ([`Quantity::from_name`]).
+    pub fn named(name: impl Into<String>, values: Vec<f64>) -> Channel {
+        let name = name.into();
+        Channel {
+            quantity: Quantity::from_name(&name),
+            name,
+            values,
+        }
+    }
+
+    pub fn unit(&self) -> &'static str {
+        self.quantity.si_unit()
+    }
+}
+
+/// Equally spaced samples of several channels, all of the same length.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Record {
+    /// Where the record came from (a path, a session name), for messages and reports.
+    pub source: String,
+    pub rate_hz: f64,
+    pub channels: Vec<Channel>,
+}
+
+impl Record {
+    /// Samples per channel.
+    pub fn len(&self) -> usize {
+        self.channels.first().map_or(0, |c| c.values.len())
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    pub fn duration_s(&self) -> f64 {
+        self.len() as f64 / self.rate_hz
+    }
+
+    pub fn channel(&self, name: &str) -> Option<&Channel> {
+        self.channels.iter().find(|c| c.name == name)
+    }
+
+    pub fn names(&self) -> Vec<&str> {
+        self.channels.iter().map(|c| c.name.as_str()).collect()
+    }
+
+    /// Keep only the named channels, in the order given; an unknown name is an error that
+    /// lists the channels there are.
+    pub fn select(self, names: &[String]) -> Result<Record, String> {
+        if names.is_empty() {
+            return Ok(self);
+        }
+        let available = self.names().join(", ");
+        let mut channels = Vec::with_capacity(names.len());
+        let mut pool = self.channels;
+        for name in names {
+            let at = pool.iter().position(|c| &c.name == name).ok_or_else(|| {
+                format!("--column {name}: no such channel in the input; it has {available}")
+            })?;
+            channels.push(pool.swap_remove(at));
+        }
+        Ok(Record {
+            source: self.source,
+            rate_hz: self.rate_hz,
+            channels,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_map_to_quantities() {
+        for (name, q) in [
+            ("gx", Quantity::AngularRate),
+            ("Gyro_Z", Quantity::AngularRate),
+            ("wy", Quantity::AngularRate),
+            ("ax", Quantity::Acceleration),
+            ("accel.y", Quantity::Acceleration),
+            ("acc_z", Quantity::Acceleration),
+            ("temp", Quantity::Temperature),
+            ("time", Quantity::Other),
+            ("gain", Quantity::Other),
+            ("c0", Quantity::Other),
+        ] {
+            assert_eq!(Quantity::from_name(name), q, "{name}");
+        }
+    }
+
+    #[test]
+    fn select_keeps_order_and_names_missing_channels() {
+        let r = Record {
+            source: "x".into(),
+            rate_hz: 10.0,
+            channels: vec![
+                Channel::named("gx", vec![1.0]),
+                Channel::named("gy", vec![2.0]),
+                Channel::named("ax", vec![3.0]),
+            ],
+        };
+        let s = r.clone().select(&["ax".into(), "gx".into()]).unwrap();
+        assert_eq!(s.names(), ["ax", "gx"]);
+        let err = r.select(&["gz".into()]).unwrap_err();
+        assert!(
+            err.contains("--column gz") && err.contains("gx, gy, ax"),
+            "{err}"
+        );
+    }
+}

@@ -1,0 +1,132 @@
+//! A self-contained HTML report: the record, the conventions, the noise-term tables and the
+//! figures (inline SVG) on one page with no external resources.
+
+use super::plot::{self, PlotError};
+use super::{NOISE_TERMS, conventions, figures, kalibr, sig, table, term_of};
+use crate::analysis::pipeline::{ChannelResult, Options};
+use crate::analysis::units::{self, SensorKind};
+use crate::record::Record;
+use std::fmt::Write;
+
+pub fn page(
+    record: &Record,
+    options: &Options,
+    results: &[ChannelResult],
+) -> Result<String, PlotError> {
+    let mut h = String::new();
+    let title = format!("imunoise — {}", escape(&record.source));
+    let _ = write!(
+        h,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>\
+         <style>body{{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}}\
+         table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:.3em .6em;text-align:right}}\
+         th{{background:#f3f3f3}}td:first-child,th:first-child{{text-align:left}}.svg svg{{max-width:100%;height:auto}}\
+         pre{{background:#f7f7f7;padding:1em;overflow-x:auto}}</style></head><body>\n<h1>{title}</h1>\n"
+    );
+    let _ = writeln!(
+        h,
+        "<p>{} channel(s), {} samples at {} Hz ({} s). Intervals: {} % two-sided.</p>",
+        results.len(),
+        record.len(),
+        sig(record.rate_hz, 6),
+        sig(record.duration_s(), 6),
+        sig(options.confidence * 100.0, 3)
+    );
+    h.push_str("<h2>Noise terms (IEEE-952 fit to the overlapping Allan variance)</h2>\n");
+    for r in results {
+        terms_table(&mut h, r);
+    }
+    if let Ok(k) = kalibr::numbers(results) {
+        let _ = writeln!(
+            h,
+            "<h2>Kalibr</h2><table><tr><th>parameter</th><th>value</th></tr>\
+             <tr><td>gyroscope_noise_density (rad/s/sqrt(Hz))</td><td>{}</td></tr>\
+             <tr><td>gyroscope_random_walk (rad/s^2/sqrt(Hz))</td><td>{}</td></tr>\
+             <tr><td>accelerometer_noise_density (m/s^2/sqrt(Hz))</td><td>{}</td></tr>\
+             <tr><td>accelerometer_random_walk (m/s^3/sqrt(Hz))</td><td>{}</td></tr></table>\
+             <p>{}; upper bounds: {}</p>",
+            sig(k.gyroscope_noise_density, 4),
+            sig(k.gyroscope_random_walk, 4),
+            sig(k.accelerometer_noise_density, 4),
+            sig(k.accelerometer_random_walk, 4),
+            k.rule,
+            if k.upper_bounds.is_empty() {
+                "none".to_string()
+            } else {
+                k.upper_bounds.join(", ")
+            }
+        );
+    }
+    h.push_str("<h2>Figures</h2>\n");
+    for figure in figures::figures(results) {
+        let _ = writeln!(h, "<div class=\"svg\">{}</div>", plot::svg_string(&figure)?);
+    }
+    let _ = writeln!(
+        h,
+        "<h2>Summary as printed</h2><pre>{}</pre>",
+        escape(&table::render(record, options, results))
+    );
+    h.push_str("<h2>Conventions</h2><ul>\n");
+    if let Some(map) = conventions(options).as_object() {
+        for (k, v) in map {
+            let _ = writeln!(
+                h,
+                "<li><b>{k}</b>: {}</li>",
+                escape(v.as_str().unwrap_or(""))
+            );
+        }
+    }
+    let _ = writeln!(
+        h,
+        "</ul><p>imunoise {}</p></body></html>",
+        env!("CARGO_PKG_VERSION")
+    );
+    Ok(h)
+}
+
+fn terms_table(h: &mut String, r: &ChannelResult) {
+    let _ = writeln!(h, "<h3>{} ({})</h3>", escape(&r.name), r.unit);
+    let fit = match &r.fit {
+        Ok(fit) => fit,
+        Err(e) => {
+            let _ = writeln!(h, "<p>No fit: {}</p>", escape(e));
+            return;
+        }
+    };
+    h.push_str("<table><tr><th>term</th><th>value</th><th>interval</th><th>SI unit</th>");
+    if r.kind != SensorKind::Other {
+        h.push_str("<th>conventional</th><th>interval</th><th>unit</th>");
+    }
+    h.push_str("</tr>\n");
+    for term in NOISE_TERMS {
+        let t = term_of(fit, term);
+        let _ = write!(
+            h,
+            "<tr><td>{term:?}</td><td>{}</td><td>{} .. {}</td><td>{}</td>",
+            sig(t.value, 3),
+            sig(t.lo, 3),
+            sig(t.hi, 3),
+            units::si_unit(r.kind, term)
+        );
+        if r.kind != SensorKind::Other {
+            let c = |v| units::conventional(r.kind, term, v);
+            let _ = write!(
+                h,
+                "<td>{}</td><td>{} .. {}</td><td>{}</td>",
+                sig(c(t.value).value, 3),
+                sig(c(t.lo).value, 3),
+                sig(c(t.hi).value, 3),
+                c(t.value).unit
+            );
+        }
+        h.push_str("</tr>\n");
+    }
+    h.push_str("</table>\n");
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}

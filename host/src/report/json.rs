@@ -1,0 +1,153 @@
+//! The JSON document of `analyze --json`: per channel `name`, `unit`, `rate_hz`, `n`;
+//! `deviations.<estimator>` with `tau`, `dev`, `lo`, `hi`, `n` (and `alpha`, `edf`); `noise`
+//! with `Q N B K R`, each `{value, lo, hi, unit}` in SI; `psd` with `freq` and `density`
+//! (one-sided, log-binned); plus conventional units, slope and PSD read-outs and Kalibr's
+//! numbers. Conventions are stated in the document itself.
+
+use super::{NOISE_TERMS, conventions, kalibr, term_of};
+use crate::analysis::fit::NoiseFit;
+use crate::analysis::pipeline::{ChannelResult, Options};
+use crate::analysis::units::{self, NoiseTerm, SensorKind};
+use crate::record::Record;
+use serde_json::{Map, Value, json};
+
+pub fn document(record: &Record, options: &Options, results: &[ChannelResult]) -> Value {
+    json!({
+        "tool": "imunoise",
+        "version": env!("CARGO_PKG_VERSION"),
+        "source": record.source,
+        "rate_hz": record.rate_hz,
+        "samples": record.len(),
+        "duration_s": record.duration_s(),
+        "data_type": options.data_type,
+        "confidence": options.confidence,
+        "conventions": conventions(options),
+        "channels": results.iter().map(channel).collect::<Vec<_>>(),
+        "kalibr": kalibr::numbers(results).ok(),
+    })
+}
+
+fn channel(r: &ChannelResult) -> Value {
+    let deviations: Map<String, Value> = r
+        .deviations
+        .iter()
+        .map(|d| {
+            let (dev, ci) = (&d.deviation, &d.intervals);
+            (
+                dev.estimator.to_string(),
+                json!({
+                    "tau": dev.tau, "dev": dev.dev, "lo": ci.lo, "hi": ci.hi, "n": dev.n,
+                    "m": dev.m, "alpha": ci.alpha, "edf": ci.edf,
+                }),
+            )
+        })
+        .collect();
+    let (noise, noise_conventional, fit_info) = match &r.fit {
+        Ok(fit) => (
+            terms(fit, r.kind, false),
+            terms(fit, r.kind, true),
+            json!({
+                "method": "weighted non-negative least squares on the overlapping Allan variance",
+                "points": fit.points,
+                "effective_points": fit.effective_points,
+                "iterations": fit.iterations,
+                "confidence": fit.confidence,
+            }),
+        ),
+        Err(e) => (Value::Null, Value::Null, json!({ "error": e })),
+    };
+    let psd = match &r.psd {
+        Ok((full, binned)) => json!({
+            "freq": binned.freq,
+            "density": binned.density,
+            "count": binned.count,
+            "unit": format!("({})^2/Hz", r.unit),
+            "sided": "one-sided",
+            "segments": full.segments,
+            "resolution_hz": full.freq.get(1).copied(),
+        }),
+        Err(e) => json!({ "error": e }),
+    };
+    json!({
+        "name": r.name,
+        "quantity": r.quantity,
+        "unit": r.unit,
+        "rate_hz": r.rate_hz,
+        "n": r.n,
+        "deviations": deviations,
+        "noise": noise,
+        "noise_conventional": noise_conventional,
+        "fit": fit_info,
+        "slope_readouts": readouts(r),
+        "psd": psd,
+        "psd_noise": psd_noise(r),
+    })
+}
+
+/// Each term `{value, lo, hi, unit}`, in SI or in conventional units.
+fn terms(fit: &NoiseFit, kind: SensorKind, conventional: bool) -> Value {
+    let convert = |t: NoiseTerm, v: f64| {
+        if conventional {
+            units::conventional(kind, t, v)
+        } else {
+            units::si(kind, t, v)
+        }
+    };
+    let map: Map<String, Value> = NOISE_TERMS
+        .iter()
+        .map(|&t| {
+            let term = term_of(fit, t);
+            let value = convert(t, term.value);
+            (
+                format!("{t:?}"),
+                json!({
+                    "value": value.value,
+                    "lo": convert(t, term.lo).value,
+                    "hi": convert(t, term.hi).value,
+                    "unit": value.unit,
+                }),
+            )
+        })
+        .collect();
+    Value::Object(map)
+}
+
+fn readouts(r: &ChannelResult) -> Value {
+    let ro = &r.readouts;
+    json!({
+        "N": ro.n.as_ref().map(|l| json!({
+            "value": l.value, "unit": units::si_unit(r.kind, NoiseTerm::N),
+            "definition": "the -1/2 slope line's value at tau = 1 s",
+            "tau_min": l.tau_min, "tau_max": l.tau_max, "points": l.points,
+        })),
+        "B": ro.b.as_ref().map(|b| json!({
+            "value": b.value, "unit": units::si_unit(r.kind, NoiseTerm::B),
+            "definition": "minimum Allan deviation / sqrt(2 ln2 / pi) (= / 0.664)",
+            "tau": b.tau,
+        })),
+        "K": ro.k.as_ref().map(|l| json!({
+            "value": l.value, "unit": units::si_unit(r.kind, NoiseTerm::K),
+            "definition": "the +1/2 slope line's value at tau = 3 s",
+            "tau_min": l.tau_min, "tau_max": l.tau_max, "points": l.points,
+        })),
+    })
+}
+
+fn psd_noise(r: &ChannelResult) -> Value {
+    let Some(p) = &r.psd_terms else {
+        return Value::Null;
+    };
+    let one = |t: NoiseTerm, x: &Option<crate::analysis::fit::PsdReadout>| {
+        x.as_ref().map(|x| {
+            json!({
+                "value": x.value, "unit": units::si_unit(r.kind, t),
+                "f_min": x.f_min, "f_max": x.f_max, "bins": x.bins,
+            })
+        })
+    };
+    json!({
+        "N": one(NoiseTerm::N, &p.n),
+        "B": one(NoiseTerm::B, &p.b),
+        "K": one(NoiseTerm::K, &p.k),
+    })
+}

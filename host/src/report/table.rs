@@ -1,0 +1,121 @@
+//! The human-readable summary `analyze` prints: the record, then per channel the fitted
+//! IEEE-952 terms with intervals in SI and conventional units, the classic slope read-outs
+//! and the PSD read-outs side by side. Every column names its unit.
+
+use super::{NOISE_TERMS, sig, term_of};
+use crate::analysis::fit::NoiseFit;
+use crate::analysis::pipeline::{ChannelResult, Options};
+use crate::analysis::units::{self, NoiseTerm, SensorKind};
+use crate::record::Record;
+use std::fmt::Write;
+
+pub fn render(record: &Record, options: &Options, results: &[ChannelResult]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{}: {} channel(s), {} samples at {} Hz ({} s), {} data",
+        record.source,
+        results.len(),
+        record.len(),
+        sig(record.rate_hz, 6),
+        sig(record.duration_s(), 6),
+        match options.data_type {
+            crate::analysis::DataType::Rate => "rate",
+            crate::analysis::DataType::Phase => "phase",
+        }
+    );
+    let _ = writeln!(
+        out,
+        "\nIEEE-952 noise terms: weighted least squares on the overlapping Allan variance, \
+         value [{} % interval]",
+        sig(options.confidence * 100.0, 3)
+    );
+    for r in results {
+        fit_rows(&mut out, r);
+    }
+    let _ = writeln!(
+        out,
+        "\nRead-outs for comparison (SI): slopes of the Allan deviation (N at tau = 1 s on the \
+         -1/2 line, B = min / 0.664, K at tau = 3 s on the +1/2 line) and the one-sided PSD \
+         (N = sqrt(S/2))"
+    );
+    let _ = writeln!(
+        out,
+        "{:<8} {:>10} {:>10} {:>10} {:>8} | {:>10} {:>10} {:>10}",
+        "channel", "N slope", "B floor", "K slope", "tau_B s", "N psd", "B psd", "K psd"
+    );
+    for r in results {
+        readout_row(&mut out, r);
+    }
+    out
+}
+
+fn fit_rows(out: &mut String, r: &ChannelResult) {
+    let fit = match &r.fit {
+        Ok(fit) => fit,
+        Err(e) => {
+            let _ = writeln!(out, "{:<8} no fit: {e}", r.name);
+            return;
+        }
+    };
+    let _ = writeln!(out, "{} ({}):", r.name, r.unit);
+    for term in NOISE_TERMS {
+        let t = term_of(fit, term);
+        let si = units::si(r.kind, term, t.value);
+        let line = format!(
+            "  {term:?} = {} [{} .. {}] {}",
+            sig(t.value, 3),
+            sig(t.lo, 3),
+            sig(t.hi, 3),
+            si.unit
+        );
+        let conventional = if r.kind == SensorKind::Other {
+            String::new()
+        } else {
+            let c = units::conventional(r.kind, term, t.value);
+            format!(
+                "= {} [{} .. {}] {}",
+                sig(c.value, 3),
+                sig(units::conventional(r.kind, term, t.lo).value, 3),
+                sig(units::conventional(r.kind, term, t.hi).value, 3),
+                c.unit
+            )
+        };
+        let _ = writeln!(out, "{line:<52} {conventional}");
+    }
+    let _ = writeln!(out, "  {}", fit_note(fit));
+}
+
+fn fit_note(fit: &NoiseFit) -> String {
+    format!(
+        "({} taus, ~{} independent; terms at 0 were not resolved: their upper bound is given)",
+        fit.points,
+        sig(fit.effective_points, 2)
+    )
+}
+
+fn readout_row(out: &mut String, r: &ChannelResult) {
+    let opt = |v: Option<f64>| v.map_or_else(|| "-".to_string(), |v| sig(v, 3));
+    let ro = &r.readouts;
+    let psd = r.psd_terms.as_ref();
+    let pick = |t: NoiseTerm| {
+        psd.and_then(|p| match t {
+            NoiseTerm::N => p.n.as_ref(),
+            NoiseTerm::B => p.b.as_ref(),
+            _ => p.k.as_ref(),
+        })
+        .map(|x| x.value)
+    };
+    let _ = writeln!(
+        out,
+        "{:<8} {:>10} {:>10} {:>10} {:>8} | {:>10} {:>10} {:>10}",
+        r.name,
+        opt(ro.n.as_ref().map(|l| l.value)),
+        opt(ro.b.as_ref().map(|b| b.value)),
+        opt(ro.k.as_ref().map(|l| l.value)),
+        opt(ro.b.as_ref().map(|b| b.tau)),
+        opt(pick(NoiseTerm::N)),
+        opt(pick(NoiseTerm::B)),
+        opt(pick(NoiseTerm::K)),
+    );
+}
