@@ -88,43 +88,96 @@ pub fn deviation(est: Estimator, x: &[f64], tau0: f64, factors: &[usize]) -> Dev
         .collect();
     ms.sort_unstable();
     ms.dedup();
-    let dev: Vec<f64> = ms.par_iter().map(|&m| single(est, x, tau0, m)).collect();
+    let sums = match est {
+        Estimator::Oadev => overlapping_sums(x, &ms, Order::Second),
+        Estimator::Ohdev => overlapping_sums(x, &ms, Order::Third),
+        _ => ms.par_iter().map(|&m| sum_of_squares(est, x, m)).collect(),
+    };
+    let n: Vec<usize> = ms.iter().map(|&m| term_count(est, x.len(), m)).collect();
+    let dev = ms
+        .iter()
+        .zip(&sums)
+        .zip(&n)
+        .map(|((&m, &sum), &n)| scale(est, sum, n, m, tau0))
+        .collect();
     Deviation {
         estimator: est,
         tau: ms.iter().map(|&m| m as f64 * tau0).collect(),
-        n: ms.iter().map(|&m| term_count(est, x.len(), m)).collect(),
+        n,
         m: ms,
         dev,
     }
 }
 
-/// One deviation at one factor m (which must have terms).
-fn single(est: Estimator, x: &[f64], tau0: f64, m: usize) -> f64 {
-    let n = term_count(est, x.len(), m) as f64;
-    let tau = m as f64 * tau0;
-    let mf = m as f64;
-    let var = match est {
-        // SP 1065 eq. 7 (phase form): AVAR = Σ_{i=0,m,2m..} D2(i)² / (2 n tau²)
-        Estimator::Adev => sum_sq(x, m, Order::Second, m) / (2.0 * n * tau * tau),
-        // SP 1065 eq. 11: AVAR = Σ_{i=0}^{N-2m-1} D2(i)² / (2 (N-2m) tau²)
-        Estimator::Oadev => sum_sq(x, m, Order::Second, 1) / (2.0 * n * tau * tau),
-        // SP 1065 eq. 17 (phase form): HVAR = Σ_{i=0,m,2m..} D3(i)² / (6 n tau²)
-        Estimator::Hdev => sum_sq(x, m, Order::Third, m) / (6.0 * n * tau * tau),
-        // SP 1065 eq. 18: HVAR = Σ_{i=0}^{N-3m-1} D3(i)² / (6 (N-3m) tau²)
-        Estimator::Ohdev => sum_sq(x, m, Order::Third, 1) / (6.0 * n * tau * tau),
-        // SP 1065 eq. 14: MVAR = Σ_{j=0}^{N-3m} (Σ_{i=j}^{j+m-1} D2(i))² / (2 m² tau² (N-3m+1))
-        Estimator::Mdev | Estimator::Tdev => {
-            sum_sq_moving(x, m) / (2.0 * mf * mf * n * tau * tau)
-        }
-        // SP 1065 eq. 25: TOTVAR = Σ_{i=1}^{N-2} D2*(i-m)² / (2 tau² (N-2)), on the extension x*
-        Estimator::Totdev => sum_sq_reflected(x, m) / (2.0 * n * tau * tau),
-    };
-    let dev = var.sqrt();
+/// The sum of squared differences behind `est` at factor m (which must have terms):
+///
+/// - adev: Σ_{i=0,m,2m..} D2(i)² (SP 1065 eq. 7 in phase form)
+/// - oadev: Σ_{i=0}^{N-2m-1} D2(i)² (eq. 11)
+/// - hdev: Σ_{i=0,m,2m..} D3(i)² (eq. 17 in phase form)
+/// - ohdev: Σ_{i=0}^{N-3m-1} D3(i)² (eq. 18)
+/// - mdev, tdev: Σ_{j=0}^{N-3m} (Σ_{i=j}^{j+m-1} D2(i))² (eq. 14)
+/// - totdev: Σ_{i=1}^{N-2} (x*(i-m) - 2 x(i) + x*(i+m))² on the reflected extension x*
+///   (eq. 25, §5.2.11)
+fn sum_of_squares(est: Estimator, x: &[f64], m: usize) -> f64 {
     match est {
-        // SP 1065 eq. 15: TDEV = tau / sqrt(3) * MDEV
-        Estimator::Tdev => tau / 3f64.sqrt() * dev,
-        _ => dev,
+        Estimator::Adev => sum_sq(x, m, Order::Second, m),
+        Estimator::Oadev => sum_sq(x, m, Order::Second, 1),
+        Estimator::Hdev => sum_sq(x, m, Order::Third, m),
+        Estimator::Ohdev => sum_sq(x, m, Order::Third, 1),
+        Estimator::Mdev | Estimator::Tdev => sum_sq_moving(x, m),
+        Estimator::Totdev => sum_sq_reflected(x, m),
     }
+}
+
+/// Deviation from the sum of n squared differences at tau = m tau0:
+///
+/// - AVAR = sum / (2 n tau²) (adev, oadev, totdev; SP 1065 eqs. 7, 11, 25)
+/// - HVAR = sum / (6 n tau²) (hdev, ohdev; eqs. 17, 18)
+/// - MVAR = sum / (2 m² n tau²) (mdev; eq. 14); TDEV = tau / sqrt(3) MDEV (eq. 15)
+fn scale(est: Estimator, sum: f64, n: usize, m: usize, tau0: f64) -> f64 {
+    let tau = m as f64 * tau0;
+    let denom = 2.0 * n as f64 * tau * tau;
+    let var = match est {
+        Estimator::Adev | Estimator::Oadev | Estimator::Totdev => sum / denom,
+        Estimator::Hdev | Estimator::Ohdev => sum / (3.0 * denom),
+        Estimator::Mdev | Estimator::Tdev => sum / (denom * (m * m) as f64),
+    };
+    match est {
+        Estimator::Tdev => tau / 3f64.sqrt() * var.sqrt(),
+        _ => var.sqrt(),
+    }
+}
+
+/// Overlapping sums Σ D(i)² for every factor in `ms` (ascending, all supported) in one sweep:
+/// the start indices are cut into tiles and each tile is summed for every m before moving
+/// on, so a tile and its neighbourhood come from memory once for all taus instead of once
+/// per tau (one tau at a time, these loops are memory-bound). Tiles run on all cores.
+fn overlapping_sums(x: &[f64], ms: &[usize], order: Order) -> Vec<f64> {
+    const TILE: usize = 1 << 13;
+    let Some(&m_min) = ms.first() else {
+        return Vec::new();
+    };
+    let count = |m: usize| x.len() - order.span() * m;
+    blocks(count(m_min), TILE)
+        .map(|(start, len)| {
+            ms.iter()
+                .map(|&m| {
+                    let end = (start + len).min(count(m));
+                    if end > start {
+                        sum_sq_run(x, m, order, start, end - start)
+                    } else {
+                        0.0
+                    }
+                })
+                .collect::<Vec<f64>>()
+        })
+        .reduce(
+            || vec![0.0; ms.len()],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
+                a
+            },
+        )
 }
 
 /// Sum of `term(i)²` for i in 0..count, with eight independent accumulators so the loop
@@ -148,20 +201,40 @@ fn sum_squares(count: usize, term: impl Fn(usize) -> f64) -> f64 {
     acc.iter().sum()
 }
 
-/// Σ D(i)² for `count` consecutive starts i = start, start+1, ... (stride 1). The taps are
-/// pre-sliced to `count` so that indexing carries no bounds checks in the loop.
+/// Σ D(i)² for `count` consecutive starts i = start, start+1, ... (stride 1).
 fn sum_sq_run(x: &[f64], m: usize, order: Order, start: usize, count: usize) -> f64 {
     let tap = |k: usize| &x[start + k * m..start + k * m + count];
     match order {
-        Order::Second => {
-            let (a, b, c) = (tap(0), tap(1), tap(2));
-            sum_squares(count, |i| c[i] - 2.0 * b[i] + a[i])
-        }
-        Order::Third => {
-            let (a, b, c, d) = (tap(0), tap(1), tap(2), tap(3));
-            sum_squares(count, |i| d[i] - 3.0 * (c[i] - b[i]) - a[i])
-        }
+        Order::Second => sum_sq_taps([tap(0), tap(1), tap(2)], [1.0, -2.0, 1.0]),
+        Order::Third => sum_sq_taps([tap(0), tap(1), tap(2), tap(3)], [-1.0, 3.0, -3.0, 1.0]),
     }
+}
+
+/// Σ_i (Σ_j coef\[j\] taps\[j\]\[i\])² over taps of equal length, eight lanes at a time so
+/// that the loop compiles to packed arithmetic (one bounds check per tap and 8 terms).
+#[inline(always)]
+fn sum_sq_taps<const T: usize>(taps: [&[f64]; T], coef: [f64; T]) -> f64 {
+    let len = taps[0].len();
+    let full = len / 8 * 8;
+    let mut acc = [0.0f64; 8];
+    let mut i = 0;
+    while i < full {
+        let mut t = [0.0f64; 8];
+        for (tap, c) in taps.iter().zip(coef) {
+            let s: &[f64; 8] = tap[i..i + 8].try_into().expect("8 lanes");
+            for (t, s) in t.iter_mut().zip(s) {
+                *t += c * s;
+            }
+        }
+        for (a, t) in acc.iter_mut().zip(t) {
+            *a += t * t;
+        }
+        i += 8;
+    }
+    let tail = sum_squares(len - full, |k| {
+        taps.iter().zip(coef).map(|(tap, c)| c * tap[full + k]).sum::<f64>()
+    });
+    acc.iter().sum::<f64>() + tail
 }
 
 /// Σ D(i)² over i = 0, stride, 2 stride, ... while the difference fits in x. Stride 1 is the
