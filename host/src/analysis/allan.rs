@@ -232,7 +232,10 @@ fn sum_sq_taps<const T: usize>(taps: [&[f64]; T], coef: [f64; T]) -> f64 {
         i += 8;
     }
     let tail = sum_squares(len - full, |k| {
-        taps.iter().zip(coef).map(|(tap, c)| c * tap[full + k]).sum::<f64>()
+        taps.iter()
+            .zip(coef)
+            .map(|(tap, c)| c * tap[full + k])
+            .sum::<f64>()
     });
     acc.iter().sum::<f64>() + tail
 }
@@ -421,7 +424,9 @@ mod tests {
         let mut acc = 0.0;
         (0..n)
             .map(|_| {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 acc += (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
                 acc
             })
@@ -468,7 +473,10 @@ mod tests {
         for est in Estimator::ALL {
             for n in 0..3 {
                 let d = deviation(est, &vec![1.0; n], 1.0, &[1, 2, 4]);
-                assert!(d.m.is_empty() && d.dev.is_empty() && d.n.is_empty(), "{est} {n}");
+                assert!(
+                    d.m.is_empty() && d.dev.is_empty() && d.n.is_empty(),
+                    "{est} {n}"
+                );
             }
         }
         let d = deviation(Estimator::Oadev, &[0.0, 1.0, 0.0], 1.0, &[0, 4, 1, 1]);

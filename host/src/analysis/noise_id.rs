@@ -8,8 +8,8 @@
 //! References: W. J. Riley and C. A. Greenhall, "Power law noise identification using the lag
 //! 1 autocorrelation", EFTF 2004; SP 1065 §5.5.2 (B1 and R(n) ratios).
 
-use super::allan::deviation;
 use super::Estimator;
+use super::allan::deviation;
 
 /// Shortest decimated series for which the lag-1 autocorrelation is trusted (Riley &
 /// Greenhall recommend at least about 30 points).
@@ -104,8 +104,9 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
         b.swap(col, piv);
         for r in col + 1..3 {
             let f = a[r][col] / a[col][col];
-            for c in col..3 {
-                a[r][c] -= f * a[col][c];
+            let pivot_row = a[col];
+            for (v, p) in a[r].iter_mut().zip(pivot_row).skip(col) {
+                *v -= f * p;
             }
             b[r] -= f * b[col];
         }
@@ -134,10 +135,13 @@ fn b1_noise_id(x: &[f64], m: usize) -> Option<i32> {
     if n < 2 {
         return None;
     }
-    let avar = deviation(Estimator::Oadev, x, 1.0, &[m]).dev.first()?.powi(2);
+    let avar = deviation(Estimator::Oadev, x, 1.0, &[m])
+        .dev
+        .first()?
+        .powi(2);
     let mean = means.iter().sum::<f64>() / n as f64;
     let var = means.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
-    if !(avar > 0.0) {
+    if avar.is_nan() || avar <= 0.0 {
         return None;
     }
     let b1 = var / avar;
@@ -171,14 +175,14 @@ fn rn_split(x: &[f64], m: usize) -> Option<i32> {
     let oadev = deviation(Estimator::Oadev, x, 1.0, &[m]);
     let mdev = deviation(Estimator::Mdev, x, 1.0, &[m]);
     let (a, md) = (oadev.dev.first()?, mdev.dev.first()?);
-    if !(*a > 0.0) {
+    if a.is_nan() || *a <= 0.0 {
         return None;
     }
     let rn = (md / a).powi(2);
     let mf = m as f64;
     let white = 1.0 / mf;
-    let flicker = 3.0 * (256.0f64 / 27.0).ln()
-        / (2.0 * (1.038 + 3.0 * (std::f64::consts::PI * mf).ln()));
+    let flicker =
+        3.0 * (256.0f64 / 27.0).ln() / (2.0 * (1.038 + 3.0 * (std::f64::consts::PI * mf).ln()));
     Some(if rn > (white * flicker).sqrt() { 1 } else { 2 })
 }
 
@@ -194,7 +198,9 @@ mod tests {
                 // Sum of 12 uniforms: close enough to Gaussian for these tests.
                 (0..12)
                     .map(|_| {
-                        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                        s = s
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
                         (s >> 11) as f64 / (1u64 << 53) as f64
                     })
                     .sum::<f64>()
@@ -228,7 +234,10 @@ mod tests {
             wfm += usize::from(identify(Estimator::Oadev, &x, 256) == Some(0));
             wpm += usize::from(identify(Estimator::Mdev, &w, 256) == Some(2));
         }
-        assert!(wfm >= 12 && wpm >= 12, "white FM {wfm}/20, white PM {wpm}/20");
+        assert!(
+            wfm >= 12 && wpm >= 12,
+            "white FM {wfm}/20, white PM {wpm}/20"
+        );
     }
 
     #[test]

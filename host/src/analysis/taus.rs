@@ -102,12 +102,20 @@ mod tests {
         );
         assert_eq!(factors(TauGrid::Decade, 3), vec![1, 2]);
         assert_eq!(factors(TauGrid::All, 4), vec![1, 2, 3, 4]);
-        for g in [TauGrid::Octave, TauGrid::Decade, TauGrid::All, TauGrid::PerDecade(5)] {
+        for g in [
+            TauGrid::Octave,
+            TauGrid::Decade,
+            TauGrid::All,
+            TauGrid::PerDecade(5),
+        ] {
             assert!(factors(g, 0).is_empty(), "{g}");
             assert_eq!(factors(g, 1), vec![1], "{g}");
         }
         // No overflow near the top of usize.
-        assert_eq!(factors(TauGrid::Octave, usize::MAX).len(), usize::BITS as usize);
+        assert_eq!(
+            factors(TauGrid::Octave, usize::MAX).len(),
+            usize::BITS as usize
+        );
     }
 
     #[test]
@@ -124,7 +132,12 @@ mod tests {
 
     #[test]
     fn parse_and_display_round_trip() {
-        for g in [TauGrid::Octave, TauGrid::Decade, TauGrid::All, TauGrid::PerDecade(7)] {
+        for g in [
+            TauGrid::Octave,
+            TauGrid::Decade,
+            TauGrid::All,
+            TauGrid::PerDecade(7),
+        ] {
             assert_eq!(g.to_string().parse::<TauGrid>(), Ok(g));
         }
         assert_eq!("OCTAVE".parse::<TauGrid>(), Ok(TauGrid::Octave));
