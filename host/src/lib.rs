@@ -9,3 +9,4 @@ pub mod input;
 pub mod link;
 pub mod record;
 pub mod report;
+pub mod sim;

@@ -129,7 +129,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<()> {
         note(json_to_stdout, path, "figures");
     }
     if let Some(path) = &args.kalibr {
-        let yaml = report::kalibr::yaml(&record, &results)?;
+        let yaml = report::kalibr::yaml(&record, &results).map_err(anyhow::Error::msg)?;
         write(path, &yaml)?;
         note(json_to_stdout, path, "Kalibr IMU YAML");
     }
