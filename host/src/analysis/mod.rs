@@ -11,9 +11,11 @@
 
 pub mod allan;
 pub mod ci;
+pub mod fit;
 pub mod noise_id;
 pub mod psd;
 pub mod taus;
+pub mod units;
 
 use serde::{Deserialize, Serialize};
 
@@ -111,7 +113,11 @@ pub fn phase_from_rate(y: &[f64], tau0: f64) -> Vec<f64> {
     for &v in y {
         let term = (v - mean) * tau0;
         let t = sum + term;
-        carry += if sum.abs() >= term.abs() { (sum - t) + term } else { (term - t) + sum };
+        carry += if sum.abs() >= term.abs() {
+            (sum - t) + term
+        } else {
+            (term - t) + sum
+        };
         sum = t;
         x.push(sum + carry);
     }
@@ -123,7 +129,11 @@ pub fn neumaier_sum(values: impl IntoIterator<Item = f64>) -> f64 {
     let (mut sum, mut carry) = (0.0f64, 0.0f64);
     for v in values {
         let t = sum + v;
-        carry += if sum.abs() >= v.abs() { (sum - t) + v } else { (v - t) + sum };
+        carry += if sum.abs() >= v.abs() {
+            (sum - t) + v
+        } else {
+            (v - t) + sum
+        };
         sum = t;
     }
     sum + carry
