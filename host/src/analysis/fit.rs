@@ -987,6 +987,29 @@ mod tests {
     }
 
     #[test]
+    fn underdetermined_curves_do_not_panic() {
+        // Two points, five unknowns: a solution exists; unseparable terms get hi = infinity
+        // or a finite bound, never a panic or NaN.
+        let fit = fit_allan(&[1.0, 2.0], &[1e-6, 6e-7], &[100.0, 50.0]).unwrap();
+        for t in values(&fit) {
+            assert!(
+                t.value.is_finite() && t.lo <= t.value && t.value <= t.hi,
+                "{t:?}"
+            );
+        }
+        assert!((fit.avar(1.0) / 1e-6 - 1.0).abs() < 1e-6);
+        assert!(serde_json::to_string(&fit).is_ok());
+        // Extreme dynamic range of tau.
+        let tau = log_taus(1e-4, 1e6, 30);
+        let avar: Vec<f64> = tau
+            .iter()
+            .map(|&t| model([0.0, 1.0, 0.0, 1e-3, 0.0], t))
+            .collect();
+        let fit = fit_allan(&tau, &avar, &vec![3.0; 30]).unwrap();
+        assert!((fit.n.value - 1.0).abs() < 1e-6 && (fit.k.value / 1e-3 - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
     fn nnls_matches_a_hand_solved_case() {
         // min ||x - (1, -1)|| with x >= 0 in an identity design: x = (1, 0).
         let g = vec![vec![1.0, 0.0], vec![0.0, 1.0]];
