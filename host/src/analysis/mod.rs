@@ -113,11 +113,7 @@ pub fn phase_from_rate(y: &[f64], tau0: f64) -> Vec<f64> {
     for &v in y {
         let term = (v - mean) * tau0;
         let t = sum + term;
-        carry += if sum.abs() >= term.abs() {
-            (sum - t) + term
-        } else {
-            (term - t) + sum
-        };
+        carry += if sum.abs() >= term.abs() { (sum - t) + term } else { (term - t) + sum };
         sum = t;
         x.push(sum + carry);
     }
@@ -129,11 +125,7 @@ pub fn neumaier_sum(values: impl IntoIterator<Item = f64>) -> f64 {
     let (mut sum, mut carry) = (0.0f64, 0.0f64);
     for v in values {
         let t = sum + v;
-        carry += if sum.abs() >= v.abs() {
-            (sum - t) + v
-        } else {
-            (v - t) + sum
-        };
+        carry += if sum.abs() >= v.abs() { (sum - t) + v } else { (v - t) + sum };
         sum = t;
     }
     sum + carry
