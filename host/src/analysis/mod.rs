@@ -11,10 +11,12 @@
 
 pub mod allan;
 pub mod ci;
+pub mod fit;
 pub mod noise_id;
 pub mod pipeline;
 pub mod psd;
 pub mod taus;
+pub mod units;
 
 use serde::{Deserialize, Serialize};
 

@@ -196,7 +196,11 @@ pub fn welch(y: &[f64], rate_hz: f64, opts: &WelchOptions) -> Result<Psd, PsdErr
     let sum_w2: f64 = window.iter().map(|w| w * w).sum();
     let sums = plan.sum_periodograms(y, &window, opts.detrend_mean);
     let scale = 1.0 / (rate_hz * sum_w2 * plan.count as f64);
-    let nyquist = if plan.len % 2 == 0 { plan.len / 2 } else { usize::MAX };
+    let nyquist = if plan.len % 2 == 0 {
+        plan.len / 2
+    } else {
+        usize::MAX
+    };
     let density = sums
         .iter()
         .enumerate()
@@ -391,7 +395,10 @@ mod tests {
             ("blackman.txt", opts(Window::Blackman, 512, 0.5, true)),
             ("rectangular.txt", opts(Window::Rectangular, 512, 0.5, true)),
             ("hann_nodetrend.txt", opts(Window::Hann, 512, 0.5, false)),
-            ("hann_overlap75_odd.txt", opts(Window::Hann, 333, 0.75, true)),
+            (
+                "hann_overlap75_odd.txt",
+                opts(Window::Hann, 333, 0.75, true),
+            ),
         ]
     }
 
@@ -495,12 +502,18 @@ mod tests {
             segment_len: 1,
             ..opts.clone()
         };
-        assert_eq!(welch(&[1.0; 8], 1.0, &short), Err(PsdError::SegmentTooShort(1)));
+        assert_eq!(
+            welch(&[1.0; 8], 1.0, &short),
+            Err(PsdError::SegmentTooShort(1))
+        );
         let overlap = WelchOptions {
             overlap: 1.0,
             ..opts
         };
-        assert_eq!(welch(&[1.0; 8], 1.0, &overlap), Err(PsdError::BadOverlap(1.0)));
+        assert_eq!(
+            welch(&[1.0; 8], 1.0, &overlap),
+            Err(PsdError::BadOverlap(1.0))
+        );
     }
 
     #[test]
@@ -540,7 +553,14 @@ mod tests {
         assert!((b.density[0] - 3.0).abs() < 1e-12);
         assert!((b.freq[1] - 200f64.sqrt()).abs() < 1e-12);
         assert!((b.density[1] - 3.0).abs() < 1e-12);
-        let empty = log_binned(&Psd { freq: vec![], density: vec![], segments: 0 }, 0);
+        let empty = log_binned(
+            &Psd {
+                freq: vec![],
+                density: vec![],
+                segments: 0,
+            },
+            0,
+        );
         assert!(empty.freq.is_empty());
     }
 
@@ -553,7 +573,10 @@ mod tests {
         let expected = 1.8e-3;
         for (f, (s, n)) in b.freq.iter().zip(b.density.iter().zip(&b.count)) {
             let sd = 1.0 / (0.95 * psd.segments as f64 * (*n as f64 / 2.0).max(1.0)).sqrt();
-            assert!((s / expected - 1.0).abs() < 4.5 * sd, "bin at {f} Hz: {s:e}");
+            assert!(
+                (s / expected - 1.0).abs() < 4.5 * sd,
+                "bin at {f} Hz: {s:e}"
+            );
         }
     }
 
