@@ -8,7 +8,7 @@
 //!   other noise types fall back to the simple SP 1065 Table 5 formulas.
 //! - bounds: SP 1065 eq. 45, var * edf / chi²(p, edf).
 
-use super::noise_id::identify;
+use super::noise_id::identify_all;
 use super::{Deviation, Estimator};
 use serde::{Deserialize, Serialize};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
@@ -62,14 +62,10 @@ pub fn edf(est: Estimator, alpha: i32, m: usize, n_phase: usize) -> f64 {
 }
 
 /// Noise type, EDF and `confidence` bounds for every tau of `dev`, computed on the phase data
-/// `x` it came from. Noise identification per tau ([`identify`]); where that is impossible the
+/// `x` it came from. Noise identification per tau ([`identify_all`]); where that is impossible the
 /// alpha of the nearest identified tau is used (the smaller tau on a tie), else 0 (white FM).
 pub fn intervals(dev: &Deviation, x: &[f64], confidence: f64) -> Intervals {
-    let found: Vec<Option<i32>> = dev
-        .m
-        .iter()
-        .map(|&m| identify(dev.estimator, x, m))
-        .collect();
+    let found = identify_all(dev.estimator, x, &dev.m);
     let alpha: Vec<i32> = (0..found.len()).map(|k| fill_alpha(&found, k)).collect();
     let edf: Vec<f64> = dev
         .m

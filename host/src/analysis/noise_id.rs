@@ -15,25 +15,80 @@ use super::allan::deviation;
 /// Greenhall recommend at least about 30 points).
 const MIN_ACF_POINTS: usize = 30;
 
+/// Longest decimated series the autocorrelation method uses. The noise type at a tau is a
+/// local property, and the standard error of r1 is about 1/sqrt(n) (0.003 at 2^17 points),
+/// far inside the method's decision margins (delta is rounded at 0.25 steps); capping keeps
+/// the cost of identification at small m from dominating an 8-hour analysis.
+const MAX_ACF_POINTS: usize = 1 << 17;
+
 /// Dominant noise exponent alpha (-2..=2) of phase data `x` at averaging factor m, for
 /// estimator `est` (it sets how many differences the autocorrelation method may take: two
 /// for the Allan family, three for the Hadamard family, and whether R(n) splits flicker from
 /// white PM in the B1 method). None when the data cannot tell (too few points, constant
 /// data).
 pub fn identify(est: Estimator, x: &[f64], m: usize) -> Option<i32> {
-    if m == 0 || x.len() < 2 {
-        return None;
-    }
-    let decimated: Vec<f64> = x.iter().step_by(m).copied().collect();
-    if decimated.len() >= MIN_ACF_POINTS {
-        let d_max = match est {
-            Estimator::Hdev | Estimator::Ohdev => 3,
-            _ => 2,
-        };
-        lag1_noise_id(decimated, d_max)
-    } else {
-        b1_noise_id(x, m)
-    }
+    identify_all(est, x, &[m]).pop().flatten()
+}
+
+/// [`identify`] at every factor of `ms`. The B1 method needs the Allan variance at each of
+/// its factors: they are computed together in one pass over the data.
+pub fn identify_all(est: Estimator, x: &[f64], ms: &[usize]) -> Vec<Option<i32>> {
+    let uses_b1 = |m: usize| m > 0 && x.len() >= 2 && x.len().div_ceil(m) < MIN_ACF_POINTS;
+    let b1_factors: Vec<usize> = ms.iter().copied().filter(|&m| uses_b1(m)).collect();
+    let avar = variances_at(Estimator::Oadev, x, &b1_factors);
+    let mu: Vec<Option<i32>> = b1_factors
+        .iter()
+        .zip(&avar)
+        .map(|(&m, &a)| b1_mu(x, m, a?))
+        .collect();
+    // mu = -2 is white or flicker PM: R(n) = MVAR / AVAR tells them apart.
+    let rn_factors: Vec<usize> = b1_factors
+        .iter()
+        .zip(&mu)
+        .filter(|(_, mu)| **mu == Some(-2))
+        .map(|(&m, _)| m)
+        .collect();
+    let mvar = variances_at(Estimator::Mdev, x, &rn_factors);
+    let b1_alpha = |m: usize| -> Option<i32> {
+        let i = b1_factors.iter().position(|&f| f == m)?;
+        match mu[i]? {
+            -2 => {
+                let j = rn_factors.iter().position(|&f| f == m)?;
+                Some(rn_alpha(m, avar[i]?, mvar[j]?))
+            }
+            mu => Some(-mu - 1),
+        }
+    };
+    ms.iter()
+        .map(|&m| {
+            if m == 0 || x.len() < 2 {
+                None
+            } else if uses_b1(m) {
+                b1_alpha(m)
+            } else {
+                let decimated: Vec<f64> =
+                    x.iter().step_by(m).take(MAX_ACF_POINTS).copied().collect();
+                let d_max = match est {
+                    Estimator::Hdev | Estimator::Ohdev => 3,
+                    _ => 2,
+                };
+                lag1_noise_id(decimated, d_max)
+            }
+        })
+        .collect()
+}
+
+/// The variance of `est` at each factor (None where the data cannot support it), all from
+/// one call so that the estimator sweeps the data once.
+fn variances_at(est: Estimator, x: &[f64], ms: &[usize]) -> Vec<Option<f64>> {
+    let d = deviation(est, x, 1.0, ms);
+    ms.iter()
+        .map(|&m| {
+            let i = d.m.iter().position(|&f| f == m)?;
+            let v = d.dev[i].powi(2);
+            (v.is_finite() && v > 0.0).then_some(v)
+        })
+        .collect()
 }
 
 /// Riley & Greenhall 2004 on (decimated) phase z: remove a quadratic trend, then difference z
@@ -121,9 +176,9 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
 
 /// SP 1065 §5.5.2: B1 = (sample variance of the n averages of frequency over m samples) /
 /// (Allan variance at m); compared with its expectation for each tau exponent mu of AVAR,
-/// the boundary between neighbours being the geometric mean of the two. mu = 1, 0, -1 give
-/// alpha = -2, -1, 0; mu = -2 is white or flicker PM, split with R(n) (see [`rn_split`]).
-fn b1_noise_id(x: &[f64], m: usize) -> Option<i32> {
+/// the boundary between neighbours being the geometric mean of the two. Returns mu: 1, 0, -1
+/// are alpha = -2, -1, 0; -2 is white or flicker PM, split with R(n) (see [`rn_alpha`]).
+fn b1_mu(x: &[f64], m: usize, avar: f64) -> Option<i32> {
     let means: Vec<f64> = x
         .iter()
         .step_by(m)
@@ -135,24 +190,15 @@ fn b1_noise_id(x: &[f64], m: usize) -> Option<i32> {
     if n < 2 {
         return None;
     }
-    let avar = deviation(Estimator::Oadev, x, 1.0, &[m])
-        .dev
-        .first()?
-        .powi(2);
     let mean = means.iter().sum::<f64>() / n as f64;
     let var = means.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
-    if avar.is_nan() || avar <= 0.0 {
-        return None;
-    }
     let b1 = var / avar;
-    let mu = (-1..=1)
-        .rev()
-        .find(|&mu| b1 > (b1_expected(n, mu) * b1_expected(n, mu - 1)).sqrt())
-        .unwrap_or(-2);
-    match mu {
-        -2 => rn_split(x, m),
-        mu => Some(-mu - 1),
-    }
+    Some(
+        (-1..=1)
+            .rev()
+            .find(|&mu| b1 > (b1_expected(n, mu) * b1_expected(n, mu - 1)).sqrt())
+            .unwrap_or(-2),
+    )
 }
 
 /// Expected B1 ratio for n averages and AVAR tau exponent mu (SP 1065 §5.5.2; Barnes 1969):
@@ -171,19 +217,13 @@ fn b1_expected(n: usize, mu: i32) -> f64 {
 /// R(n) = MVAR / AVAR at m (SP 1065 §5.5.2): about 1/m for white PM and
 /// 3 ln(256/27) / (2 (1.038 + 3 ln(pi m))) for flicker PM (bandwidth f_h = 1/(2 tau0));
 /// the boundary is their geometric mean. Returns 1 (flicker) above it, 2 (white) below.
-fn rn_split(x: &[f64], m: usize) -> Option<i32> {
-    let oadev = deviation(Estimator::Oadev, x, 1.0, &[m]);
-    let mdev = deviation(Estimator::Mdev, x, 1.0, &[m]);
-    let (a, md) = (oadev.dev.first()?, mdev.dev.first()?);
-    if a.is_nan() || *a <= 0.0 {
-        return None;
-    }
-    let rn = (md / a).powi(2);
+fn rn_alpha(m: usize, avar: f64, mvar: f64) -> i32 {
+    let rn = mvar / avar;
     let mf = m as f64;
     let white = 1.0 / mf;
     let flicker =
         3.0 * (256.0f64 / 27.0).ln() / (2.0 * (1.038 + 3.0 * (std::f64::consts::PI * mf).ln()));
-    Some(if rn > (white * flicker).sqrt() { 1 } else { 2 })
+    if rn > (white * flicker).sqrt() { 1 } else { 2 }
 }
 
 #[cfg(test)]

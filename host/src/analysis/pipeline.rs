@@ -207,7 +207,7 @@ fn analyze_channel(
     let psd_terms = psd
         .as_ref()
         .ok()
-        .map(|(_, binned)| fit::fit_psd(&binned.freq, &binned.density));
+        .map(|(full, _)| fit::fit_psd(&full.freq, &full.density));
     tick();
     ChannelResult {
         name: channel.name.clone(),

@@ -45,10 +45,10 @@ pub fn page(
              <tr><td>accelerometer_noise_density (m/s^2/sqrt(Hz))</td><td>{}</td></tr>\
              <tr><td>accelerometer_random_walk (m/s^3/sqrt(Hz))</td><td>{}</td></tr></table>\
              <p>{}; upper bounds: {}</p>",
-            sig(k.gyroscope_noise_density, 4),
-            sig(k.gyroscope_random_walk, 4),
-            sig(k.accelerometer_noise_density, 4),
-            sig(k.accelerometer_random_walk, 4),
+            sig(k.noise.gyroscope_noise_density, 4),
+            sig(k.noise.gyroscope_random_walk, 4),
+            sig(k.noise.accelerometer_noise_density, 4),
+            sig(k.noise.accelerometer_random_walk, 4),
             k.rule,
             if k.upper_bounds.is_empty() {
                 "none".to_string()

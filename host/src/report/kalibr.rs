@@ -12,16 +12,14 @@
 
 use crate::analysis::fit::Term;
 use crate::analysis::pipeline::ChannelResult;
-use crate::analysis::units::SensorKind;
+use crate::analysis::units::{KalibrNoise, SensorKind};
 use crate::record::Record;
 use serde::Serialize;
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct KalibrNumbers {
-    pub gyroscope_noise_density: f64,
-    pub gyroscope_random_walk: f64,
-    pub accelerometer_noise_density: f64,
-    pub accelerometer_random_walk: f64,
+    #[serde(flatten)]
+    pub noise: KalibrNoise,
     /// Which numbers are upper bounds (random walk not resolved in the record).
     pub upper_bounds: Vec<&'static str>,
     /// How each number was taken from the axes.
@@ -39,10 +37,7 @@ pub fn numbers(results: &[ChannelResult]) -> Result<KalibrNumbers, String> {
         &mut upper_bounds,
     )?;
     Ok(KalibrNumbers {
-        gyroscope_noise_density: gn,
-        gyroscope_random_walk: gk,
-        accelerometer_noise_density: an,
-        accelerometer_random_walk: ak,
+        noise: KalibrNoise::from_terms(gn, gk, an, ak),
         upper_bounds,
         rule: "largest over the sensor's axes",
     })
@@ -90,7 +85,8 @@ fn upper(t: &Term) -> f64 {
 
 /// The YAML file Kalibr reads, with each number's definition as a comment.
 pub fn yaml(record: &Record, results: &[ChannelResult]) -> Result<String, String> {
-    let k = numbers(results)?;
+    let numbers = numbers(results)?;
+    let (k, noise) = (&numbers, &numbers.noise);
     let bound = |name: &str| {
         if k.upper_bounds.iter().any(|b| *b == name) {
             "  (upper bound: no random walk resolved in this record)"
@@ -115,10 +111,10 @@ pub fn yaml(record: &Record, results: &[ChannelResult]) -> Result<String, String
         samples = record.len(),
         rate = record.rate_hz,
         rule = k.rule,
-        an = yaml_float(k.accelerometer_noise_density),
-        ak = yaml_float(k.accelerometer_random_walk),
-        gn = yaml_float(k.gyroscope_noise_density),
-        gk = yaml_float(k.gyroscope_random_walk),
+        an = yaml_float(noise.accelerometer_noise_density),
+        ak = yaml_float(noise.accelerometer_random_walk),
+        gn = yaml_float(noise.gyroscope_noise_density),
+        gk = yaml_float(noise.gyroscope_random_walk),
         akb = bound("accelerometer_random_walk"),
         gkb = bound("gyroscope_random_walk"),
     ))

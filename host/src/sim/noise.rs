@@ -134,10 +134,22 @@ mod tests {
         // random walk and flicker have fewer degrees of freedom (SP 1065 Table 6).
         let n = 200_000;
         let cases = [
-            NoiseTerms { n: 0.01, ..Default::default() },
-            NoiseTerms { q: 0.01, ..Default::default() },
-            NoiseTerms { b: 0.01, ..Default::default() },
-            NoiseTerms { k: 0.001, ..Default::default() },
+            NoiseTerms {
+                n: 0.01,
+                ..Default::default()
+            },
+            NoiseTerms {
+                q: 0.01,
+                ..Default::default()
+            },
+            NoiseTerms {
+                b: 0.01,
+                ..Default::default()
+            },
+            NoiseTerms {
+                k: 0.001,
+                ..Default::default()
+            },
         ];
         // tau from 1 s to 10 s: inside the flicker bank's band (which starts at tau0).
         let ms = [10, 20, 40, 100];
@@ -149,9 +161,17 @@ mod tests {
                     + terms.n.powi(2) / tau
                     + 2.0 * 2f64.ln() / PI * terms.b.powi(2)
                     + terms.k.powi(2) * tau / 3.0;
-                let tolerance = if terms.k > 0.0 || terms.b > 0.0 { 0.15 } else { 0.05 };
+                let tolerance = if terms.k > 0.0 || terms.b > 0.0 {
+                    0.15
+                } else {
+                    0.05
+                };
                 let rel = d / avar.sqrt() - 1.0;
-                assert!(rel.abs() < tolerance, "case {i} tau {tau}: {d} vs {} ({rel:+.3})", avar.sqrt());
+                assert!(
+                    rel.abs() < tolerance,
+                    "case {i} tau {tau}: {d} vs {} ({rel:+.3})",
+                    avar.sqrt()
+                );
             }
         }
     }
@@ -159,7 +179,10 @@ mod tests {
     #[test]
     fn ramp_is_deterministic() {
         let mut rng = ChaCha8Rng::seed_from_u64(1);
-        let terms = NoiseTerms { r: 2.0, ..Default::default() };
+        let terms = NoiseTerms {
+            r: 2.0,
+            ..Default::default()
+        };
         let mut g = AxisNoise::new(terms, 4.0, 1.0, &mut rng);
         assert_eq!(g.take(3, &mut rng), [0.0, 0.5, 1.0]);
     }
