@@ -200,8 +200,9 @@ fn analyze_channel(
         .find(|d| d.deviation.estimator == Estimator::Oadev)
         .cloned()
         .unwrap_or_else(|| curve(Estimator::Oadev));
+    let n_phase = phase.len();
     drop(phase);
-    let (fit, readouts) = fit_noise(&fit_curve, options.confidence);
+    let (fit, readouts) = fit_noise(&fit_curve, n_phase, options.confidence);
     tick();
     let psd = spectrum(&rate, rate_hz, options);
     let psd_terms = psd
@@ -236,16 +237,15 @@ pub fn sensor_kind(quantity: Quantity) -> SensorKind {
 
 fn fit_noise(
     curve: &DeviationResult,
+    n_phase: usize,
     confidence: f64,
 ) -> (Result<fit::NoiseFit, String>, fit::SlopeReadouts) {
     let d = &curve.deviation;
-    let avar: Vec<f64> = d.dev.iter().map(|s| s * s).collect();
     let options = fit::FitOptions {
         confidence,
         ..fit::FitOptions::default()
     };
-    let fitted = fit::fit_allan_with(&d.tau, &avar, &curve.intervals.edf, &options)
-        .map_err(|e| e.to_string());
+    let fitted = fit::fit_deviation(d, n_phase, &options).map_err(|e| e.to_string());
     (fitted, fit::slope_readouts(&d.tau, &d.dev))
 }
 

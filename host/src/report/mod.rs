@@ -44,13 +44,14 @@ pub fn conventions(options: &Options) -> Value {
     })
 }
 
-/// `x` with `digits` significant digits, in plain or scientific notation by magnitude.
+/// `x` with `digits` significant digits: plain from 0.001 up to `digits` integer digits,
+/// scientific otherwise (so no digit is printed that is not significant).
 pub fn sig(x: f64, digits: usize) -> String {
     if x == 0.0 || !x.is_finite() {
         return format!("{x}");
     }
     let exp = x.abs().log10().floor() as i32;
-    if (-3..5).contains(&exp) {
+    if (-3..digits as i32).contains(&exp) {
         let decimals = (digits as i32 - 1 - exp).max(0) as usize;
         format!("{x:.decimals$}")
     } else {
@@ -69,5 +70,7 @@ mod tests {
         assert_eq!(sig(1.23456e-6, 3), "1.23e-6");
         assert_eq!(sig(98765.0, 3), "9.88e4");
         assert_eq!(sig(0.0, 3), "0");
+        assert_eq!(sig(1234.0, 3), "1.23e3");
+        assert_eq!(sig(-0.5, 2), "-0.50");
     }
 }
