@@ -302,38 +302,37 @@ const FILES: &[(&str, Estimator, Set, f64)] = &[
     ),
 ];
 
-/// Rows of the OCXO octave files we do not reproduce to 1e-4, with the value we compute (the
-/// file's value in the comment). All are on the normalised-data runs (see
-/// `Set::OcxoNormalised`); the matching exact-data `*_alltau` files agree with us to 1e-4.
-const UNEXPLAINED: &[(&str, usize, f64)] = &[
-    // Stable32 9.2304e-12 and 9.1993e-12 (+1.1e-4, +1.5e-4), 8 and 7 terms; our value is
-    // the same on the exact and on the normalised data.
-    ("ocxo/adev_octave.txt", 2048, 9.231_44e-12),
-    ("ocxo/hdev_octave.txt", 2048, 9.200_68e-12),
-    // Stable32 4.2610e-11 (+1.1e-4): rounding noise of the normalised phase, which our
+/// Rows of the OCXO octave files we do not reproduce to 1e-4, with the tolerance to which we
+/// do agree with Stable32. All are on the normalised-data runs (see `Set::OcxoNormalised`);
+/// the matching exact-data `*_alltau` files agree with us to 1e-4 at every AF.
+const LOOSER: &[(&str, usize, f64)] = &[
+    // Stable32 9.2304e-12 and 9.1993e-12: we are +1.1e-4 and +1.5e-4 (8 and 7 terms); our
+    // value is the same on the exact and on the normalised data.
+    ("ocxo/adev_octave.txt", 2048, 2e-4),
+    ("ocxo/hdev_octave.txt", 2048, 2e-4),
+    // Stable32 4.2610e-11, we are +1.1e-4: rounding noise of the normalised phase, which our
     // emulation reproduces only approximately.
-    ("ocxo/ohdev_octave.txt", 2, 4.261_47e-11),
-    // Stable32 6.6299e-12 ... 6.4162e-12: Stable32's totdev on the normalised data departs
-    // from ours by -2.9e-4 at AF 16 growing to -1.2e-2 at AF 1024 (AF 2048..8192 agree
-    // again); on the exact data (stable32_totdev_alltau.txt) every AF agrees to 1e-4.
-    ("ocxo/totdev_octave.txt", 16, 6.627_95e-12),
-    ("ocxo/totdev_octave.txt", 32, 6.769_01e-12),
-    ("ocxo/totdev_octave.txt", 64, 6.380_52e-12),
-    ("ocxo/totdev_octave.txt", 128, 5.645_80e-12),
-    ("ocxo/totdev_octave.txt", 256, 5.265_49e-12),
-    ("ocxo/totdev_octave.txt", 512, 5.135_68e-12),
-    ("ocxo/totdev_octave.txt", 1024, 6.336_64e-12),
+    ("ocxo/ohdev_octave.txt", 2, 2e-4),
+    // Stable32's totdev on the normalised data departs from ours by -2.9e-4 at AF 16 growing
+    // to -1.2e-2 at AF 1024 (AF 2048..8192 agree again); on the exact data
+    // (stable32_totdev_alltau.txt) every AF agrees to 1e-4.
+    ("ocxo/totdev_octave.txt", 16, 1e-3),
+    ("ocxo/totdev_octave.txt", 32, 2e-3),
+    ("ocxo/totdev_octave.txt", 64, 5e-3),
+    ("ocxo/totdev_octave.txt", 128, 1e-2),
+    ("ocxo/totdev_octave.txt", 256, 1.5e-2),
+    ("ocxo/totdev_octave.txt", 512, 1.5e-2),
+    ("ocxo/totdev_octave.txt", 1024, 1.5e-2),
 ];
 
-/// Intervals we do not reproduce to 1e-3 (4 of 159), pinned at our EDF. All have an EDF near
-/// 300 and miss by 1e-3 to 1.7e-3 on one side or both; other rows with larger and smaller
-/// EDF agree, so Stable32 probably switches to an approximate chi-squared quantile there.
-/// Not resolved.
-const UNEXPLAINED_CI: &[(&str, usize, f64)] = &[
-    ("phasedat/phase_dat_oadev_octave.txt", 4, 306.0916),
-    ("pink_frequency/s32_oadev_octave.txt", 32, 288.1521),
-    ("ocxo/ohdev_octave.txt", 64, 299.9256),
-    ("ocxo/totdev_octave.txt", 64, 290.0180),
+/// Intervals we reproduce to 2e-3 but not 1e-3 (4 of 159). All have an EDF near 300 and
+/// miss by 1e-3 to 1.7e-3 on one side or both; other rows with larger and smaller EDF agree,
+/// so Stable32 probably switches to an approximate chi-squared quantile there. Not resolved.
+const LOOSER_CI: &[(&str, usize)] = &[
+    ("phasedat/phase_dat_oadev_octave.txt", 4),
+    ("pink_frequency/s32_oadev_octave.txt", 32),
+    ("ocxo/ohdev_octave.txt", 64),
+    ("ocxo/totdev_octave.txt", 64),
 ];
 
 fn rel(a: f64, b: f64) -> f64 {
@@ -354,17 +353,11 @@ fn deviations_match_stable32() {
             rows_checked += 1;
             assert_eq!(d.n[k], r.n, "{file} AF {}: number of terms", r.m);
             assert!(rel(d.tau[k], r.tau) <= 1e-9, "{file} AF {}: tau", r.m);
-            if let Some(&(_, _, want)) = UNEXPLAINED.iter().find(|u| (u.0, u.1) == (file, r.m)) {
-                // Pinned as they are: a change either way shows up.
-                assert!(
-                    rel(d.dev[k], want) < 1e-5,
-                    "{file} AF {}: {:e}",
-                    r.m,
-                    d.dev[k]
-                );
-                continue;
-            }
-            if d.n[k] != r.n || rel(d.tau[k], r.tau) > 1e-9 || rel(d.dev[k], r.sigma) > 1e-4 {
+            let tolerance = LOOSER
+                .iter()
+                .find(|u| (u.0, u.1) == (file, r.m))
+                .map_or(1e-4, |u| u.2);
+            if d.n[k] != r.n || rel(d.tau[k], r.tau) > 1e-9 || rel(d.dev[k], r.sigma) > tolerance {
                 failures.push(format!(
                     "{file} AF {}: n {} vs {}, tau {} vs {}, dev {:.5e} vs {:.4e} ({:+.1e})",
                     r.m,
@@ -400,12 +393,13 @@ fn confidence_intervals_match_stable32() {
             rows_checked += 1;
             // Stable32's own noise type and deviation: this isolates the EDF and the bounds.
             let e = edf(est, alpha, r.m, n_phase);
-            if let Some(&(_, _, want)) = UNEXPLAINED_CI.iter().find(|u| (u.0, u.1) == (file, r.m)) {
-                assert!(rel(e, want) < 1e-6, "{file} AF {}: edf {e}", r.m);
-                continue;
-            }
+            let tolerance = if LOOSER_CI.contains(&(file, r.m)) {
+                2e-3
+            } else {
+                1e-3
+            };
             let (lo, hi) = chi2_bounds(r.sigma, e, CONFIDENCE);
-            if rel(lo, lo_want) > 1e-3 || rel(hi, hi_want) > 1e-3 {
+            if rel(lo, lo_want) > tolerance || rel(hi, hi_want) > tolerance {
                 failures.push(format!(
                     "{file} AF {} alpha {alpha}: edf {e:.4}, lo {lo:.4e} vs {lo_want:.4e} \
                      ({:+.1e}), hi {hi:.4e} vs {hi_want:.4e} ({:+.1e})",

@@ -26,7 +26,7 @@ pub enum Command {
     /// A tour of what works today, on generated data: settings, framing, loss accounting
     Demo(demo::DemoArgs),
     /// Allan deviations with confidence intervals, PSD and IEEE-952 noise terms of a record
-    Analyze(analyze::AnalyzeArgs),
+    Analyze(Box<analyze::AnalyzeArgs>),
     /// Time the analysis engine against allantools on the same generated data
     Bench(bench::BenchArgs),
 }

@@ -4,6 +4,7 @@
 //! log-binned, with the PSD read-outs' slope lines dashed).
 
 use super::plot::{Figure, Line, Panel};
+use crate::analysis::fit::PsdReadout;
 use crate::analysis::pipeline::ChannelResult;
 use crate::analysis::units::SensorKind;
 use std::f64::consts::PI;
@@ -110,10 +111,8 @@ fn psd_lines(r: &ChannelResult, color: usize) -> Vec<Line> {
     };
     // One-sided levels of IEEE 952 Table C.1's two-sided PSDs: 2 N^2, 2 B^2/(2 pi f),
     // 2 K^2/(2 pi f)^2.
-    let shapes: [(
-        Option<&crate::analysis::fit::PsdReadout>,
-        fn(f64, f64) -> f64,
-    ); 3] = [
+    type Level = fn(f64, f64) -> f64;
+    let shapes: [(Option<&PsdReadout>, Level); 3] = [
         (terms.n.as_ref(), |v, _| 2.0 * v * v),
         (terms.b.as_ref(), |v, f| 2.0 * v * v / (2.0 * PI * f)),
         (terms.k.as_ref(), |v, f| {

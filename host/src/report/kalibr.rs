@@ -88,7 +88,7 @@ pub fn yaml(record: &Record, results: &[ChannelResult]) -> Result<String, String
     let numbers = numbers(results)?;
     let (k, noise) = (&numbers, &numbers.noise);
     let bound = |name: &str| {
-        if k.upper_bounds.iter().any(|b| *b == name) {
+        if k.upper_bounds.contains(&name) {
             "  (upper bound: no random walk resolved in this record)"
         } else {
             ""
