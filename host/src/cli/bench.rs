@@ -58,7 +58,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let ours = time_oadev(&y, &factors);
     println!("   imunoise:   {:>8.3} s (best of 3)", ours.seconds);
     match peak_over_input(&y, &factors) {
-        Some(ratio) => println!("   imunoise peak memory: {ratio:.2} x the input (VmHWM)"),
+        Some(ratio) => {
+            println!("   imunoise peak memory: {ratio:.2} x the input, the input included (VmHWM)")
+        }
         None => println!("   imunoise peak memory: not measurable on this OS"),
     }
     if args.no_reference {
@@ -123,8 +125,9 @@ fn peak_over_input(y: &[f64], factors: &[usize]) -> Option<f64> {
     let d = allan::deviation(Estimator::Oadev, &phase, 1.0, factors);
     drop((phase, d));
     let peak = rss("VmHWM:")?;
-    // What the analysis holds beyond the process's baseline (code, the benchmark's own copy
-    // of the data excluded), relative to the input it was given.
+    // What the engine holds at its peak, its own input included (the process's baseline and
+    // the benchmark's reference copy of the data excluded), relative to the input's size: the
+    // rate becomes phase in place, so this is ~1.
     Some((peak - baseline - input_bytes) / input_bytes)
 }
 
