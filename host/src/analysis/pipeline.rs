@@ -9,6 +9,7 @@ use super::units::SensorKind;
 use super::{DataType, Deviation, Estimator, allan, ci, fit, phase_from_rate, taus};
 use crate::record::{Channel, Quantity, Record};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use serde::Serialize;
 
 /// What to compute.
@@ -130,7 +131,9 @@ pub fn analyze(
 
 /// Steps [`analyze`] ticks per channel.
 pub fn steps_per_channel(options: &Options) -> usize {
-    options.estimators.len() + 2
+    // The fit's oadev curve is one more step when it is not among the reported estimators.
+    let fit_curve = usize::from(!options.estimators.contains(&Estimator::Oadev));
+    options.estimators.len() + fit_curve + 2
 }
 
 fn validate(c: &Channel) -> Result<(), AnalysisError> {
@@ -167,14 +170,14 @@ fn analyze_channel(
 ) -> ChannelResult {
     let tau0 = 1.0 / rate_hz;
     // Phase for the Allan family; rate for the PSD.
-    let (phase, rate): (Vec<f64>, std::borrow::Cow<[f64]>) = match options.data_type {
+    let (phase, rate): (Vec<f64>, Cow<[f64]>) = match options.data_type {
         DataType::Rate => (
             phase_from_rate(&channel.values, tau0),
-            std::borrow::Cow::Borrowed(&channel.values[..]),
+            Cow::Borrowed(&channel.values[..]),
         ),
         DataType::Phase => (
             channel.values.clone(),
-            std::borrow::Cow::Owned(
+            Cow::Owned(
                 channel
                     .values
                     .windows(2)

@@ -103,7 +103,10 @@ pub fn run(args: &AnalyzeArgs) -> Result<()> {
         counts,
         scales: args.scale.clone(),
     };
-    let record = input::load(&args.input, &load)?;
+    let reading = report::progress::spinner(format!("reading {}", args.input.display()));
+    let record = input::load(&args.input, &load);
+    reading.finish_and_clear();
+    let record = record?;
     let record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
     let options = options(args)?;
     let steps = record.channels.len() * pipeline::steps_per_channel(&options);
