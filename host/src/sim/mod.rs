@@ -3,6 +3,7 @@
 //! axes ([`imu`]), the model file ([`model_file`]) and the simulated I2C device ([`device`]).
 
 pub mod chain;
+pub mod device;
 pub mod dlpf;
 pub mod imu;
 pub mod noise;
