@@ -6,5 +6,6 @@ pub mod chain;
 pub mod device;
 pub mod dlpf;
 pub mod imu;
+pub mod model_file;
 pub mod noise;
 pub mod temperature;
