@@ -283,20 +283,24 @@ mod tests {
     /// delay match the datasheet (0.1 % and 1 us), unity DC gain, mild peaking at most.
     #[test]
     fn every_row_matches_the_datasheet_bandwidth_and_delay() {
-        println!("cfg sensor  rate  target BW / delay      measured BW / delay    k  peak dB");
+        println!(
+            "| cfg | sensor | rate Hz | datasheet BW / delay | measured BW / delay | k | T ms | a ms | peak dB |"
+        );
         for r in &DLPF_TABLE {
             for sensor in [Sensor::Gyro, Sensor::Accel] {
                 let d = DlpfDesign::for_setting(r.cfg, sensor);
                 let m = measure(&d, 2_000);
                 let bw = d.bandwidth_hz.unwrap();
                 println!(
-                    "{}   {sensor:?}  {:5}  {bw:6.1} Hz / {:5.2} ms   {:8.3} Hz / {:6.3} ms   {}  {:+.2}",
+                    "| {} | {sensor:?} | {} | {bw} Hz / {} ms | {:.3} Hz / {:.3} ms | {} | {:.3} | {:.3} | {:+.2} |",
                     r.cfg.bits(),
                     d.rate_hz,
                     d.delay_s * 1e3,
                     m.bandwidth_hz,
                     m.delay_s * 1e3,
                     d.pure_delay,
+                    d.pole_s * 1e3,
+                    d.lead_s * 1e3,
                     20.0 * m.peak_gain.log10()
                 );
                 assert!(
