@@ -4,6 +4,7 @@ mod analyze;
 mod bench;
 mod demo;
 pub(crate) mod settings;
+mod simulate;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -29,6 +30,8 @@ pub enum Command {
     Analyze(Box<analyze::AnalyzeArgs>),
     /// Time the analysis engine against allantools on the same generated data
     Bench(bench::BenchArgs),
+    /// Simulate an MPU-6050 at rest through its signal chain and write the samples (CSV)
+    Simulate(simulate::SimulateArgs),
 }
 
 /// Run the CLI: errors go to stderr with their causes, and the exit code is 1.
@@ -39,6 +42,7 @@ pub fn main() -> ExitCode {
         Command::Demo(args) => demo::run(&args),
         Command::Analyze(args) => analyze::run(&args),
         Command::Bench(args) => bench::run(&args),
+        Command::Simulate(args) => simulate::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

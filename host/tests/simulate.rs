@@ -1,0 +1,115 @@
+//! `imunoise simulate` as a user runs it: the CSV's header, row count and quantization.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn example_model() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples/mpu6050.toml")
+}
+
+fn out_path(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    dir.join(name)
+}
+
+#[test]
+fn csv_has_the_header_rows_and_quantized_values() {
+    let out = out_path("simulate_200_42.csv");
+    let status = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .args(["simulate", "--model"])
+        .arg(example_model())
+        .args([
+            "--rate",
+            "200",
+            "--bandwidth",
+            "42",
+            "--duration",
+            "90s",
+            "--seed",
+            "1",
+        ])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("time,gx,gy,gz,ax,ay,az,temp"));
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 200 * 90);
+    // LSB sizes at +/-250 deg/s and +/-2 g; TEMP_OUT counts are 1/340 degC from 36.53.
+    let gyro_lsb = std::f64::consts::PI / 180.0 / 131.0;
+    let accel_lsb = 9.806_65 / 16384.0;
+    let is_count = |v: f64, lsb: f64| ((v / lsb) - (v / lsb).round()).abs() < 1e-6;
+    for (i, r) in rows.iter().enumerate() {
+        assert_eq!(r.len(), 8);
+        assert!((r[0] - i as f64 / 200.0).abs() < 1e-9, "time of row {i}");
+        assert!(
+            r[1..4].iter().all(|&v| is_count(v, gyro_lsb)),
+            "row {i}: {r:?}"
+        );
+        assert!(
+            r[4..7].iter().all(|&v| is_count(v, accel_lsb)),
+            "row {i}: {r:?}"
+        );
+        assert!(is_count(r[7] - 36.53, 1.0 / 340.0), "row {i}: {r:?}");
+    }
+    // At rest, flat: gravity on z, the temperature near 25 degC.
+    let mean = |c: usize| rows.iter().map(|r| r[c]).sum::<f64>() / rows.len() as f64;
+    assert!((mean(6) - 9.8).abs() < 0.5, "{}", mean(6));
+    assert!((mean(7) - 25.5).abs() < 1.0, "{}", mean(7));
+    // Reproducible.
+    let again = out_path("simulate_200_42_again.csv");
+    let status = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .args(["simulate", "--model"])
+        .arg(example_model())
+        .args([
+            "--rate",
+            "200",
+            "--bandwidth",
+            "42",
+            "--duration",
+            "1.5m",
+            "--out",
+        ])
+        .arg(&again)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    assert_eq!(std::fs::read_to_string(&again).unwrap(), text);
+}
+
+#[test]
+fn errors_name_what_is_wrong() {
+    // (model, rate, duration, format)
+    let run_with = |model: PathBuf, rate: &str, duration: &str, format: &str| {
+        let out = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+            .args(["simulate", "--model"])
+            .arg(model)
+            .args(["--rate", rate, "--bandwidth", "42", "--duration", duration])
+            .args(["--format", format, "--out"])
+            .arg(out_path("simulate_err.csv"))
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let run = |rate, duration, format| run_with(example_model(), rate, duration, format);
+    assert!(run("200", "1s", "capture").contains("not available yet"));
+    assert!(run("200", "2d", "csv").contains("--duration"));
+    assert!(run("150", "1s", "csv").contains("not reachable"));
+    let bad = out_path("bad_model.toml");
+    std::fs::write(&bad, "[gyro]\nnoise_densty = 1\n").unwrap();
+    let e = run_with(bad, "200", "1s", "csv");
+    assert!(
+        e.contains("bad_model.toml") && e.contains("noise_densty"),
+        "{e}"
+    );
+}
