@@ -9,8 +9,8 @@ use super::units::SensorKind;
 use super::{DataType, Deviation, Estimator, allan, ci, fit, phase_from_rate, taus};
 use crate::record::{Channel, Quantity, Record};
 use rayon::prelude::*;
-use std::borrow::Cow;
 use serde::Serialize;
+use std::borrow::Cow;
 
 /// What to compute.
 #[derive(Debug, Clone)]
