@@ -331,3 +331,74 @@ fn bad_inputs_get_clear_errors() {
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("unknown estimator 'avar'"));
 }
+
+/// A capture with a gap is refused with the count, and analysed over its longest gap-free
+/// run on request, with every loss reported.
+#[test]
+fn gapped_captures_are_refused_or_cut_to_their_longest_run() {
+    use imunoise::capture::CaptureWriter;
+    use protocol::{
+        DeviceInfo, DeviceMessage, FirmwareVersion, PROTOCOL_VERSION, RawSample, SampleBatch,
+    };
+    let settings = protocol::SensorSettings::for_rate_and_bandwidth(100.0, 42.0).unwrap();
+    let mut w = CaptureWriter::new(Vec::new());
+    w.message(&DeviceMessage::Info(DeviceInfo {
+        protocol_version: PROTOCOL_VERSION,
+        firmware_version: FirmwareVersion {
+            major: 0,
+            minor: 1,
+            patch: 0,
+        },
+        board_id: 1,
+        who_am_i: 0x68,
+        settings,
+        streaming: true,
+        max_samples_per_batch: 32,
+    }))
+    .unwrap();
+    let mut s = 5u64;
+    // Indices 0..3200 then, after a 64-sample gap, 3264..3904.
+    for first in (0..3200).step_by(32).chain((3264..3904).step_by(32)) {
+        let samples = (0..32)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                RawSample {
+                    gyro: [(s >> 58) as i16, 0, 0],
+                    accel: [0, 0, 16384],
+                    temp: 0,
+                }
+            })
+            .collect();
+        w.message(&DeviceMessage::Samples(SampleBatch {
+            first_index: first,
+            first_timestamp_us: first * 10_000,
+            samples,
+        }))
+        .unwrap();
+    }
+    let path = scratch("gapped.imucap");
+    std::fs::write(&path, w.into_inner()).unwrap();
+    let path = path.to_str().unwrap();
+    let out = imunoise(&["analyze", path, "--column", "gx"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains("64 samples lost in 1 gap(s) (first at index 3200)"),
+        "{}",
+        stderr(&out)
+    );
+    let out = imunoise(&[
+        "analyze",
+        path,
+        "--column",
+        "gx",
+        "--longest-run",
+        "--json",
+        "-",
+    ]);
+    assert!(stderr(&out).contains("note: capture: 64 samples lost in 1 gap(s); analysing the longest gap-free run, 3200 samples"), "{}", stderr(&out));
+    let doc = json_of(&out);
+    assert_eq!(doc["samples"], 3200);
+    assert_eq!(doc["rate_hz"], 100.0);
+}

@@ -102,7 +102,7 @@ fn errors_name_what_is_wrong() {
         String::from_utf8_lossy(&out.stderr).into_owned()
     };
     let run = |rate, duration, format| run_with(example_model(), rate, duration, format);
-    assert!(run("200", "1s", "capture").contains("not available yet"));
+    assert!(run("200", "1s", "npz").contains("--format npz: unknown format"));
     assert!(run("200", "2d", "csv").contains("--duration"));
     assert!(run("150", "1s", "csv").contains("not reachable"));
     let bad = out_path("bad_model.toml");
@@ -112,4 +112,69 @@ fn errors_name_what_is_wrong() {
         e.contains("bad_model.toml") && e.contains("noise_densty"),
         "{e}"
     );
+}
+
+fn run_ok(args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The same seed written as a capture (the board's framed bytes) and as CSV analyses to the
+/// same numbers: the capture carries the settings, and its counts convert to the CSV's SI
+/// values exactly.
+#[test]
+fn a_capture_analyses_like_the_csv_of_the_same_run() {
+    let model = example_model();
+    let model = model.to_str().unwrap();
+    let (cap, csv) = (out_path("sim_50_42.imucap"), out_path("sim_50_42.csv"));
+    for (path, format) in [(&cap, "capture"), (&csv, "csv")] {
+        run_ok(&[
+            "simulate",
+            "--model",
+            model,
+            "--rate",
+            "50",
+            "--bandwidth",
+            "42",
+            "--duration",
+            "600s",
+            "--seed",
+            "3",
+            "--format",
+            format,
+            "--out",
+            path.to_str().unwrap(),
+        ]);
+    }
+    let bytes = std::fs::read(&cap).unwrap();
+    assert_eq!(bytes[0], 0x00, "a capture starts with a frame delimiter");
+    let json = |path: &PathBuf| -> serde_json::Value {
+        let text = run_ok(&["analyze", path.to_str().unwrap(), "--json", "-"]);
+        serde_json::from_str(&text).unwrap()
+    };
+    let (a, b) = (json(&cap), json(&csv));
+    assert_eq!(a["rate_hz"], 50.0);
+    assert_eq!(a["samples"], 30_000);
+    for ch in 0..7 {
+        let (ca, cb) = (&a["channels"][ch], &b["channels"][ch]);
+        assert_eq!(ca["name"], cb["name"]);
+        let (da, db) = (
+            &ca["deviations"]["oadev"]["dev"],
+            &cb["deviations"]["oadev"]["dev"],
+        );
+        let (da, db) = (da.as_array().unwrap(), db.as_array().unwrap());
+        assert_eq!(da.len(), db.len());
+        for (x, y) in da.iter().zip(db) {
+            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            assert!((x / y - 1.0).abs() < 1e-9, "{}: {x} vs {y}", ca["name"]);
+        }
+    }
 }

@@ -14,7 +14,8 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct AnalyzeArgs {
-    /// A text/CSV table (optional header, `#` comments, optional time column) or a NumPy .npy
+    /// A capture file, a text/CSV table (optional header, `#` comments, optional time column)
+    /// or a NumPy .npy
     pub input: PathBuf,
     /// Sample rate in Hz (needed when the file has no time column and no rate in its header)
     #[arg(long)]
@@ -40,6 +41,9 @@ pub struct AnalyzeArgs {
     /// Multiply a channel by a factor, e.g. gx=0.001 (repeatable)
     #[arg(long, value_name = "NAME=FACTOR", value_parser = parse_scale)]
     pub scale: Vec<(String, f64)>,
+    /// A capture with gaps: analyse its longest gap-free run (the losses are reported)
+    #[arg(long)]
+    pub longest_run: bool,
     /// Estimator (repeatable): oadev adev mdev hdev ohdev tdev totdev; default oadev
     #[arg(long = "estimator", value_name = "NAME")]
     pub estimators: Vec<Estimator>,
@@ -102,11 +106,16 @@ pub fn run(args: &AnalyzeArgs) -> Result<()> {
         names: args.names.clone(),
         counts,
         scales: args.scale.clone(),
+        longest_run: args.longest_run,
     };
     let reading = report::progress::spinner(format!("reading {}", args.input.display()));
-    let record = input::load(&args.input, &load);
+    let loaded = input::load(&args.input, &load);
     reading.finish_and_clear();
-    let record = record?;
+    let loaded = loaded?;
+    for note in &loaded.notes {
+        eprintln!("note: {note}");
+    }
+    let record = loaded.record;
     let record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
     let options = options(args)?;
     let steps = record.channels.len() * pipeline::steps_per_channel(&options);

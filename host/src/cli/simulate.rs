@@ -1,11 +1,16 @@
 //! `imunoise simulate`: a simulated MPU-6050 at rest, through the chip's signal chain
 //! (DLPF, decimation without anti-aliasing, LSB quantization), written as CSV in SI units.
 
+use crate::capture::CaptureWriter;
 use crate::cli::settings::{accel_range, gyro_range};
 use crate::report;
 use crate::sim::{imu::Imu, model_file};
 use anyhow::{Context, Result, bail};
+use indicatif::ProgressBar;
 use protocol::mpu6050::SensorSettings;
+use protocol::{
+    DeviceInfo, DeviceMessage, MAX_SAMPLES_PER_BATCH, PROTOCOL_VERSION, SampleBatch, Status,
+};
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
@@ -29,7 +34,8 @@ pub struct SimulateArgs {
     /// Output file
     #[arg(long)]
     pub out: PathBuf,
-    /// Output format: csv (time,gx,gy,gz,ax,ay,az,temp in s, rad/s, m/s^2, degC); capture is not available yet
+    /// Output format: csv (time,gx,gy,gz,ax,ay,az,temp in s, rad/s, m/s^2, degC) or capture
+    /// (the framed bytes a board would send: Info, sample batches, Status)
     #[arg(long, default_value = "csv")]
     pub format: String,
     /// Gyro full scale in deg/s: 250, 500, 1000 or 2000
@@ -56,13 +62,11 @@ pub fn parse_duration(text: &str) -> Result<f64, String> {
 }
 
 pub fn run(args: &SimulateArgs) -> Result<()> {
-    match args.format.as_str() {
-        "csv" => {}
-        "capture" => bail!(
-            "--format capture: the capture file format is not available yet (it comes with the session store); use --format csv"
-        ),
-        other => bail!("--format {other}: unknown format; available: csv"),
-    }
+    let format = match args.format.as_str() {
+        "csv" => Format::Csv,
+        "capture" => Format::Capture,
+        other => bail!("--format {other}: unknown format; available: csv, capture"),
+    };
     let seconds = parse_duration(&args.duration).map_err(|e| anyhow::anyhow!("--duration: {e}"))?;
     let settings = SensorSettings::for_rate_and_bandwidth(args.rate, args.bandwidth)
         .map_err(|e| anyhow::anyhow!("--rate {} --bandwidth {}: {e}", args.rate, args.bandwidth))?
@@ -77,17 +81,10 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     let mut imu = Imu::new(&model, settings, args.seed, seconds);
     let bar = report::progress::bar(rows, "simulating");
     let write_err = || format!("--out {}: write failed", args.out.display());
-    writeln!(w, "time,gx,gy,gz,ax,ay,az,temp").with_context(write_err)?;
-    for i in 0..rows {
-        let s = imu.next_si();
-        writeln!(
-            w,
-            "{},{},{},{},{},{},{},{}",
-            s.time, s.gyro[0], s.gyro[1], s.gyro[2], s.accel[0], s.accel[1], s.accel[2], s.temp
-        )
-        .with_context(write_err)?;
-        if i % 65_536 == 0 {
-            bar.set_position(i);
+    match format {
+        Format::Csv => write_csv(&mut w, &mut imu, rows, &bar).with_context(write_err)?,
+        Format::Capture => {
+            write_capture(&mut w, &mut imu, rows, args.seed, &bar).with_context(write_err)?
         }
     }
     w.flush().with_context(write_err)?;
@@ -99,6 +96,79 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     );
     Ok(())
 }
+
+enum Format {
+    Csv,
+    Capture,
+}
+
+fn write_csv(
+    w: &mut impl Write,
+    imu: &mut Imu,
+    rows: u64,
+    bar: &ProgressBar,
+) -> std::io::Result<()> {
+    writeln!(w, "time,gx,gy,gz,ax,ay,az,temp")?;
+    for i in 0..rows {
+        let s = imu.next_si();
+        writeln!(
+            w,
+            "{},{},{},{},{},{},{},{}",
+            s.time, s.gyro[0], s.gyro[1], s.gyro[2], s.accel[0], s.accel[1], s.accel[2], s.temp
+        )?;
+        if i % 65_536 == 0 {
+            bar.set_position(i);
+        }
+    }
+    Ok(())
+}
+
+/// The bytes a board would send for this run (crate::capture): its Info with the settings,
+/// the samples in full batches with their indices and timestamps, and a final Status.
+fn write_capture(
+    w: &mut impl Write,
+    imu: &mut Imu,
+    rows: u64,
+    seed: u64,
+    bar: &ProgressBar,
+) -> std::io::Result<()> {
+    let settings = *imu.settings();
+    let period_us = 1e6 / imu.output_rate_hz();
+    let mut out = CaptureWriter::new(w);
+    out.message(&DeviceMessage::Info(DeviceInfo {
+        protocol_version: PROTOCOL_VERSION,
+        firmware_version: firmware::FIRMWARE_VERSION,
+        // "SIM" and the seed: a simulated board is never mistaken for a real one.
+        board_id: SIMULATED_BOARD_ID | seed,
+        who_am_i: protocol::mpu6050::WHO_AM_I_VALUE,
+        settings,
+        streaming: true,
+        max_samples_per_batch: MAX_SAMPLES_PER_BATCH as u16,
+    }))?;
+    let mut index = 0u64;
+    while index < rows {
+        let len = (rows - index).min(MAX_SAMPLES_PER_BATCH as u64);
+        let samples = (0..len).map(|_| imu.next_raw()).collect();
+        out.message(&DeviceMessage::Samples(SampleBatch {
+            first_index: index,
+            first_timestamp_us: (index as f64 * period_us).round() as u64,
+            samples,
+        }))?;
+        index += len;
+        if index % (1 << 16) < len {
+            bar.set_position(index);
+        }
+    }
+    out.message(&DeviceMessage::Status(Status {
+        streaming: false,
+        uptime_us: (rows as f64 * period_us).round() as u64,
+        samples_acquired: rows,
+        ..Status::default()
+    }))
+}
+
+/// Board ids of simulated boards: "SIM" in the top bytes, the seed below.
+pub const SIMULATED_BOARD_ID: u64 = 0x5349_4D00_0000_0000;
 
 #[cfg(test)]
 mod tests {

@@ -8,6 +8,7 @@ mod text;
 
 pub use npy::write_f64 as write_npy;
 
+use crate::capture::{self, Capture};
 use crate::record::{Channel, Quantity, Record};
 use std::path::{Path, PathBuf};
 
@@ -25,6 +26,16 @@ pub struct LoadOptions {
     pub counts: Option<CountScale>,
     /// Multiply the named channel by a factor (after any counts conversion).
     pub scales: Vec<(String, f64)>,
+    /// A capture with gaps: analyse its longest gap-free run instead of refusing.
+    pub longest_run: bool,
+}
+
+/// A record and what the reader has to say about where it came from (losses in a capture,
+/// the run chosen): shown to the user, never dropped.
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    pub record: Record,
+    pub notes: Vec<String>,
 }
 
 /// Sensitivities for raw counts; see `protocol::mpu6050` for where they come from.
@@ -83,8 +94,9 @@ struct RateSource {
     from: String,
 }
 
-/// Read a record from `path`: `.npy` as a NumPy array, anything else as a text table.
-pub fn load(path: &Path, options: &LoadOptions) -> Result<Record, InputError> {
+/// Read a record from `path`: a capture (the board's framed bytes, recognised by its leading
+/// frame delimiter), `.npy` as a NumPy array, anything else as a text table.
+pub fn load(path: &Path, options: &LoadOptions) -> Result<Loaded, InputError> {
     let bytes = std::fs::read(path).map_err(|source| InputError::Io {
         path: path.to_owned(),
         source,
@@ -92,12 +104,74 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Record, InputError> {
     let is_npy = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
-    let table = if is_npy {
+    let mut notes = Vec::new();
+    let table = if capture::looks_like_capture(&bytes) {
+        capture_table(path, &bytes, options, &mut notes)?
+    } else if is_npy {
         npy::parse(path, &bytes)?
     } else {
         text::parse(path, &bytes)?
     };
-    build_record(path, table, options)
+    let record = build_record(path, table, options)?;
+    Ok(Loaded { record, notes })
+}
+
+/// A capture's samples in SI (with the board's own settings), and notes on every loss.
+fn capture_table(
+    path: &Path,
+    bytes: &[u8],
+    options: &LoadOptions,
+    notes: &mut Vec<String>,
+) -> Result<Table, InputError> {
+    if options.counts.is_some() {
+        return Err(InputError::file(
+            path,
+            "--counts: a capture is converted with the board's own settings; drop --counts",
+        ));
+    }
+    let capture = Capture::decode(bytes).map_err(|e| InputError::file(path, e.to_string()))?;
+    let record = capture
+        .to_record(&path.display().to_string(), options.longest_run)
+        .map_err(|e| InputError::file(path, e.to_string()))?;
+    notes.extend(capture_notes(&capture, record.len()));
+    Ok(Table {
+        rate_hz: Some(RateSource {
+            hz: record.rate_hz,
+            from: format!("board's settings ({})", capture.info.settings),
+        }),
+        channels: record
+            .channels
+            .into_iter()
+            .map(|c| (c.name, c.values))
+            .collect(),
+    })
+}
+
+/// What a capture lost, in words: gaps, damaged frames, the board's own loss counters.
+fn capture_notes(capture: &Capture, analysed: usize) -> Vec<String> {
+    let mut notes = Vec::new();
+    let lost = capture.accounting.lost();
+    if lost > 0 {
+        notes.push(format!(
+            "capture: {lost} samples lost in {} gap(s); analysing the longest gap-free run, {analysed} samples",
+            capture.gaps().len()
+        ));
+    }
+    let rejected = capture.decoder.rejected();
+    if rejected > 0 {
+        notes.push(format!(
+            "capture: {rejected} damaged frame(s) rejected on the line"
+        ));
+    }
+    if let Some(s) = &capture.status
+        && (s.samples_lost > 0 || s.samples_dropped > 0 || s.i2c_errors > 0)
+    {
+        notes.push(format!(
+            "board status: {} samples lost to FIFO overflows ({} overflows), {} dropped for USB back-pressure, {} I2C errors",
+            s.samples_lost, s.fifo_overflows, s.samples_dropped, s.i2c_errors
+        ));
+    }
+    notes
 }
 
 fn build_record(path: &Path, table: Table, options: &LoadOptions) -> Result<Record, InputError> {

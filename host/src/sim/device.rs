@@ -271,7 +271,7 @@ impl SimMpu6050 {
         let Some(run) = &mut self.run else { return };
         let raw = run.imu.next_raw();
         run.samples += 1;
-        let bytes = data_bytes(&raw);
+        let bytes = RawSample::to_fifo_bytes(&raw);
         self.regs[usize::from(reg::ACCEL_XOUT_H)..][..14].copy_from_slice(&bytes);
         let enable = self.regs[usize::from(reg::INT_ENABLE)];
         self.regs[usize::from(reg::INT_STATUS)] |= enable & DATA_RDY;
@@ -375,24 +375,6 @@ impl SimMpu6050 {
 }
 
 const FIFO_COUNT_L: u8 = reg::FIFO_COUNT_H + 1;
-
-/// The 14 data-register bytes of a sample, big-endian: accel xyz, temp, gyro xyz.
-pub fn data_bytes(raw: &RawSample) -> [u8; 14] {
-    let words = [
-        raw.accel[0],
-        raw.accel[1],
-        raw.accel[2],
-        raw.temp,
-        raw.gyro[0],
-        raw.gyro[1],
-        raw.gyro[2],
-    ];
-    let mut out = [0u8; 14];
-    for (chunk, w) in out.chunks_exact_mut(2).zip(words) {
-        chunk.copy_from_slice(&w.to_be_bytes());
-    }
-    out
-}
 
 impl ErrorType for SimMpu6050 {
     type Error = SimI2cError;

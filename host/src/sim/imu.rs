@@ -102,13 +102,9 @@ pub struct ImuModel {
     pub temperature: TemperatureModel,
 }
 
-/// One output sample as the chip's registers hold it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct RawSample {
-    pub accel: [i16; 3],
-    pub temp: i16,
-    pub gyro: [i16; 3],
-}
+/// One output sample as the chip's registers hold it (the protocol's type: the FIFO's
+/// order and encoding are defined there).
+pub use protocol::RawSample;
 
 /// One output sample in SI units: rad/s, m/s^2, degC; time in s.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -119,16 +115,16 @@ pub struct SiSample {
     pub temp: f64,
 }
 
-impl RawSample {
+impl SiSample {
     /// Counts to SI with the settings' sensitivities (what a reader of the registers does).
-    pub fn to_si(&self, settings: &SensorSettings, time: f64) -> SiSample {
+    pub fn from_raw(raw: &RawSample, settings: &SensorSettings, time: f64) -> SiSample {
         let g = settings.gyro_range.rad_s_per_lsb();
         let a = settings.accel_range.m_s2_per_lsb();
         SiSample {
             time,
-            gyro: self.gyro.map(|c| f64::from(c) * g),
-            accel: self.accel.map(|c| f64::from(c) * a),
-            temp: protocol::mpu6050::temperature_celsius(self.temp),
+            gyro: raw.gyro.map(|c| f64::from(c) * g),
+            accel: raw.accel.map(|c| f64::from(c) * a),
+            temp: protocol::mpu6050::temperature_celsius(raw.temp),
         }
     }
 }
@@ -234,7 +230,7 @@ impl Imu {
     pub fn next_si(&mut self) -> SiSample {
         let t = self.next_time();
         let raw = self.next_raw();
-        raw.to_si(&self.settings, t)
+        SiSample::from_raw(&raw, &self.settings, t)
     }
 }
 
