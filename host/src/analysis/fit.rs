@@ -89,6 +89,9 @@ pub struct NoiseFit {
     pub reduced_chi2: f64,
     /// Reweighting iterations used.
     pub iterations: usize,
+    /// The shortest tau fitted, s (see [`fit_deviation`]: taus shortened by the sensor's
+    /// low-pass filter are left out).
+    pub tau_min: f64,
 }
 
 impl NoiseFit {
@@ -110,6 +113,9 @@ pub struct FitOptions {
     pub confidence: f64,
     /// Cap on the reweighting iterations. Default 50.
     pub max_iterations: usize,
+    /// Shortest tau [`fit_deviation`] fits, s; `None` finds where the sensor's low-pass
+    /// filter stops shaping the curve ([`low_pass_onset`]).
+    pub tau_min: Option<f64>,
 }
 
 impl Default for FitOptions {
@@ -117,6 +123,7 @@ impl Default for FitOptions {
         FitOptions {
             confidence: 0.683,
             max_iterations: 50,
+            tau_min: None,
         }
     }
 }
@@ -219,6 +226,7 @@ pub fn fit_allan_with(
         effective_points: (tau.len() * tau.len()) as f64 / total_corr,
         reduced_chi2: residual / dof,
         iterations,
+        tau_min: tau.first().copied().unwrap_or(f64::NAN),
     })
 }
 
@@ -239,25 +247,54 @@ pub fn fit_deviation(
     n_phase: usize,
     opts: &FitOptions,
 ) -> Result<NoiseFit, FitError> {
-    let avar: Vec<f64> = dev.dev.iter().map(|s| s * s).collect();
-    let edf_for = |alpha: &[i32]| -> Vec<f64> {
-        dev.m
+    let first = match opts.tau_min {
+        Some(t) => dev
+            .tau
             .iter()
+            .position(|&x| x >= t * (1.0 - 1e-9))
+            .unwrap_or(dev.tau.len()),
+        None => low_pass_onset(&dev.tau, &dev.dev),
+    };
+    let (tau, m) = (&dev.tau[first..], &dev.m[first..]);
+    let avar: Vec<f64> = dev.dev[first..].iter().map(|s| s * s).collect();
+    let edf_for = |alpha: &[i32]| -> Vec<f64> {
+        m.iter()
             .zip(alpha)
             .map(|(&m, &a)| ci::edf(dev.estimator, a, m, n_phase))
             .collect()
     };
-    let mut alpha = vec![0; dev.m.len()];
-    let mut fit = fit_allan_with(&dev.tau, &avar, &edf_for(&alpha), opts)?;
+    let mut alpha = vec![0; m.len()];
+    let mut fit = fit_allan_with(tau, &avar, &edf_for(&alpha), opts)?;
     for _ in 0..5 {
-        let next: Vec<i32> = dev.tau.iter().map(|&t| dominant_alpha(&fit, t)).collect();
+        let next: Vec<i32> = tau.iter().map(|&t| dominant_alpha(&fit, t)).collect();
         if next == alpha {
             break;
         }
         alpha = next;
-        fit = fit_allan_with(&dev.tau, &avar, &edf_for(&alpha), opts)?;
+        fit = fit_allan_with(tau, &avar, &edf_for(&alpha), opts)?;
     }
     Ok(fit)
+}
+
+/// Steepest log-log slope of the Allan deviation that still counts as "flatter than white
+/// noise" at the short end.
+const LOW_PASS_SLOPE: f64 = -0.48;
+
+/// Index of the first tau not shaped by the sensor's low-pass filter. A digital low-pass
+/// (the MPU-6050's DLPF at a bandwidth below half the output rate) removes white noise
+/// between its bandwidth and the Nyquist frequency, so at the shortest taus the Allan
+/// deviation lies below N/sqrt(tau) and approaches it only slowly (about as 1 - c/(tau BW)):
+/// its log-log slope is flatter than -1/2. No IEEE-952 term has that shape at short taus
+/// (quantization is steeper, -1), so fitting it would drag N down — by 28 % at 200 Hz with a
+/// 42 Hz bandwidth. The fit therefore starts at the first tau from which the slope over the
+/// next two steps is -0.48 or steeper. If the curve never gets that steep within its first
+/// half (no white noise to speak of: flicker or random walk dominate), every tau is kept.
+pub fn low_pass_onset(tau: &[f64], adev: &[f64]) -> usize {
+    let slope = |i: usize, j: usize| (adev[j] / adev[i]).ln() / (tau[j] / tau[i]).ln();
+    let search = tau.len() / 2;
+    (0..search)
+        .find(|&i| i + 2 < tau.len() && slope(i, i + 2) <= LOW_PASS_SLOPE)
+        .unwrap_or(0)
 }
 
 /// The power-law exponent alpha of the term that dominates the model's AVAR at `tau`.

@@ -27,6 +27,9 @@ pub struct Options {
     pub psd_window: Window,
     /// Points per decade of the log-binned PSD used for plots, JSON and the PSD fit.
     pub psd_bins_per_decade: usize,
+    /// Shortest tau of the noise fit, s; `None` leaves out the taus the sensor's low-pass
+    /// filter shaped ([`fit::low_pass_onset`]).
+    pub fit_tau_min: Option<f64>,
 }
 
 impl Default for Options {
@@ -39,6 +42,7 @@ impl Default for Options {
             psd_segment: None,
             psd_window: Window::Hann,
             psd_bins_per_decade: 20,
+            fit_tau_min: None,
         }
     }
 }
@@ -205,7 +209,7 @@ fn analyze_channel(
         .unwrap_or_else(|| curve(Estimator::Oadev));
     let n_phase = phase.len();
     drop(phase);
-    let (fit, readouts) = fit_noise(&fit_curve, n_phase, options.confidence);
+    let (fit, readouts) = fit_noise(&fit_curve, n_phase, options);
     tick();
     let psd = spectrum(&rate, rate_hz, options);
     let psd_terms = psd
@@ -241,14 +245,15 @@ pub fn sensor_kind(quantity: Quantity) -> SensorKind {
 fn fit_noise(
     curve: &DeviationResult,
     n_phase: usize,
-    confidence: f64,
+    options: &Options,
 ) -> (Result<fit::NoiseFit, String>, fit::SlopeReadouts) {
     let d = &curve.deviation;
-    let options = fit::FitOptions {
-        confidence,
+    let fit_options = fit::FitOptions {
+        confidence: options.confidence,
+        tau_min: options.fit_tau_min,
         ..fit::FitOptions::default()
     };
-    let fitted = fit::fit_deviation(d, n_phase, &options).map_err(|e| e.to_string());
+    let fitted = fit::fit_deviation(d, n_phase, &fit_options).map_err(|e| e.to_string());
     (fitted, fit::slope_readouts(&d.tau, &d.dev))
 }
 

@@ -53,6 +53,10 @@ pub struct AnalyzeArgs {
     /// Confidence of the intervals (two-sided)
     #[arg(long, default_value_t = 0.683)]
     pub confidence: f64,
+    /// Shortest tau of the noise fit in seconds (default: where the sensor's low-pass filter
+    /// stops shaping the Allan curve)
+    #[arg(long, value_name = "SECONDS")]
+    pub fit_tau_min: Option<f64>,
     /// Welch segment length in samples (default: chosen from the record length)
     #[arg(long)]
     pub psd_segment: Option<usize>,
@@ -169,6 +173,7 @@ fn options(args: &AnalyzeArgs) -> Result<Options> {
         confidence: args.confidence,
         psd_segment: args.psd_segment,
         psd_window: args.psd_window,
+        fit_tau_min: args.fit_tau_min,
         ..Options::default()
     })
 }

@@ -2,18 +2,30 @@
 //! the paper this project follows, and a stream of sample batches framed exactly as the
 //! board frames them, damaged on the way, decoded and accounted for to the last sample.
 
+use crate::analysis::pipeline::{self, Options};
+use crate::analysis::units::arw_to_deg_per_sqrt_h;
 use crate::cli::settings::aliases;
 use crate::link::accounting::SampleAccounting;
+use crate::record::{Channel, Quantity, Record};
+use crate::report::sig;
+use crate::sim::chain::white_noise_inflation;
+use crate::sim::dlpf::{DlpfDesign, Sensor};
+use crate::sim::imu::{Imu, ImuModel};
+use crate::sim::model_file;
 use anyhow::{Context, Result};
 use protocol::frame::{self, FrameDecoder, MAX_WIRE_LEN};
 use protocol::mpu6050::SensorSettings;
 use protocol::{DeviceMessage, MAX_SAMPLES_PER_BATCH, RawSample, SampleBatch};
+use std::path::Path;
 
 #[derive(clap::Args, Debug)]
 pub struct DemoArgs {
     /// Seconds of generated samples to frame
     #[arg(long, default_value_t = 10.0)]
     pub seconds: f64,
+    /// Minutes of simulated static data per setting for the paper's experiment
+    #[arg(long, default_value_t = 10.0)]
+    pub minutes: f64,
 }
 
 /// The four settings compared in the paper: (output rate Hz, gyro bandwidth Hz).
@@ -22,7 +34,7 @@ pub const PAPER_SETTINGS: [(f64, f64); 4] =
 
 pub fn run(args: &DemoArgs) -> Result<()> {
     println!(
-        "imunoise demo: the protocol layer on generated data (the virtual board comes next)\n"
+        "imunoise demo: the paper's experiment on the simulated MPU-6050, and the protocol layer\n(the virtual board that ties them together comes next)\n"
     );
     println!("1. The paper's four sensor settings on the MPU-6050:");
     for (rate, bandwidth) in PAPER_SETTINGS {
@@ -108,7 +120,91 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         accounting.gaps().len(),
         accounting.gaps()
     );
+    paper_experiment(args.minutes)
+}
+
+/// The example model (examples/mpu6050.toml), built in so the demo runs anywhere.
+const EXAMPLE_MODEL: &str = include_str!("../../../examples/mpu6050.toml");
+
+/// The paper's experiment: static data at its four settings through the simulated chip's
+/// signal chain, analysed; the gyro's white-noise coefficient next to the model's and to
+/// what the chain predicts (noise above half the output rate folds back).
+fn paper_experiment(minutes: f64) -> Result<()> {
+    anyhow::ensure!(
+        (0.5..=600.0).contains(&minutes),
+        "--minutes {minutes}: between 0.5 and 600, please"
+    );
+    let model = model_file::parse(EXAMPLE_MODEL, Path::new("examples/mpu6050.toml"))?;
+    let n0 = model.gyro.noise.n;
+    println!(
+        "\n3. The paper's experiment, simulated: {minutes} min of static data per setting from \
+         examples/mpu6050.toml\n   (gyro N0 = {} deg/sqrt(h)), through the MPU-6050's DLPF, \
+         decimation without anti-aliasing and LSB rounding,\n   then analysed (IEEE-952 fit to \
+         the overlapping Allan variance, 68.3 % intervals):",
+        sig(arw_to_deg_per_sqrt_h(n0), 3)
+    );
+    println!(
+        "   {:>14}  {:>26}  {:>8}  {:>9}",
+        "setting", "gyro N, mean of x y z", "N / N0", "predicted"
+    );
+    for (i, (rate, bandwidth)) in PAPER_SETTINGS.into_iter().enumerate() {
+        let settings = SensorSettings::for_rate_and_bandwidth(rate, bandwidth)
+            .map_err(|e| anyhow::anyhow!("{rate} Hz / {bandwidth} Hz: {e}"))?;
+        let seconds = minutes * 60.0;
+        let record = simulate(&model, settings, seconds, i as u64 + 1);
+        let results = pipeline::analyze(&record, &Options::default(), &|| {})?;
+        let gyro: Vec<_> = results
+            .iter()
+            .filter(|r| r.quantity == Quantity::AngularRate)
+            .filter_map(|r| r.fit.as_ref().ok())
+            .collect();
+        let mean = |f: &dyn Fn(&crate::analysis::fit::NoiseFit) -> f64| {
+            gyro.iter().map(|g| f(g)).sum::<f64>() / gyro.len().max(1) as f64
+        };
+        let (n, lo, hi) = (mean(&|g| g.n.value), mean(&|g| g.n.lo), mean(&|g| g.n.hi));
+        let design = DlpfDesign::for_setting(settings.dlpf, Sensor::Gyro);
+        let predicted = white_noise_inflation(&design, 1 + usize::from(settings.smplrt_div));
+        println!(
+            "   {rate:>5} Hz/{bandwidth:>3} Hz  {:>7} [{} .. {}] deg/sqrt(h)  {:>8.3}  {:>9.3}{}",
+            sig(arw_to_deg_per_sqrt_h(n), 3),
+            sig(arw_to_deg_per_sqrt_h(lo), 3),
+            sig(arw_to_deg_per_sqrt_h(hi), 3),
+            n / n0,
+            predicted,
+            if aliases(&settings) {
+                "  folds back"
+            } else {
+                ""
+            }
+        );
+    }
     Ok(())
+}
+
+/// `seconds` of the model at `settings`, as a record in SI units.
+fn simulate(model: &ImuModel, settings: SensorSettings, seconds: f64, seed: u64) -> Record {
+    let mut imu = Imu::new(model, settings, seed, seconds);
+    let rows = (seconds * settings.output_rate_hz()).floor() as usize;
+    let mut columns: [Vec<f64>; 7] = std::array::from_fn(|_| Vec::with_capacity(rows));
+    for _ in 0..rows {
+        let s = imu.next_si();
+        let values = [
+            s.gyro[0], s.gyro[1], s.gyro[2], s.accel[0], s.accel[1], s.accel[2], s.temp,
+        ];
+        for (column, v) in columns.iter_mut().zip(values) {
+            column.push(v);
+        }
+    }
+    let names = ["gx", "gy", "gz", "ax", "ay", "az", "temp"];
+    Record {
+        source: format!("simulated {settings}"),
+        rate_hz: settings.output_rate_hz(),
+        channels: names
+            .iter()
+            .zip(columns)
+            .map(|(name, values)| Channel::named(*name, values))
+            .collect(),
+    }
 }
 
 /// Batches of generated raw samples: a level sensor (1 g on Z at +/-2 g, 25 degC) with a

@@ -51,6 +51,7 @@ fn channel(r: &ChannelResult) -> Value {
                 "points": fit.points,
                 "effective_points": fit.effective_points,
                 "iterations": fit.iterations,
+                "tau_min": fit.tau_min,
                 "confidence": fit.confidence,
             }),
         ),

@@ -88,8 +88,9 @@ fn fit_rows(out: &mut String, r: &ChannelResult) {
 
 fn fit_note(fit: &NoiseFit) -> String {
     format!(
-        "({} taus, ~{} independent; terms at 0 were not resolved: their upper bound is given)",
+        "({} taus from {} s, ~{} independent; terms at 0 were not resolved: their upper bound is given)",
         fit.points,
+        sig(fit.tau_min, 3),
         sig(fit.effective_points, 2)
     )
 }
