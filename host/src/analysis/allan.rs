@@ -340,30 +340,6 @@ fn sum_sq_reflected(x: &[f64], m: usize) -> f64 {
     interior + left + right
 }
 
-/// Time the overlapping Allan deviation at `taus` per-decade factors on `n` synthetic phase
-/// points (random walk), on the current rayon pool; returns (number of taus, seconds). For
-/// `imunoise bench` and the speed report.
-pub fn bench_oadev(n: usize, per_decade: u32) -> (usize, f64) {
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut acc = 0.0;
-    let x: Vec<f64> = (0..n)
-        .map(|_| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            acc += (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
-            acc
-        })
-        .collect();
-    let factors = super::taus::factors(
-        super::taus::TauGrid::PerDecade(per_decade),
-        max_factor(Estimator::Oadev, n),
-    );
-    let t = std::time::Instant::now();
-    let d = deviation(Estimator::Oadev, &x, 1.0, &factors);
-    (d.m.len(), t.elapsed().as_secs_f64())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -579,27 +579,4 @@ mod tests {
             );
         }
     }
-
-    /// Timing, run with `cargo test --release -p imunoise --lib psd::tests::speed -- --ignored
-    /// --nocapture`: 5.76 million samples (16 h at 100 Hz).
-    #[test]
-    #[ignore]
-    fn speed() {
-        let y = white(5_760_000, 1.0, 11);
-        for _ in 0..3 {
-            let t = std::time::Instant::now();
-            let psd = welch(&y, 100.0, &WelchOptions::default()).unwrap();
-            let dt = t.elapsed();
-            let t2 = std::time::Instant::now();
-            let b = log_binned(&psd, 20);
-            println!(
-                "welch 5.76e6 samples, L={}, {} segments: {:?}; log_binned: {:?} ({} bins)",
-                (psd.freq.len() - 1) * 2,
-                psd.segments,
-                dt,
-                t2.elapsed(),
-                b.freq.len()
-            );
-        }
-    }
 }

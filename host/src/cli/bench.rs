@@ -5,6 +5,7 @@
 //!    run with `python3`), their wall times and ratio, and the largest relative difference of
 //!    the deviations; plus imunoise's peak memory over the input's size (Linux).
 //! 2. A full `analyze` (six channels, oadev with CIs, PSD, fit) of an 8-hour 200 Hz record.
+//! 3. The simulator's cost per noise term: an hour of six axes at 1 kHz.
 
 use crate::analysis::pipeline::{self, Options};
 use crate::analysis::{Estimator, allan, into_phase};
@@ -83,7 +84,60 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Err(e) => println!("   allantools: not run ({e:#})"),
         }
     }
-    full_analysis(args.hours)
+    full_analysis(args.hours)?;
+    simulator_terms();
+    Ok(())
+}
+
+/// One hour of six axes at 1 kHz (21.6 million samples) of each noise term alone: the
+/// simulator's cost per term.
+fn simulator_terms() {
+    use crate::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms, Sinusoid};
+    println!("\n3. Simulator: one hour of six axes at 1 kHz, one noise term at a time");
+    let one = |f: fn(&mut NoiseTerms)| {
+        let mut t = NoiseTerms::default();
+        f(&mut t);
+        t
+    };
+    let cases: [(&str, NoiseTerms); 7] = [
+        ("white N", one(|t| t.n = 1e-3)),
+        ("flicker B", one(|t| t.b = 1e-4)),
+        ("random walk K", one(|t| t.k = 1e-5)),
+        ("ramp R", one(|t| t.r = 1e-6)),
+        ("quantization Q", one(|t| t.q = 1e-5)),
+        (
+            "Gauss-Markov",
+            one(|t| {
+                t.gauss_markov = Some(GaussMarkov {
+                    sigma: 1e-4,
+                    tau_c: 100.0,
+                })
+            }),
+        ),
+        (
+            "sinusoid",
+            one(|t| {
+                t.sinusoid = Some(Sinusoid {
+                    amplitude: 1e-3,
+                    freq_hz: 13.0,
+                })
+            }),
+        ),
+    ];
+    for (name, terms) in cases {
+        let start = Instant::now();
+        let mut sum = 0.0;
+        for axis in 0..6 {
+            let mut rng = ChaCha8Rng::seed_from_u64(axis);
+            let mut g = AxisNoise::new(terms, 1000.0, 3600.0, &mut rng);
+            for _ in 0..3_600_000 {
+                sum += g.next(&mut rng);
+            }
+        }
+        // The sum keeps the generator from being optimised away.
+        std::hint::black_box(sum);
+        println!("   {name:>15}: {:>6.3} s", start.elapsed().as_secs_f64());
+    }
 }
 
 struct Timed {
