@@ -155,8 +155,15 @@ fn limits(points: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
             (lo.min(v), hi.max(v))
         });
     (hi > 0.0).then(|| {
+        // Log axes are labelled at powers of ten: a range of less than two decades is widened
+        // to the powers of ten around it, so that every axis carries labels at both ends.
         let pad = (hi / lo).powf(0.04).max(1.05);
-        (lo / pad, hi * pad)
+        let (lo, hi) = (lo / pad, hi * pad);
+        if hi / lo >= 100.0 {
+            return (lo, hi);
+        }
+        let (a, b) = (lo.log10().floor(), hi.log10().ceil());
+        (10f64.powf(a), 10f64.powf(b.max(a + 1.0)))
     })
 }
 
@@ -186,7 +193,8 @@ fn draw_panel<DB: DrawingBackend>(
         .x_desc(&panel.x_label)
         .y_desc(&panel.y_label)
         .x_label_formatter(&|v| format!("{v:.0e}"))
-        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .y_labels(8)
+        .y_label_formatter(&|v| format!("{v:.1e}"))
         .label_style(("sans-serif", 13))
         .light_line_style(RGBColor(235, 235, 235))
         .draw()
