@@ -281,7 +281,8 @@ impl Acquisition {
     }
 
     fn emit_batches(&self, first_index: u64, n: u64, emit: &mut impl FnMut(SampleBatch)) {
-        let chunks = self.buf[..n as usize * SAMPLE_BYTES].chunks(MAX_SAMPLES_PER_BATCH * SAMPLE_BYTES);
+        let chunks =
+            self.buf[..n as usize * SAMPLE_BYTES].chunks(MAX_SAMPLES_PER_BATCH * SAMPLE_BYTES);
         let mut index = first_index;
         for chunk in chunks {
             let mut batch = SampleBatch {

@@ -179,7 +179,12 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
                 samples_dropped += len;
             }
         };
-        let result = run.drain(&mut self.dev, &mut self.clock, &mut self.counters, &mut deliver);
+        let result = run.drain(
+            &mut self.dev,
+            &mut self.clock,
+            &mut self.counters,
+            &mut deliver,
+        );
         let c = &mut self.counters;
         c.batches_dropped = c.batches_dropped.saturating_add(batches_dropped);
         c.samples_dropped = c.samples_dropped.saturating_add(samples_dropped);

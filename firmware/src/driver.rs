@@ -143,11 +143,14 @@ impl<I2C: I2c> Mpu6050<I2C> {
     }
 
     /// Empty the FIFO and (re)enable it. The register map says FIFO_RESET acts "while
-    /// FIFO_EN equals 0", hence three writes: disable, reset, enable (verified).
+    /// FIFO_EN equals 0", hence three writes: disable, reset, enable (verified). Then read
+    /// INT_STATUS: an overflow flag latched before the reset would otherwise condemn the
+    /// next, good, drain.
     pub fn reset_fifo(&mut self) -> Result<(), ErrorCode> {
         self.write_reg(reg::USER_CTRL, 0)?;
         self.write_reg(reg::USER_CTRL, USER_FIFO_RESET)?;
-        self.write_verified(reg::USER_CTRL, USER_FIFO_EN)
+        self.write_verified(reg::USER_CTRL, USER_FIFO_EN)?;
+        self.int_status().map(|_| ())
     }
 
     /// Stop filling the FIFO (streaming stopped).
@@ -384,10 +387,7 @@ mod tests {
         let mut bus = MockBus::new();
         bus.regs[usize::from(reg::WHO_AM_I)] = 0x70; // an MPU-6500
         let mut dev = Mpu6050::new(bus, 0x68);
-        assert_eq!(
-            dev.probe(),
-            Err(ErrorCode::WrongSensor { who_am_i: 0x70 })
-        );
+        assert_eq!(dev.probe(), Err(ErrorCode::WrongSensor { who_am_i: 0x70 }));
         dev.reset(&mut NoDelay).unwrap();
         dev.wake().unwrap();
         dev.enable_fifo().unwrap();

@@ -224,7 +224,10 @@ mod tests {
         assert!(grid.remeasured() > 0);
         // Predictions over a 2 s stall are exact after ten minutes.
         let stall = t + 2_000_000;
-        assert_eq!(grid.produced(stall, stall).0, produced(first, period, stall));
+        assert_eq!(
+            grid.produced(stall, stall).0,
+            produced(first, period, stall)
+        );
     }
 
     #[test]

@@ -53,7 +53,11 @@ pub fn hex16(v: u64) -> heapless::String<16> {
     let mut s = heapless::String::new();
     for shift in (0..16).rev() {
         let digit = ((v >> (shift * 4)) & 0xF) as u8;
-        let c = if digit < 10 { b'0' + digit } else { b'a' + digit - 10 };
+        let c = if digit < 10 {
+            b'0' + digit
+        } else {
+            b'a' + digit - 10
+        };
         let _ = s.push(char::from(c));
     }
     s
