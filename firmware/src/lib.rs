@@ -9,6 +9,14 @@
     deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
 )]
 
+pub mod acquire;
+pub mod control;
+pub mod driver;
+pub mod timing;
+
+pub use control::{BoardConfig, Firmware};
+pub use timing::Clock;
+
 use protocol::FirmwareVersion;
 
 /// This firmware's version, from the crate version (one source of truth: Cargo.toml).

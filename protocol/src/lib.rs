@@ -225,6 +225,10 @@ pub enum ErrorCode {
     VerifyFailed { register: u8, wrote: u8, read: u8 },
     /// I2C errors persisted beyond the retry budget.
     I2cFailure,
+    /// FIFO_COUNT reported a byte count the clock rules out (more samples than the sensor
+    /// can have made, or none for far too long) while the sensor still reads awake.
+    /// Appended last so that the encodings of the other codes stay as they were.
+    FifoCountImplausible { count: u16 },
 }
 
 impl core::fmt::Display for ErrorCode {
@@ -248,6 +252,10 @@ impl core::fmt::Display for ErrorCode {
                 "register {register:#04x} read back {read:#04x} after writing {wrote:#04x}"
             ),
             ErrorCode::I2cFailure => f.write_str("I2C errors persisted after retries"),
+            ErrorCode::FifoCountImplausible { count } => write!(
+                f,
+                "the sensor's FIFO count ({count} bytes) disagrees with its sample rate"
+            ),
         }
     }
 }

@@ -135,6 +135,7 @@ pub fn error_code() -> impl Strategy<Value = ErrorCode> {
             read
         }),
         Just(ErrorCode::I2cFailure),
+        any::<u16>().prop_map(|count| ErrorCode::FifoCountImplausible { count }),
     ]
 }
 

@@ -1,0 +1,155 @@
+//! imunoise board firmware: RP2040 + MPU-6050.
+//!
+//! Wiring (3.3 V logic): MPU-6050 SDA -> GPIO4 (I2C0 SDA), SCL -> GPIO5 (I2C0 SCL), VCC ->
+//! 3V3, GND -> GND, AD0 -> GND (address 0x68). The internal pull-ups are enabled, but most
+//! MPU-6050 breakouts carry their own 4.7-10 kOhm pull-ups, which 400 kHz needs. INT is not
+//! used (the FIFO is polled on the timer). LED: GPIO25 (the Pico's).
+//!
+//! Everything the board does is in the portable `firmware` crate; this file only wires the
+//! RP2040 to it: clocks, I2C0 at 400 kHz, the microsecond timer as clock, USB CDC as the
+//! link (frames in, frames out through a ring buffer that never blocks acquisition), the
+//! flash unique id as board id, defmt over RTT for logs, the LED for state.
+#![no_std]
+#![no_main]
+
+mod flash;
+mod link;
+
+use defmt_rtt as _;
+use panic_probe as _;
+
+use firmware::{BoardConfig, Clock, Firmware};
+use rp2040_hal as hal;
+
+use embedded_hal::digital::OutputPin;
+use hal::fugit::RateExtU32;
+use hal::{Sio, Timer, Watchdog, clocks::init_clocks_and_plls, gpio, pac};
+use usb_device::class_prelude::UsbBusAllocator;
+use usb_device::prelude::{StringDescriptors, UsbDeviceBuilder, UsbVidPid};
+use usbd_serial::SerialPort;
+
+/// The second-stage bootloader for the W25Q080 flash of the Pico and most RP2040 boards.
+#[unsafe(link_section = ".boot2")]
+#[used]
+pub static BOOT2: [u8; 256] = rp2040_boot2::BOOT_LOADER_W25Q080;
+
+const XTAL_FREQ_HZ: u32 = 12_000_000;
+/// pid.codes test VID/PID for CDC devices; the host finds the board by its product string.
+const USB_VID_PID: UsbVidPid = UsbVidPid(0x16c0, 0x27dd);
+
+/// The RP2040's 64-bit microsecond timer.
+struct BoardClock(Timer);
+
+impl Clock for BoardClock {
+    fn now_us(&mut self) -> u64 {
+        self.0.get_counter().ticks()
+    }
+}
+
+#[hal::entry]
+fn main() -> ! {
+    let Some(mut pac) = pac::Peripherals::take() else {
+        panic!("peripherals taken twice");
+    };
+    let mut watchdog = Watchdog::new(pac.WATCHDOG);
+    let Ok(clocks) = init_clocks_and_plls(
+        XTAL_FREQ_HZ,
+        pac.XOSC,
+        pac.CLOCKS,
+        pac.PLL_SYS,
+        pac.PLL_USB,
+        &mut pac.RESETS,
+        &mut watchdog,
+    ) else {
+        panic!("clock setup failed");
+    };
+    let board_id = board_id();
+    defmt::info!("imunoise board {=u64:016x}", board_id);
+
+    let sio = Sio::new(pac.SIO);
+    let pins = gpio::Pins::new(
+        pac.IO_BANK0,
+        pac.PADS_BANK0,
+        sio.gpio_bank0,
+        &mut pac.RESETS,
+    );
+    let mut led = pins.gpio25.into_push_pull_output();
+    let mut timer = Timer::new(pac.TIMER, &mut pac.RESETS, &clocks);
+
+    let sda = pins.gpio4.reconfigure::<gpio::FunctionI2C, gpio::PullUp>();
+    let scl = pins.gpio5.reconfigure::<gpio::FunctionI2C, gpio::PullUp>();
+    let i2c = hal::I2C::i2c0(
+        pac.I2C0,
+        sda,
+        scl,
+        400.kHz(),
+        &mut pac.RESETS,
+        &clocks.system_clock,
+    );
+
+    let usb_bus = UsbBusAllocator::new(hal::usb::UsbBus::new(
+        pac.USBCTRL_REGS,
+        pac.USBCTRL_DPRAM,
+        clocks.usb_clock,
+        true,
+        &mut pac.RESETS,
+    ));
+    let mut serial = SerialPort::new(&usb_bus);
+    let serial_number = link::hex16(board_id);
+    let strings = StringDescriptors::default()
+        .manufacturer("imunoise")
+        .product("imunoise MPU-6050 logger")
+        .serial_number(serial_number.as_str());
+    let Ok(builder) = UsbDeviceBuilder::new(&usb_bus, USB_VID_PID).strings(&[strings]) else {
+        panic!("USB strings");
+    };
+    let Ok(builder) = builder.max_packet_size_0(64) else {
+        panic!("USB packet size");
+    };
+    let mut usb = builder.device_class(usbd_serial::USB_CLASS_CDC).build();
+
+    let mut fw = Firmware::new(
+        i2c,
+        BoardClock(timer),
+        BoardConfig {
+            address: protocol::mpu6050::DEFAULT_ADDRESS,
+            board_id,
+        },
+    );
+    match fw.init(&mut timer) {
+        Ok(()) => defmt::info!("MPU-6050 ready"),
+        Err(e) => defmt::warn!("MPU-6050 not ready: {}", defmt::Display2Format(&e)),
+    }
+
+    let mut tx = link::TxQueue::new();
+    let mut rx = [0u8; 64];
+    loop {
+        if usb.poll(&mut [&mut serial]) {
+            if let Ok(n) = serial.read(&mut rx) {
+                fw.handle_bytes(&rx[..n], &mut |frame| tx.push_frame(frame));
+            }
+        }
+        fw.poll(&mut |frame| tx.push_frame(frame));
+        tx.write_to(&mut serial);
+        // LED: on while streaming, a 1 Hz blink while stopped.
+        let now = timer.get_counter().ticks();
+        let on = fw.streaming() || (now / 500_000) % 2 == 0;
+        let _ = if on { led.set_high() } else { led.set_low() };
+    }
+}
+
+/// The flash chip's 64-bit unique id (the board's serial number). Not available in the
+/// emulator, which has no flash chip behind the SSI.
+#[cfg(not(feature = "emulator"))]
+fn board_id() -> u64 {
+    let mut id = [0u8; 8];
+    // SAFETY: single core, no DMA yet, interrupts off for the duration (the ROM routine
+    // runs from RAM while flash is in command mode).
+    cortex_m::interrupt::free(|_| unsafe { flash::flash_impl::flash_unique_id(&mut id, true) });
+    u64::from_be_bytes(id)
+}
+
+#[cfg(feature = "emulator")]
+fn board_id() -> u64 {
+    0
+}

@@ -1,0 +1,333 @@
+//! The board's behaviour as the host sees it: commands in, replies and samples out.
+//!
+//! [`Firmware`] owns the sensor driver, the clock and the run; the board (or the host's
+//! virtual board, or a test) calls two functions and moves bytes:
+//!
+//! ```text
+//! loop {
+//!     fw.handle_bytes(&bytes_from_usb, &mut send);   // commands -> replies
+//!     fw.poll(&mut send);                            // drain the FIFO when due -> samples
+//! }
+//! // send(frame) -> bool: queue one whole frame for the host, or return false if it does
+//! // not fit right now (USB back-pressure). Never block: a refused sample batch is dropped
+//! // and counted (Status::batches_dropped, samples_dropped); a refused reply is kept and
+//! // offered again on the next call.
+//! ```
+//!
+//! States: stopped (configure allowed) and streaming. Every command is answered: GetInfo
+//! with Info, Ping with Pong, GetStatus with Status, the others with Ack or Nack and the
+//! reason ([`ErrorCode`]). Frames that fail COBS, CRC or decoding are counted
+//! ([`Status::frames_rejected`]) and otherwise ignored. A fault while streaming (the sensor
+//! stops answering, resets itself, or reports an impossible FIFO count) sends
+//! [`DeviceMessage::Fault`] and stops; the next Configure or Start sets the sensor up again.
+
+use crate::acquire::{Acquisition, check_supported};
+use crate::driver::Mpu6050;
+use crate::timing::Clock;
+use embedded_hal::delay::DelayNs;
+use embedded_hal::i2c::I2c;
+use protocol::frame::{FrameDecoder, MAX_WIRE_LEN, encode};
+use protocol::{
+    Command, DeviceInfo, DeviceMessage, ErrorCode, MAX_SAMPLES_PER_BATCH, PROTOCOL_VERSION,
+    Request, SampleBatch, SensorSettings, Status,
+};
+
+/// Replies waiting for room on the link.
+const REPLY_QUEUE: usize = 8;
+
+/// Board facts the portable code cannot find out itself.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BoardConfig {
+    /// The sensor's 7-bit I2C address (0x68, or 0x69 with AD0 high).
+    pub address: u8,
+    /// A unique id of the board (the RP2040's flash unique id).
+    pub board_id: u64,
+}
+
+/// Every message except sample batches: small, so a few can wait for the link.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reply {
+    Info(DeviceInfo),
+    Ack { seq: u16 },
+    Nack { seq: u16, error: ErrorCode },
+    Status(Status),
+    Pong { seq: u16 },
+    Fault(ErrorCode),
+}
+
+impl From<Reply> for DeviceMessage {
+    fn from(r: Reply) -> Self {
+        match r {
+            Reply::Info(i) => DeviceMessage::Info(i),
+            Reply::Ack { seq } => DeviceMessage::Ack { seq },
+            Reply::Nack { seq, error } => DeviceMessage::Nack { seq, error },
+            Reply::Status(s) => DeviceMessage::Status(s),
+            Reply::Pong { seq } => DeviceMessage::Pong { seq },
+            Reply::Fault(e) => DeviceMessage::Fault(e),
+        }
+    }
+}
+
+/// The portable firmware (module docs).
+pub struct Firmware<I2C, C> {
+    dev: Mpu6050<I2C>,
+    clock: C,
+    board_id: u64,
+    /// What WHO_AM_I answered last (0: never answered).
+    who_am_i: u8,
+    settings: SensorSettings,
+    /// The sensor holds `settings`, awake, FIFO channels selected.
+    ready: bool,
+    run: Option<Acquisition>,
+    /// Counters kept here; uptime, I2C errors and rejected frames are filled in on report.
+    counters: Status,
+    decoder: FrameDecoder,
+    replies: heapless::Deque<Reply, REPLY_QUEUE>,
+}
+
+impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
+    pub fn new(i2c: I2C, clock: C, config: BoardConfig) -> Self {
+        Firmware {
+            dev: Mpu6050::new(i2c, config.address),
+            clock,
+            board_id: config.board_id,
+            who_am_i: 0,
+            settings: SensorSettings::default(),
+            ready: false,
+            run: None,
+            counters: Status::default(),
+            decoder: FrameDecoder::new(),
+            replies: heapless::Deque::new(),
+        }
+    }
+
+    /// Power-up: device reset (with the datasheet's 100 ms waits), then the default
+    /// settings. A sensor that is absent or wrong is not fatal: the error is returned (for
+    /// the board's log) and every later Configure or Start tries again and reports it.
+    pub fn init(&mut self, delay: &mut impl DelayNs) -> Result<(), ErrorCode> {
+        self.probe()?;
+        self.dev.reset(delay)?;
+        let settings = self.settings;
+        self.set_up(settings)
+    }
+
+    /// The bus, e.g. to move a simulated sensor's clock.
+    pub fn i2c_mut(&mut self) -> &mut I2C {
+        self.dev.i2c_mut()
+    }
+
+    pub fn clock_mut(&mut self) -> &mut C {
+        &mut self.clock
+    }
+
+    pub fn streaming(&self) -> bool {
+        self.run.is_some()
+    }
+
+    pub fn settings(&self) -> SensorSettings {
+        self.settings
+    }
+
+    /// The counters as the host would receive them now.
+    pub fn status(&mut self) -> Status {
+        Status {
+            streaming: self.streaming(),
+            uptime_us: self.clock.now_us(),
+            i2c_errors: self.dev.i2c_errors(),
+            frames_rejected: u32::try_from(self.decoder.stats().rejected()).unwrap_or(u32::MAX),
+            ..self.counters
+        }
+    }
+
+    /// Bytes from the host (any chunking): decode frames, carry out each command, send the
+    /// replies. Never blocks.
+    pub fn handle_bytes(&mut self, incoming: &[u8], out: &mut impl FnMut(&[u8]) -> bool) {
+        for byte in incoming {
+            let mut request = None;
+            self.decoder
+                .feed::<Request>(core::slice::from_ref(byte), |r| request = r.ok());
+            if let Some(request) = request {
+                self.handle(request, out);
+            }
+        }
+        self.flush_replies(out);
+    }
+
+    /// Drain the FIFO if a drain is due and send the samples; send waiting replies. Call
+    /// it as often as possible (every main-loop turn); it returns at once when nothing is due.
+    pub fn poll(&mut self, out: &mut impl FnMut(&[u8]) -> bool) {
+        self.flush_replies(out);
+        let now = self.clock.now_us();
+        if self.run.as_ref().is_some_and(|run| run.due(now)) {
+            if let Err(error) = self.drain(out) {
+                self.fault(error);
+            }
+            self.flush_replies(out);
+        }
+    }
+
+    /// One drain; batches the link refuses are dropped and counted.
+    fn drain(&mut self, out: &mut impl FnMut(&[u8]) -> bool) -> Result<(), ErrorCode> {
+        let Some(run) = self.run.as_mut() else {
+            return Ok(());
+        };
+        let (mut batches_dropped, mut samples_dropped) = (0u32, 0u64);
+        let mut deliver = |batch: SampleBatch| {
+            let len = batch.samples.len() as u64;
+            if !send(out, &DeviceMessage::Samples(batch)) {
+                batches_dropped += 1;
+                samples_dropped += len;
+            }
+        };
+        let result = run.drain(
+            &mut self.dev,
+            &mut self.clock,
+            &mut self.counters,
+            &mut deliver,
+        );
+        let c = &mut self.counters;
+        c.batches_dropped = c.batches_dropped.saturating_add(batches_dropped);
+        c.samples_dropped = c.samples_dropped.saturating_add(samples_dropped);
+        result.map(|_| ())
+    }
+
+    fn fault(&mut self, error: ErrorCode) {
+        self.run = None;
+        self.ready = false;
+        // Best effort: the sensor may be the problem.
+        let _ = self.dev.disable_fifo();
+        self.reply(Reply::Fault(error));
+    }
+
+    fn handle(&mut self, Request { seq, command }: Request, out: &mut impl FnMut(&[u8]) -> bool) {
+        let result = match command {
+            Command::GetInfo => {
+                let info = self.info();
+                self.reply(Reply::Info(info));
+                return;
+            }
+            Command::Ping => {
+                self.reply(Reply::Pong { seq });
+                return;
+            }
+            Command::GetStatus => {
+                let status = self.status();
+                self.reply(Reply::Status(status));
+                return;
+            }
+            Command::Configure(settings) => self.configure(settings),
+            Command::Start => self.start(),
+            Command::Stop => self.stop(out),
+        };
+        match result {
+            Ok(()) => self.reply(Reply::Ack { seq }),
+            Err(error) => self.reply(Reply::Nack { seq, error }),
+        }
+        if command == Command::Stop && result.is_ok() {
+            let status = self.status();
+            self.reply(Reply::Status(status));
+        }
+    }
+
+    fn info(&self) -> DeviceInfo {
+        DeviceInfo {
+            protocol_version: PROTOCOL_VERSION,
+            firmware_version: crate::FIRMWARE_VERSION,
+            board_id: self.board_id,
+            who_am_i: self.who_am_i,
+            settings: self.settings,
+            streaming: self.streaming(),
+            max_samples_per_batch: MAX_SAMPLES_PER_BATCH as u16,
+        }
+    }
+
+    fn configure(&mut self, settings: SensorSettings) -> Result<(), ErrorCode> {
+        if self.streaming() {
+            return Err(ErrorCode::Busy);
+        }
+        check_supported(&settings)?;
+        self.probe()?;
+        self.set_up(settings)
+    }
+
+    fn start(&mut self) -> Result<(), ErrorCode> {
+        if self.streaming() {
+            return Err(ErrorCode::Busy);
+        }
+        if !self.ready {
+            self.probe()?;
+            self.set_up(self.settings)?;
+        }
+        self.dev.check_awake()?;
+        let run = Acquisition::start(&mut self.dev, &mut self.clock, &self.settings);
+        self.run = Some(run?);
+        Ok(())
+    }
+
+    /// A last drain (everything made until now reaches the host, before the Ack), then
+    /// the FIFO off.
+    fn stop(&mut self, out: &mut impl FnMut(&[u8]) -> bool) -> Result<(), ErrorCode> {
+        if !self.streaming() {
+            return Err(ErrorCode::NotStreaming);
+        }
+        self.flush_replies(out);
+        if let Err(error) = self.drain(out) {
+            self.reply(Reply::Fault(error));
+        }
+        self.run = None;
+        self.dev.disable_fifo()
+    }
+
+    fn probe(&mut self) -> Result<(), ErrorCode> {
+        self.who_am_i = 0;
+        match self.dev.probe() {
+            Ok(who) => {
+                self.who_am_i = who;
+                Ok(())
+            }
+            Err(e) => {
+                if let ErrorCode::WrongSensor { who_am_i } = e {
+                    self.who_am_i = who_am_i;
+                }
+                self.ready = false;
+                Err(e)
+            }
+        }
+    }
+
+    /// Wake, write `settings`, select the FIFO channels; FIFO off until Start.
+    fn set_up(&mut self, settings: SensorSettings) -> Result<(), ErrorCode> {
+        self.ready = false;
+        self.dev.wake()?;
+        self.dev.configure(&settings)?;
+        self.dev.enable_fifo()?;
+        self.dev.disable_fifo()?;
+        self.settings = settings;
+        self.ready = true;
+        Ok(())
+    }
+
+    fn reply(&mut self, reply: Reply) {
+        // A host that sends commands without reading replies loses the newest ones.
+        let _ = self.replies.push_back(reply);
+    }
+
+    fn flush_replies(&mut self, out: &mut impl FnMut(&[u8]) -> bool) {
+        while let Some(reply) = self.replies.front().copied() {
+            if !send(out, &DeviceMessage::from(reply)) {
+                return;
+            }
+            self.replies.pop_front();
+        }
+    }
+}
+
+/// Encode one message as a frame and offer it to the link.
+fn send(out: &mut impl FnMut(&[u8]) -> bool, message: &DeviceMessage) -> bool {
+    let mut buf = [0u8; MAX_WIRE_LEN];
+    match encode(message, &mut buf) {
+        Ok(len) => out(&buf[..len]),
+        // Cannot happen for our messages (a test checks the largest batch fits).
+        Err(_) => false,
+    }
+}

@@ -1,0 +1,405 @@
+//! Register-level MPU-6050 access on embedded-hal 1.0 I2C.
+//!
+//! Why our own driver: the `mpu6050` crate targets embedded-hal 0.2, has no FIFO, DLPF or
+//! divider API and reads accel and gyro in separate transactions; `mpu6050-dmp` is on
+//! embedded-hal 1.0 but its setters OR bits into a register without clearing the field
+//! first, so changing e.g. FS_SEL from 3 to 1 leaves 3. Here every configuration register
+//! is written whole (we own every bit of it) and read back: a register that does not hold
+//! what was written is an error the host sees ([`ErrorCode::VerifyFailed`]), never a silent
+//! difference between the settings the host asked for and the ones the sensor uses.
+//!
+//! Errors are [`ErrorCode`]s, the values the host receives. Every failed I2C attempt is
+//! counted ([`Mpu6050::i2c_errors`]); idempotent transactions (register reads and writes)
+//! are retried up to [`ATTEMPTS`] times, FIFO reads never (a failed burst may already have
+//! popped bytes, so repeating it would silently misalign samples).
+
+use embedded_hal::delay::DelayNs;
+use embedded_hal::i2c::{Error as _, ErrorKind, I2c, NoAcknowledgeSource};
+use protocol::ErrorCode;
+use protocol::mpu6050::{SensorSettings, WHO_AM_I_VALUE, reg};
+
+/// Attempts per idempotent transaction before the error is reported.
+pub const ATTEMPTS: u32 = 3;
+
+/// PWR_MGMT_1: DEVICE_RESET (self-clearing) and the value we run with: awake, temperature
+/// sensor on, no cycling, clock from the X gyro's PLL (CLKSEL = 1), which the register map
+/// recommends over the 8 MHz internal oscillator for stability.
+pub const DEVICE_RESET: u8 = 1 << 7;
+pub const PWR_MGMT_1_RUN: u8 = 0x01;
+/// SIGNAL_PATH_RESET: reset the gyro, accel and temperature signal paths.
+pub const SIGNAL_PATH_RESET_ALL: u8 = 0b111;
+/// USER_CTRL bits.
+pub const USER_FIFO_EN: u8 = 1 << 6;
+pub const USER_FIFO_RESET: u8 = 1 << 2;
+/// FIFO_EN: temperature, gyro x/y/z, accel: the 14-byte sample of
+/// [`protocol::RawSample::from_fifo_bytes`]. Temperature is in the FIFO so that every
+/// sample carries the temperature it was taken at (the drift analysis needs it).
+pub const FIFO_EN_ALL: u8 = 0b1111_1000;
+/// INT_ENABLE / INT_STATUS bits. FIFO_OFLOW must be enabled for INT_STATUS to report it;
+/// DATA_RDY drives the optional interrupt pin.
+pub const INT_DATA_RDY: u8 = 1 << 0;
+pub const INT_FIFO_OFLOW: u8 = 1 << 4;
+/// How long the chip needs after DEVICE_RESET before it answers reliably [RM, reg 107].
+pub const RESET_DELAY_MS: u32 = 100;
+
+/// The MPU-6050 on an I2C bus.
+#[derive(Debug)]
+pub struct Mpu6050<I2C> {
+    i2c: I2C,
+    address: u8,
+    i2c_errors: u32,
+}
+
+impl<I2C: I2c> Mpu6050<I2C> {
+    pub fn new(i2c: I2C, address: u8) -> Self {
+        Mpu6050 {
+            i2c,
+            address,
+            i2c_errors: 0,
+        }
+    }
+
+    /// The bus (the virtual board uses it to drive the simulated sensor's clock).
+    pub fn i2c_mut(&mut self) -> &mut I2C {
+        &mut self.i2c
+    }
+
+    pub fn release(self) -> I2C {
+        self.i2c
+    }
+
+    /// Failed I2C attempts so far (every failed retry counts).
+    pub fn i2c_errors(&self) -> u32 {
+        self.i2c_errors
+    }
+
+    /// WHO_AM_I, checked: [`ErrorCode::WrongSensor`] unless it is an MPU-6050's 0x68.
+    pub fn probe(&mut self) -> Result<u8, ErrorCode> {
+        let who_am_i = self.read_reg(reg::WHO_AM_I)?;
+        if who_am_i != WHO_AM_I_VALUE {
+            return Err(ErrorCode::WrongSensor { who_am_i });
+        }
+        Ok(who_am_i)
+    }
+
+    /// Device reset, then signal-path reset: every register at its reset value, asleep.
+    pub fn reset(&mut self, delay: &mut impl DelayNs) -> Result<(), ErrorCode> {
+        self.write_reg(reg::PWR_MGMT_1, DEVICE_RESET)?;
+        delay.delay_ms(RESET_DELAY_MS);
+        self.write_reg(reg::SIGNAL_PATH_RESET, SIGNAL_PATH_RESET_ALL)?;
+        delay.delay_ms(RESET_DELAY_MS);
+        Ok(())
+    }
+
+    /// Wake with the gyro PLL as clock and all six axes on.
+    pub fn wake(&mut self) -> Result<(), ErrorCode> {
+        self.write_verified(reg::PWR_MGMT_1, PWR_MGMT_1_RUN)?;
+        self.write_verified(reg::PWR_MGMT_2, 0)
+    }
+
+    /// Whether the chip is still awake with our clock source: a sensor that reset itself
+    /// (brown-out, glitch) comes back asleep with PWR_MGMT_1 = 0x40.
+    pub fn check_awake(&mut self) -> Result<(), ErrorCode> {
+        let read = self.read_reg(reg::PWR_MGMT_1)?;
+        if read != PWR_MGMT_1_RUN {
+            return Err(ErrorCode::VerifyFailed {
+                register: reg::PWR_MGMT_1,
+                wrote: PWR_MGMT_1_RUN,
+                read,
+            });
+        }
+        Ok(())
+    }
+
+    /// Write SMPLRT_DIV, CONFIG (DLPF_CFG, EXT_SYNC off), GYRO_CONFIG (FS_SEL, self-test
+    /// off), ACCEL_CONFIG (AFS_SEL, self-test off), each whole and verified.
+    pub fn configure(&mut self, settings: &SensorSettings) -> Result<(), ErrorCode> {
+        let r = settings.registers();
+        self.write_verified(reg::SMPLRT_DIV, r.smplrt_div)?;
+        self.write_verified(reg::CONFIG, r.config)?;
+        self.write_verified(reg::GYRO_CONFIG, r.gyro_config)?;
+        self.write_verified(reg::ACCEL_CONFIG, r.accel_config)
+    }
+
+    /// The settings the sensor's registers hold (one burst read of registers 25-28).
+    pub fn read_settings(&mut self) -> Result<SensorSettings, ErrorCode> {
+        let mut b = [0u8; 4];
+        self.read_regs(reg::SMPLRT_DIV, &mut b)?;
+        Ok(SensorSettings::from_registers(
+            protocol::mpu6050::RegisterValues {
+                smplrt_div: b[0],
+                config: b[1],
+                gyro_config: b[2],
+                accel_config: b[3],
+            },
+        ))
+    }
+
+    /// Select the FIFO channels and interrupt sources, then empty and enable the FIFO.
+    pub fn enable_fifo(&mut self) -> Result<(), ErrorCode> {
+        self.write_verified(reg::FIFO_EN, FIFO_EN_ALL)?;
+        self.write_verified(reg::INT_ENABLE, INT_FIFO_OFLOW | INT_DATA_RDY)?;
+        self.reset_fifo()
+    }
+
+    /// Empty the FIFO and (re)enable it. The register map says FIFO_RESET acts "while
+    /// FIFO_EN equals 0", hence three writes: disable, reset, enable (verified). Then read
+    /// INT_STATUS: an overflow flag latched before the reset would otherwise condemn the
+    /// next, good, drain.
+    pub fn reset_fifo(&mut self) -> Result<(), ErrorCode> {
+        self.write_reg(reg::USER_CTRL, 0)?;
+        self.write_reg(reg::USER_CTRL, USER_FIFO_RESET)?;
+        self.write_verified(reg::USER_CTRL, USER_FIFO_EN)?;
+        self.int_status().map(|_| ())
+    }
+
+    /// Stop filling the FIFO (streaming stopped).
+    pub fn disable_fifo(&mut self) -> Result<(), ErrorCode> {
+        self.write_verified(reg::USER_CTRL, 0)
+    }
+
+    /// FIFO_COUNT, bytes in the FIFO (big-endian pair, one burst so the halves match).
+    pub fn fifo_count(&mut self) -> Result<u16, ErrorCode> {
+        let mut b = [0u8; 2];
+        self.read_regs(reg::FIFO_COUNT_H, &mut b)?;
+        Ok(u16::from_be_bytes(b))
+    }
+
+    /// INT_STATUS (cleared by the read).
+    pub fn int_status(&mut self) -> Result<u8, ErrorCode> {
+        self.read_reg(reg::INT_STATUS)
+    }
+
+    /// Pop `buf.len()` bytes from the FIFO in one burst. Not retried (see module docs).
+    pub fn read_fifo(&mut self, buf: &mut [u8]) -> Result<(), ErrorCode> {
+        self.i2c
+            .write_read(self.address, &[reg::FIFO_R_W], buf)
+            .map_err(|e| {
+                self.i2c_errors = self.i2c_errors.saturating_add(1);
+                classify(e.kind())
+            })
+    }
+
+    pub fn read_reg(&mut self, register: u8) -> Result<u8, ErrorCode> {
+        let mut b = [0u8; 1];
+        self.read_regs(register, &mut b)?;
+        Ok(b[0])
+    }
+
+    /// Burst read from `register` on (auto-increment), retried.
+    pub fn read_regs(&mut self, register: u8, buf: &mut [u8]) -> Result<(), ErrorCode> {
+        let address = self.address;
+        self.retry(|i2c| i2c.write_read(address, &[register], buf))
+    }
+
+    pub fn write_reg(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
+        let address = self.address;
+        self.retry(|i2c| i2c.write(address, &[register, value]))
+    }
+
+    /// Write, read back, compare.
+    pub fn write_verified(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
+        self.write_reg(register, value)?;
+        let read = self.read_reg(register)?;
+        if read != value {
+            return Err(ErrorCode::VerifyFailed {
+                register,
+                wrote: value,
+                read,
+            });
+        }
+        Ok(())
+    }
+
+    fn retry<E: embedded_hal::i2c::Error>(
+        &mut self,
+        mut op: impl FnMut(&mut I2C) -> Result<(), E>,
+    ) -> Result<(), ErrorCode> {
+        let mut last = ErrorKind::Other;
+        for _ in 0..ATTEMPTS {
+            match op(&mut self.i2c) {
+                Ok(()) => return Ok(()),
+                Err(e) => {
+                    self.i2c_errors = self.i2c_errors.saturating_add(1);
+                    last = e.kind();
+                }
+            }
+        }
+        Err(classify(last))
+    }
+}
+
+/// A sensor that does not acknowledge its address is not there (unplugged, unpowered,
+/// wrong address); any other persistent error is a bus problem.
+fn classify(kind: ErrorKind) -> ErrorCode {
+    match kind {
+        ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address) => ErrorCode::SensorNotResponding,
+        _ => ErrorCode::I2cFailure,
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod mock {
+    //! A tiny register-file I2C device for unit tests: 128 registers, auto-increment,
+    //! scripted failures and registers that ignore writes.
+    use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
+
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub struct MockError(pub ErrorKind);
+    impl embedded_hal::i2c::Error for MockError {
+        fn kind(&self) -> ErrorKind {
+            self.0
+        }
+    }
+
+    pub struct MockBus {
+        pub regs: [u8; 128],
+        /// The next this many transactions fail with `fail_kind`.
+        pub fail_next: u32,
+        pub fail_kind: ErrorKind,
+        /// Writes to this register are ignored (a stuck bit, a read-only register).
+        pub ignore_writes_to: Option<u8>,
+        pub transactions: u32,
+    }
+
+    impl MockBus {
+        pub fn new() -> Self {
+            let mut regs = [0u8; 128];
+            regs[usize::from(protocol::mpu6050::reg::WHO_AM_I)] = 0x68;
+            MockBus {
+                regs,
+                fail_next: 0,
+                fail_kind: ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address),
+                ignore_writes_to: None,
+                transactions: 0,
+            }
+        }
+    }
+
+    impl ErrorType for MockBus {
+        type Error = MockError;
+    }
+
+    impl I2c for MockBus {
+        fn transaction(&mut self, _: u8, ops: &mut [Operation<'_>]) -> Result<(), MockError> {
+            self.transactions += 1;
+            if self.fail_next > 0 {
+                self.fail_next -= 1;
+                return Err(MockError(self.fail_kind));
+            }
+            let mut pointer = 0usize;
+            for op in ops {
+                match op {
+                    Operation::Write(bytes) => {
+                        pointer = usize::from(bytes[0]);
+                        for &b in &bytes[1..] {
+                            if self.ignore_writes_to != Some(pointer as u8) {
+                                self.regs[pointer] = b;
+                            }
+                            pointer += 1;
+                        }
+                    }
+                    Operation::Read(buf) => {
+                        for b in buf.iter_mut() {
+                            *b = self.regs[pointer];
+                            pointer += 1;
+                        }
+                    }
+                }
+            }
+            Ok(())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::mock::MockBus;
+    use super::*;
+    use protocol::mpu6050::{AccelRange, DlpfCfg, GyroRange};
+
+    struct NoDelay;
+    impl DelayNs for NoDelay {
+        fn delay_ns(&mut self, _: u32) {}
+    }
+
+    #[test]
+    fn configure_writes_whole_registers_and_clears_old_fields() {
+        let mut bus = MockBus::new();
+        // Leftovers a bit-ORing driver would keep: FS_SEL 3, self-test bits, EXT_SYNC.
+        bus.regs[usize::from(reg::GYRO_CONFIG)] = 0xF8;
+        bus.regs[usize::from(reg::ACCEL_CONFIG)] = 0xFF;
+        bus.regs[usize::from(reg::CONFIG)] = 0x3F;
+        let mut dev = Mpu6050::new(bus, 0x68);
+        let s = SensorSettings {
+            dlpf: DlpfCfg::Cfg2,
+            smplrt_div: 4,
+            gyro_range: GyroRange::Dps500,
+            accel_range: AccelRange::G4,
+        };
+        dev.configure(&s).unwrap();
+        assert_eq!(dev.read_settings().unwrap(), s);
+        let regs = dev.i2c_mut().regs;
+        assert_eq!(regs[usize::from(reg::GYRO_CONFIG)], 0x08);
+        assert_eq!(regs[usize::from(reg::ACCEL_CONFIG)], 0x08);
+        assert_eq!(regs[usize::from(reg::CONFIG)], 0x02);
+    }
+
+    #[test]
+    fn a_register_that_does_not_take_the_value_is_reported() {
+        let mut bus = MockBus::new();
+        bus.ignore_writes_to = Some(reg::CONFIG);
+        bus.regs[usize::from(reg::CONFIG)] = 0x01;
+        let mut dev = Mpu6050::new(bus, 0x68);
+        let err = dev.configure(&SensorSettings::default()).unwrap_err();
+        assert_eq!(
+            err,
+            ErrorCode::VerifyFailed {
+                register: reg::CONFIG,
+                wrote: 3,
+                read: 1
+            }
+        );
+    }
+
+    #[test]
+    fn transient_errors_are_retried_and_counted_persistent_ones_reported() {
+        let mut bus = MockBus::new();
+        bus.fail_next = ATTEMPTS - 1;
+        let mut dev = Mpu6050::new(bus, 0x68);
+        assert_eq!(dev.probe(), Ok(0x68));
+        assert_eq!(dev.i2c_errors(), ATTEMPTS - 1);
+        dev.i2c_mut().fail_next = ATTEMPTS;
+        assert_eq!(dev.probe(), Err(ErrorCode::SensorNotResponding));
+        dev.i2c_mut().fail_next = ATTEMPTS;
+        dev.i2c_mut().fail_kind = ErrorKind::Bus;
+        assert_eq!(dev.fifo_count(), Err(ErrorCode::I2cFailure));
+        assert_eq!(dev.i2c_errors(), 3 * ATTEMPTS - 1);
+        // FIFO reads are not retried: one failure, one error.
+        dev.i2c_mut().fail_next = 1;
+        let before = dev.i2c_mut().transactions;
+        assert_eq!(dev.read_fifo(&mut [0; 14]), Err(ErrorCode::I2cFailure));
+        assert_eq!(dev.i2c_mut().transactions, before + 1);
+    }
+
+    #[test]
+    fn wrong_sensor_and_init_sequence() {
+        let mut bus = MockBus::new();
+        bus.regs[usize::from(reg::WHO_AM_I)] = 0x70; // an MPU-6500
+        let mut dev = Mpu6050::new(bus, 0x68);
+        assert_eq!(dev.probe(), Err(ErrorCode::WrongSensor { who_am_i: 0x70 }));
+        dev.reset(&mut NoDelay).unwrap();
+        dev.wake().unwrap();
+        dev.enable_fifo().unwrap();
+        let regs = dev.i2c_mut().regs;
+        assert_eq!(regs[usize::from(reg::PWR_MGMT_1)], PWR_MGMT_1_RUN);
+        assert_eq!(regs[usize::from(reg::FIFO_EN)], FIFO_EN_ALL);
+        assert_eq!(regs[usize::from(reg::USER_CTRL)], USER_FIFO_EN);
+        assert_eq!(dev.check_awake(), Ok(()));
+        dev.i2c_mut().regs[usize::from(reg::PWR_MGMT_1)] = 0x40;
+        assert!(matches!(
+            dev.check_awake(),
+            Err(ErrorCode::VerifyFailed { read: 0x40, .. })
+        ));
+    }
+}

@@ -1,0 +1,582 @@
+//! The portable firmware against the simulated MPU-6050 on a simulated I2C bus: the
+//! "virtual board". Configuration, loss-free streaming, overflow accounting, faults, and the
+//! frames as the host decodes them.
+
+use embedded_hal::i2c::{ErrorType, I2c, Operation};
+use firmware::acquire::FIFO_SAMPLES;
+use firmware::{BoardConfig, Clock, Firmware};
+use imunoise::link::accounting::SampleAccounting;
+use imunoise::sim::device::{SimI2cError, SimMpu6050};
+use imunoise::sim::imu::ImuModel;
+use imunoise::sim::noise::NoiseTerms;
+use protocol::frame::{FrameDecoder, MAX_WIRE_LEN, encode};
+use protocol::mpu6050::{AccelRange, DEFAULT_ADDRESS, DlpfCfg, GyroRange, SensorSettings, reg};
+use protocol::{Command, DeviceMessage, ErrorCode, RawSample, Request, SampleBatch, Status};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::cell::RefCell;
+use std::ops::Range;
+use std::rc::Rc;
+
+/// The simulated sensor, shared by the firmware (as its I2C bus and its clock) and the test
+/// (which moves time and injects faults).
+#[derive(Clone)]
+struct Shared(Rc<RefCell<SimMpu6050>>);
+
+impl ErrorType for Shared {
+    type Error = SimI2cError;
+}
+impl I2c for Shared {
+    fn transaction(&mut self, a: u8, ops: &mut [Operation<'_>]) -> Result<(), SimI2cError> {
+        self.0.borrow_mut().transaction(a, ops)
+    }
+}
+impl Clock for Shared {
+    fn now_us(&mut self) -> u64 {
+        self.0.borrow().time_us()
+    }
+}
+
+struct NoDelay;
+impl embedded_hal::delay::DelayNs for NoDelay {
+    fn delay_ns(&mut self, _: u32) {}
+}
+
+fn model() -> ImuModel {
+    let mut model = ImuModel::default();
+    model.gyro.noise = NoiseTerms {
+        n: 1e-3,
+        ..Default::default()
+    };
+    model.accel.noise = NoiseTerms {
+        n: 1e-2,
+        ..Default::default()
+    };
+    model
+}
+
+/// A board: firmware + simulated sensor + the host's decoder.
+struct Board {
+    sim: Shared,
+    fw: Firmware<Shared, Shared>,
+    decoder: FrameDecoder,
+    seq: u16,
+    /// The link takes frames only while this is true (back-pressure when false).
+    link_open: bool,
+    replies: Vec<DeviceMessage>,
+    batches: Vec<SampleBatch>,
+}
+
+impl Board {
+    fn new(seed: u64) -> Self {
+        let sim = Shared(Rc::new(RefCell::new(SimMpu6050::new(model(), seed))));
+        let mut fw = Firmware::new(
+            sim.clone(),
+            sim.clone(),
+            BoardConfig {
+                address: DEFAULT_ADDRESS,
+                board_id: 0xB0A4D,
+            },
+        );
+        fw.init(&mut NoDelay).unwrap();
+        Board {
+            sim,
+            fw,
+            decoder: FrameDecoder::new(),
+            seq: 0,
+            link_open: true,
+            replies: Vec::new(),
+            batches: Vec::new(),
+        }
+    }
+
+    fn sim(&self) -> std::cell::RefMut<'_, SimMpu6050> {
+        self.sim.0.borrow_mut()
+    }
+
+    fn receive(&mut self, bytes: &[u8]) {
+        let mut msgs = Vec::new();
+        self.decoder
+            .feed::<DeviceMessage>(bytes, |m| msgs.push(m.expect("board frames decode")));
+        for m in msgs {
+            match m {
+                DeviceMessage::Samples(b) => self.batches.push(b),
+                other => self.replies.push(other),
+            }
+        }
+    }
+
+    /// Send a command; return the replies it produced (not sample batches).
+    fn command(&mut self, command: Command) -> Vec<DeviceMessage> {
+        self.seq = self.seq.wrapping_add(1);
+        let mut buf = [0u8; MAX_WIRE_LEN];
+        let n = encode(
+            &Request {
+                seq: self.seq,
+                command,
+            },
+            &mut buf,
+        )
+        .unwrap();
+        let mut wire = Vec::new();
+        let open = self.link_open;
+        self.fw.handle_bytes(&buf[..n], &mut |f| {
+            if open {
+                wire.extend_from_slice(f);
+            }
+            open
+        });
+        self.receive(&wire);
+        std::mem::take(&mut self.replies)
+    }
+
+    fn ack(&mut self, command: Command) {
+        let replies = self.command(command);
+        assert!(
+            matches!(replies.first(), Some(DeviceMessage::Ack { seq }) if *seq == self.seq),
+            "{command:?}: {replies:?}"
+        );
+    }
+
+    /// Move time to `t_us` and poll once.
+    fn poll_at(&mut self, t_us: u64) {
+        self.sim().set_time_us(t_us);
+        let mut wire = Vec::new();
+        let open = self.link_open;
+        self.fw.poll(&mut |f| {
+            if open {
+                wire.extend_from_slice(f);
+            }
+            open
+        });
+        self.receive(&wire);
+    }
+
+    fn status(&mut self) -> Status {
+        match self.command(Command::GetStatus).as_slice() {
+            [DeviceMessage::Status(s)] => *s,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn now(&self) -> u64 {
+        self.sim.0.borrow().time_us()
+    }
+}
+
+/// What the sensor produced, read straight from a clone of it taken at Start (same state,
+/// same noise): drained every millisecond, so it never overflows.
+struct Oracle {
+    sim: SimMpu6050,
+    samples: Vec<RawSample>,
+}
+
+impl Oracle {
+    fn at_start(board: &Board) -> Self {
+        Oracle {
+            sim: board.sim.0.borrow().clone(),
+            samples: Vec::new(),
+        }
+    }
+
+    fn run_to(&mut self, t_us: u64) {
+        let mut t = self.sim.time_us();
+        while t < t_us {
+            t = (t + 1000).min(t_us);
+            self.sim.set_time_us(t);
+            let mut c = [0u8; 2];
+            self.sim
+                .write_read(DEFAULT_ADDRESS, &[reg::FIFO_COUNT_H], &mut c)
+                .unwrap();
+            let n = usize::from(u16::from_be_bytes(c)) / 14;
+            let mut bytes = vec![0u8; n * 14];
+            self.sim
+                .write_read(DEFAULT_ADDRESS, &[reg::FIFO_R_W], &mut bytes)
+                .unwrap();
+            for s in bytes.chunks_exact(14) {
+                self.samples
+                    .push(RawSample::from_fifo_bytes(s.try_into().unwrap()));
+            }
+        }
+    }
+}
+
+fn settings(dlpf: DlpfCfg, smplrt_div: u8) -> SensorSettings {
+    SensorSettings {
+        dlpf,
+        smplrt_div,
+        gyro_range: GyroRange::Dps500,
+        accel_range: AccelRange::G4,
+    }
+}
+
+/// Check batches against the oracle: indices in order, every index `< upto` present except
+/// `missing`, values equal.
+fn check_against(batches: &[SampleBatch], oracle: &Oracle, missing: &[Range<u64>]) {
+    let mut acc = SampleAccounting::new();
+    for b in batches {
+        acc.batch(b.first_index, b.samples.len()).unwrap();
+        for (k, s) in b.samples.iter().enumerate() {
+            let i = b.first_index as usize + k;
+            assert_eq!(*s, oracle.samples[i], "sample {i}");
+        }
+    }
+    assert_eq!(acc.gaps(), missing);
+    assert_eq!(acc.out_of_order_batches(), 0);
+}
+
+#[test]
+fn configuration_lands_in_the_registers_for_every_dlpf_and_divider() {
+    let mut board = Board::new(1);
+    for dlpf in DlpfCfg::ALL {
+        for div in [0u8, 1, 7, 9, 19, 99, 255] {
+            let s = settings(dlpf, div);
+            let replies = board.command(Command::Configure(s));
+            let supported = dlpf != DlpfCfg::Cfg7 && s.output_rate_hz() <= 1000.0;
+            if !supported {
+                assert!(
+                    matches!(
+                        replies[..],
+                        [DeviceMessage::Nack {
+                            error: ErrorCode::InvalidSettings,
+                            ..
+                        }]
+                    ),
+                    "{s}: {replies:?}"
+                );
+                continue;
+            }
+            assert!(matches!(replies[..], [DeviceMessage::Ack { .. }]), "{s}");
+            let sim = board.sim();
+            assert_eq!(sim.settings(), s, "{s}");
+            assert_eq!(sim.peek(reg::CONFIG), dlpf.bits());
+            assert_eq!(sim.peek(reg::SMPLRT_DIV), div);
+            assert_eq!(sim.peek(reg::GYRO_CONFIG), 1 << 3);
+            assert_eq!(sim.peek(reg::ACCEL_CONFIG), 1 << 3);
+            assert_eq!(sim.peek(reg::PWR_MGMT_1), 0x01, "awake on the gyro PLL");
+            assert_eq!(sim.peek(reg::FIFO_EN), 0xF8, "accel, temperature, gyro");
+            drop(sim);
+            // The output rate: samples in one second of streaming.
+            if s.output_rate_hz() >= 50.0 {
+                board.ack(Command::Start);
+                let t0 = board.now();
+                let mut t = t0;
+                while t < t0 + 1_000_000 {
+                    t += 5_000;
+                    board.poll_at(t);
+                }
+                board.ack(Command::Stop);
+                let n: usize = board.batches.drain(..).map(|b| b.samples.len()).sum();
+                let expected = s.output_rate_hz();
+                assert!(
+                    (n as f64 - expected).abs() <= 1.0,
+                    "{s}: {n} samples in 1 s"
+                );
+            }
+        }
+    }
+    // Configure while streaming is refused.
+    board.ack(Command::Start);
+    let replies = board.command(Command::Configure(SensorSettings::default()));
+    assert!(matches!(
+        replies[..],
+        [DeviceMessage::Nack {
+            error: ErrorCode::Busy,
+            ..
+        }]
+    ));
+}
+
+/// Drain on a jittery schedule for `seconds` at 1 kHz; every sample arrives once, in order,
+/// equal to what the sensor produced.
+fn loss_free(seconds: u64) {
+    let mut board = Board::new(7);
+    board.ack(Command::Configure(settings(DlpfCfg::Cfg1, 0))); // 1 kHz
+    board.ack(Command::Start);
+    let mut oracle = Oracle::at_start(&board);
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let end = board.now() + seconds * 1_000_000;
+    let mut t = board.now();
+    let mut checked = 0;
+    while t < end {
+        // Polls between 0.1 and 45 ms apart: within the FIFO's 73 ms.
+        t += rng.random_range(100..45_000);
+        board.poll_at(t);
+        if board.batches.len() > 10_000 {
+            oracle.run_to(t);
+            check_tail(&board.batches, &oracle, &mut checked);
+            board.batches.clear();
+        }
+    }
+    board.ack(Command::Stop);
+    oracle.run_to(board.now());
+    check_tail(&board.batches, &oracle, &mut checked);
+    assert_eq!(
+        checked as usize,
+        oracle.samples.len(),
+        "every sample arrived"
+    );
+    let status = board.status();
+    assert_eq!(status.samples_lost, 0);
+    assert_eq!(status.fifo_overflows, 0);
+    assert_eq!(status.samples_acquired, checked);
+}
+
+/// Check batches continue exactly at `checked` and match the oracle.
+fn check_tail(batches: &[SampleBatch], oracle: &Oracle, checked: &mut u64) {
+    for b in batches {
+        assert_eq!(b.first_index, *checked, "no gap, no repeat");
+        for (k, s) in b.samples.iter().enumerate() {
+            assert_eq!(*s, oracle.samples[(*checked) as usize + k]);
+        }
+        *checked += b.samples.len() as u64;
+    }
+}
+
+/// 3.6 million samples; about 4 s.
+#[test]
+fn loss_free_for_an_hour_at_1khz() {
+    loss_free(3600);
+}
+
+#[test]
+fn overflow_loss_is_counted_exactly_and_streaming_resumes() {
+    let mut board = Board::new(3);
+    board.ack(Command::Configure(settings(DlpfCfg::Cfg1, 0)));
+    board.ack(Command::Start);
+    let mut oracle = Oracle::at_start(&board);
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut t = board.now();
+    let mut run = |board: &mut Board, t: &mut u64, until: u64| {
+        while *t < until {
+            *t += rng.random_range(1_000..25_000);
+            board.poll_at(*t);
+        }
+    };
+    let start = t;
+    run(&mut board, &mut t, start + 2_000_000);
+    let before_stall = board
+        .batches
+        .last()
+        .map(|b| b.first_index + b.samples.len() as u64);
+    // A stall of 0.5 s: seven FIFOs' worth.
+    t += 500_000;
+    board.poll_at(t);
+    run(&mut board, &mut t, start + 4_000_000);
+    board.ack(Command::Stop);
+    oracle.run_to(board.now());
+    let status = board.status();
+    assert_eq!(status.fifo_overflows, 1);
+    // Every index the firmware did not deliver is a lost sample, and the count says so.
+    let delivered: u64 = board.batches.iter().map(|b| b.samples.len() as u64).sum();
+    assert_eq!(delivered + status.samples_lost, oracle.samples.len() as u64);
+    assert_eq!(delivered, status.samples_acquired);
+    // One gap, right after the last sample before the stall; values still line up after it.
+    let gap_start = before_stall.unwrap();
+    let gap_end = gap_start + status.samples_lost;
+    let gap: Range<u64> = gap_start..gap_end;
+    check_against(&board.batches, &oracle, std::slice::from_ref(&gap));
+    assert!(status.samples_lost >= 500 - FIFO_SAMPLES as u64);
+}
+
+#[test]
+fn back_pressure_drops_and_counts_whole_batches() {
+    let mut board = Board::new(4);
+    board.ack(Command::Configure(settings(DlpfCfg::Cfg3, 0)));
+    board.ack(Command::Start);
+    let mut oracle = Oracle::at_start(&board);
+    let mut t = board.now();
+    for step in 0..300 {
+        board.link_open = !(100..150).contains(&step);
+        t += 10_000;
+        board.poll_at(t);
+    }
+    board.link_open = true;
+    board.ack(Command::Stop);
+    oracle.run_to(board.now());
+    let status = board.status();
+    assert!(status.batches_dropped > 0);
+    let delivered: u64 = board.batches.iter().map(|b| b.samples.len() as u64).sum();
+    assert_eq!(
+        delivered + status.samples_dropped,
+        oracle.samples.len() as u64
+    );
+    let mut acc = SampleAccounting::new();
+    for b in &board.batches {
+        acc.batch(b.first_index, b.samples.len()).unwrap();
+    }
+    assert_eq!(
+        acc.lost(),
+        status.samples_dropped,
+        "the host sees the same loss"
+    );
+    assert_eq!(status.samples_lost, 0);
+}
+
+#[test]
+fn transient_i2c_errors_are_retried_counted_and_lose_nothing() {
+    let mut board = Board::new(5);
+    board.ack(Command::Configure(SensorSettings::default()));
+    board.ack(Command::Start);
+    let mut oracle = Oracle::at_start(&board);
+    let mut t = board.now();
+    for step in 0..200 {
+        if step % 10 == 0 {
+            board.sim().faults_mut().nack_address = 1;
+        }
+        if step % 25 == 0 {
+            board.sim().faults_mut().bus_error = 2;
+        }
+        t += 20_000;
+        board.poll_at(t);
+    }
+    board.ack(Command::Stop);
+    oracle.run_to(board.now());
+    let status = board.status();
+    assert!(status.i2c_errors >= 20 + 16, "{status:?}");
+    check_against(&board.batches, &oracle, &[]);
+    let delivered: u64 = board.batches.iter().map(|b| b.samples.len() as u64).sum();
+    assert_eq!(delivered, oracle.samples.len() as u64);
+}
+
+/// Stream at 100 Hz for a while, then let `fault` happen; return the replies after it.
+fn fault_after(fault: impl FnOnce(&mut SimMpu6050, u64)) -> (Board, Vec<DeviceMessage>) {
+    let mut board = Board::new(6);
+    board.ack(Command::Start);
+    let mut t = board.now();
+    for _ in 0..50 {
+        t += 20_000;
+        board.poll_at(t);
+    }
+    let now = board.now();
+    fault(&mut board.sim(), now);
+    for _ in 0..100 {
+        t += 20_000;
+        board.poll_at(t);
+    }
+    let faults = board.replies.drain(..).collect();
+    (board, faults)
+}
+
+#[test]
+fn a_sensor_that_stops_answering_is_reported_not_waited_on() {
+    let (mut board, replies) = fault_after(|sim, _| sim.faults_mut().nack_address = u32::MAX);
+    assert_eq!(
+        replies,
+        [DeviceMessage::Fault(ErrorCode::SensorNotResponding)]
+    );
+    assert!(!board.fw.streaming());
+    // Start is refused with the reason while it stays away, and works once it is back.
+    let r = board.command(Command::Start);
+    assert!(matches!(
+        r[..],
+        [DeviceMessage::Nack {
+            error: ErrorCode::SensorNotResponding,
+            ..
+        }]
+    ));
+    board.sim().faults_mut().nack_address = 0;
+    board.ack(Command::Start);
+}
+
+#[test]
+fn a_sensor_reset_mid_run_is_reported_and_recovered() {
+    let (mut board, replies) =
+        fault_after(|sim, now| sim.faults_mut().reset_at_us = Some(now + 5_000));
+    assert_eq!(
+        replies,
+        [DeviceMessage::Fault(ErrorCode::VerifyFailed {
+            register: reg::PWR_MGMT_1,
+            wrote: 0x01,
+            read: 0x40
+        })]
+    );
+    // The next Start sets the sensor up again with the settings the host chose.
+    board.ack(Command::Start);
+    assert_eq!(board.sim().settings(), SensorSettings::default());
+    let t = board.now();
+    board.poll_at(t + 100_000);
+    assert!(!board.batches.is_empty());
+}
+
+#[test]
+fn a_stuck_fifo_count_is_reported() {
+    let (_, replies) = fault_after(|sim, _| sim.faults_mut().stuck_fifo_count = Some(0x1C0));
+    assert_eq!(
+        replies,
+        [DeviceMessage::Fault(ErrorCode::FifoCountImplausible {
+            count: 0x1C0
+        })]
+    );
+    let (_, replies) = fault_after(|sim, _| sim.faults_mut().stuck_fifo_count = Some(0));
+    assert_eq!(
+        replies,
+        [DeviceMessage::Fault(ErrorCode::FifoCountImplausible {
+            count: 0
+        })]
+    );
+}
+
+#[test]
+fn wrong_sensor_is_named() {
+    let mut board = Board::new(8);
+    board.sim().faults_mut().who_am_i = Some(0x70);
+    let r = board.command(Command::Configure(SensorSettings::default()));
+    assert!(matches!(
+        r[..],
+        [DeviceMessage::Nack {
+            error: ErrorCode::WrongSensor { who_am_i: 0x70 },
+            ..
+        }]
+    ));
+    match board.command(Command::GetInfo).as_slice() {
+        [DeviceMessage::Info(info)] => {
+            assert_eq!(info.who_am_i, 0x70);
+            assert_eq!(info.board_id, 0xB0A4D);
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn commands_are_answered_and_bad_frames_counted() {
+    let mut board = Board::new(9);
+    assert!(matches!(
+        board.command(Command::Ping)[..],
+        [DeviceMessage::Pong { .. }]
+    ));
+    let r = board.command(Command::Stop);
+    assert!(matches!(
+        r[..],
+        [DeviceMessage::Nack {
+            error: ErrorCode::NotStreaming,
+            ..
+        }]
+    ));
+    board.ack(Command::Start);
+    let r = board.command(Command::Start);
+    assert!(matches!(
+        r[..],
+        [DeviceMessage::Nack {
+            error: ErrorCode::Busy,
+            ..
+        }]
+    ));
+    // Garbage and a corrupted frame: counted, ignored, and the next command still works.
+    let mut out = |_: &[u8]| true;
+    board
+        .fw
+        .handle_bytes(&[0, 1, 2, 3, 0, 0x55, 0x66, 0], &mut out);
+    let replies = board.command(Command::Stop);
+    assert!(
+        matches!(replies[0], DeviceMessage::Ack { .. }),
+        "{replies:?}"
+    );
+    match &replies[1] {
+        DeviceMessage::Status(s) => {
+            assert_eq!(s.frames_rejected, 2);
+            assert!(!s.streaming);
+        }
+        other => panic!("{other:?}"),
+    }
+}
