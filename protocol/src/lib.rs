@@ -135,8 +135,9 @@ impl core::fmt::Display for FirmwareVersion {
 pub struct SampleBatch {
     /// Index of `samples[0]` since start (0-based).
     pub first_index: u64,
-    /// Board clock (microseconds since boot) when `samples[0]` was read from the FIFO, less
-    /// the FIFO's backlog at that moment (an estimate of when the sensor sampled it).
+    /// Board clock (microseconds since boot) at which the sensor made `samples[0]`: the
+    /// firmware's sample grid (firmware/src/timing.rs) places every index on the sensor's
+    /// own period, phase-locked to the FIFO counts it reads.
     pub first_timestamp_us: u64,
     pub samples: heapless::Vec<RawSample, MAX_SAMPLES_PER_BATCH>,
 }
