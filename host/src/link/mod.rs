@@ -3,3 +3,4 @@
 
 pub mod accounting;
 pub mod handshake;
+pub mod virtual_board;
