@@ -3,6 +3,7 @@
 mod analyze;
 mod bench;
 mod demo;
+mod ports;
 pub(crate) mod settings;
 mod simulate;
 
@@ -30,6 +31,8 @@ pub enum Command {
     Analyze(Box<analyze::AnalyzeArgs>),
     /// Time the analysis engine against allantools on the same generated data
     Bench(bench::BenchArgs),
+    /// List serial ports (USB vendor/product, our board marked)
+    Ports(ports::PortsArgs),
     /// Simulate an MPU-6050 at rest through its signal chain and write the samples (CSV)
     Simulate(simulate::SimulateArgs),
 }
@@ -42,6 +45,7 @@ pub fn main() -> ExitCode {
         Command::Demo(args) => demo::run(&args),
         Command::Analyze(args) => analyze::run(&args),
         Command::Bench(args) => bench::run(&args),
+        Command::Ports(args) => ports::run(&args),
         Command::Simulate(args) => simulate::run(&args),
     };
     match result {

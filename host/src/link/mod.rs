@@ -3,4 +3,5 @@
 
 pub mod accounting;
 pub mod handshake;
+pub mod serial;
 pub mod virtual_board;
