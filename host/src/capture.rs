@@ -111,7 +111,7 @@ pub enum CaptureError {
 /// **Board restarts.** A board that resets mid-stream announces itself again (a new Info)
 /// and numbers its samples from 0 again. Indices restarting would otherwise look like
 /// batches repeating old ones (discarded), so a restart — an Info after samples, or a batch
-/// starting at index 0 after samples — ends the current run, is recorded in
+/// going back in both index and board time — ends the current run, is recorded in
 /// [`Capture::restarts`], and the new segment's indices continue past the old segment's
 /// (`session index = segment base + board index`). Samples the board never sent between
 /// its reset and its new start are unknowable and are not counted as lost.
@@ -126,6 +126,8 @@ pub struct StreamDecoder {
     /// Session index of the current segment's board index 0.
     segment_base: u64,
     samples_in_segment: bool,
+    /// Board time of the segment's first batch: a reset restarts the board's clock too.
+    segment_start_us: u64,
     new_run: bool,
     keep_samples: bool,
 }
@@ -150,6 +152,7 @@ impl StreamDecoder {
             restarts: Vec::new(),
             segment_base: 0,
             samples_in_segment: false,
+            segment_start_us: 0,
             new_run: true,
             keep_samples,
         }
@@ -189,8 +192,17 @@ impl StreamDecoder {
     }
 
     fn batch(&mut self, batch: &SampleBatch) {
-        if batch.first_index == 0 && self.samples_in_segment {
-            self.restart(); // the board restarted and its Info was lost on the line
+        // Indices gone back, and the clock before the segment began (or a new index 0 at
+        // another time): the board restarted and its Info was lost on the line. A repeated
+        // batch keeps its own timestamp, so it is not taken for a restart.
+        let board_next = self.accounting.expected() - self.segment_base;
+        let ts = batch.first_timestamp_us;
+        if self.samples_in_segment
+            && batch.first_index < board_next
+            && (ts < self.segment_start_us
+                || (batch.first_index == 0 && ts != self.segment_start_us))
+        {
+            self.restart();
         }
         let len = batch.samples.len();
         let index = self.segment_base.saturating_add(batch.first_index);
@@ -198,6 +210,9 @@ impl StreamDecoder {
         let Ok(gap) = self.accounting.batch(index, len) else {
             return;
         };
+        if !self.samples_in_segment {
+            self.segment_start_us = batch.first_timestamp_us;
+        }
         self.samples_in_segment = true;
         if !self.keep_samples {
             return;
@@ -420,5 +435,59 @@ mod tests {
             Capture::decode(&capture(&[batch(0, 3)])).unwrap_err(),
             CaptureError::NoInfo
         );
+    }
+
+    #[test]
+    fn a_board_restart_ends_the_run_and_is_recorded() {
+        let mut restarted = batch(0, 32);
+        if let DeviceMessage::Samples(b) = &mut restarted {
+            b.first_timestamp_us = 1234; // another boot, another time
+        }
+        // With its Info (a reset announces itself) and without (the Info lost on the line).
+        for with_info in [true, false] {
+            let mut messages = vec![DeviceMessage::Info(info()), batch(0, 32), batch(32, 32)];
+            if with_info {
+                messages.push(DeviceMessage::Info(info()));
+            }
+            messages.extend([restarted.clone(), batch(32, 32)]);
+            let c = Capture::decode(&capture(&messages)).unwrap();
+            assert_eq!(c.restarts, [64], "with_info {with_info}");
+            assert_eq!(c.runs.len(), 2);
+            assert_eq!((c.runs[1].first_index, c.runs[1].samples.len()), (64, 64));
+            assert_eq!((c.accounting.received(), c.accounting.lost()), (128, 0));
+            let err = c.to_record("cap", false).unwrap_err();
+            assert!(err.to_string().contains("restarted 1 time"), "{err}");
+            assert_eq!(c.to_record("cap", true).unwrap().len(), 64);
+        }
+        // A repeated batch (same time) is not a restart.
+        let c = Capture::decode(&capture(&[
+            DeviceMessage::Info(info()),
+            batch(0, 32),
+            batch(32, 32),
+            batch(0, 32),
+        ]))
+        .unwrap();
+        assert!(c.restarts.is_empty());
+        assert_eq!(c.accounting.out_of_order_batches(), 1);
+    }
+
+    #[test]
+    fn chunked_decoding_equals_whole() {
+        let bytes = capture(&[
+            DeviceMessage::Info(info()),
+            batch(0, 32),
+            batch(40, 32),
+            batch(72, 5),
+        ]);
+        let whole = Capture::decode(&bytes).unwrap();
+        for chunk in [1, 3, 64, 1000] {
+            let mut d = StreamDecoder::new(true);
+            bytes.chunks(chunk).for_each(|c| {
+                d.feed(c);
+            });
+            let c = d.finish().unwrap();
+            assert_eq!(c.runs, whole.runs);
+            assert_eq!(c.accounting, whole.accounting);
+        }
     }
 }

@@ -78,6 +78,17 @@ pub fn record(
     let writer = store
         .begin_capture(options.name.as_deref(), options.notes.as_deref())
         .map_err(RecordError::Begin)?;
+    record_into(link, writer, options, stop, progress)
+}
+
+/// [`record`] into a session already begun (`options.name` and `notes` are then unused).
+pub fn record_into(
+    link: &mut dyn Link,
+    writer: SessionWriter,
+    options: &RecordOptions,
+    stop: &AtomicBool,
+    progress: &mut dyn FnMut(&Progress),
+) -> Result<Outcome, RecordError> {
     let mut decoder = StreamDecoder::new(options.keep_samples);
     let id = writer.id();
     run(link, writer, &mut decoder, options, stop, progress).map(|(ending, counts)| Outcome {

@@ -23,7 +23,7 @@ mod writer;
 pub use location::{ENV, locate};
 pub use schema::VERSION as SCHEMA_VERSION;
 pub use session::{Analysis, Board, Counts, ImportSpec, Kind, Session, State};
-pub use writer::{End, SYNC_INTERVAL, SessionWriter};
+pub use writer::{End, RawSink, SYNC_INTERVAL, SessionWriter};
 
 use rusqlite::{Connection, OptionalExtension, params};
 use std::path::{Path, PathBuf};
