@@ -307,3 +307,49 @@ fn a_failing_disk_is_an_error_naming_the_file_and_keeps_what_was_written() {
     let c = Capture::decode(&kept).unwrap();
     assert!(c.accounting.received() > 0);
 }
+
+/// Decoding throughput of a large capture (not a timed assertion; run with
+/// `cargo test --release --test recorder -- --ignored --nocapture`). Target: >= 100 MB/s.
+#[test]
+#[ignore]
+fn decode_throughput() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let megabytes: usize = std::env::var("DECODE_MB")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(200);
+    let mut bytes = frame(&DeviceMessage::Info(info()), vec![]).bytes;
+    let mut index = 0u64;
+    while bytes.len() < megabytes << 20 {
+        let samples = (0..32)
+            .map(|_| RawSample {
+                gyro: [rng.random(), rng.random(), rng.random()],
+                accel: [rng.random(), rng.random(), rng.random()],
+                temp: rng.random(),
+            })
+            .collect();
+        let message = DeviceMessage::Samples(SampleBatch {
+            first_index: index,
+            first_timestamp_us: index * 1000,
+            samples,
+        });
+        bytes.extend(frame(&message, vec![]).bytes);
+        index += 32;
+    }
+    let started = std::time::Instant::now();
+    let c = Capture::decode(&bytes).unwrap();
+    let secs = started.elapsed().as_secs_f64();
+    assert_eq!(c.accounting.received(), index);
+    let started = std::time::Instant::now();
+    let mut counting = imunoise::capture::StreamDecoder::new(false);
+    bytes.chunks(1 << 16).for_each(|chunk| {
+        counting.feed(chunk);
+    });
+    let counting_secs = started.elapsed().as_secs_f64();
+    let mb = bytes.len() as f64 / 1e6;
+    println!(
+        "decoded {mb:.0} MB ({index} samples) in {secs:.2} s: {:.0} MB/s keeping samples, {:.0} MB/s counting only (live loop)",
+        mb / secs,
+        mb / counting_secs
+    );
+}
