@@ -52,6 +52,21 @@ fn json(text: &str) -> serde_json::Value {
     serde_json::from_str(text).unwrap_or_else(|e| panic!("{e}: {text}"))
 }
 
+/// `imunoise capture --from-file SOURCE ARGS` running in the background.
+fn spawn_capture(store: &Path, source: &Path, args: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .arg("--store")
+        .arg(store)
+        .arg("capture")
+        .args(args)
+        .arg("--from-file")
+        .arg(source)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
 fn signal(pid: u32, sig: &str) {
     let s = Command::new("kill")
         .args([sig, &pid.to_string()])
@@ -65,15 +80,7 @@ fn a_capture_killed_with_sigkill_is_listed_and_readable() {
     let tmp = tempfile::tempdir().unwrap();
     let store = tmp.path().join("store");
     let source = capture_file(tmp.path(), 60);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .arg("--store")
-        .arg(&store)
-        .args(["capture", "--speed", "1", "--name", "killed", "--from-file"])
-        .arg(&source)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let mut child = spawn_capture(&store, &source, &["--speed", "1", "--name", "killed"]);
     std::thread::sleep(Duration::from_secs(2));
     signal(child.id(), "-KILL");
     child.wait().unwrap();
@@ -105,15 +112,7 @@ fn ctrl_c_ends_a_capture_as_complete() {
     let tmp = tempfile::tempdir().unwrap();
     let store = tmp.path().join("store");
     let source = capture_file(tmp.path(), 60);
-    let child = Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .arg("--store")
-        .arg(&store)
-        .args(["capture", "--speed", "2", "--from-file"])
-        .arg(&source)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_capture(&store, &source, &["--speed", "2"]);
     std::thread::sleep(Duration::from_millis(1500));
     signal(child.id(), "-INT");
     let out = ok(child.wait_with_output().unwrap());
