@@ -12,7 +12,7 @@ use crate::link::accounting::SampleAccounting;
 use crate::record::{Channel, Record};
 use protocol::frame::{self, DecoderStats, FrameDecoder, MAX_WIRE_LEN};
 use protocol::mpu6050::temperature_celsius;
-use protocol::{DeviceInfo, DeviceMessage, RawSample, Status};
+use protocol::{DeviceInfo, DeviceMessage, RawSample, SampleBatch, SensorSettings, Status};
 use std::io::Write;
 use std::ops::Range;
 
@@ -50,23 +50,34 @@ impl<W: Write> CaptureWriter<W> {
 /// A run of consecutive sample indices and their samples.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Run {
+    /// Index of the run's first sample in the session (see [`Capture::restarts`]: after a
+    /// board restart, indices continue past the previous segment instead of starting at 0).
     pub first_index: u64,
     /// Board time of the run's first sample, microseconds.
     pub first_timestamp_us: u64,
+    /// The settings the board announced before this run (`None` if no Info preceded it; the
+    /// capture's first Info then applies).
+    pub settings: Option<SensorSettings>,
     pub samples: Vec<RawSample>,
 }
 
 /// A decoded capture.
 #[derive(Debug, Clone)]
 pub struct Capture {
+    /// The board's first Info.
     pub info: DeviceInfo,
     /// Gap-free runs of samples, in index order.
     pub runs: Vec<Run>,
     /// The last status report, if the board sent one.
     pub status: Option<Status>,
+    /// Every sample by its session index: received, lost (gaps) or out of order.
     pub accounting: SampleAccounting,
+    /// Session indices at which the board restarted (see [`StreamDecoder`]).
+    pub restarts: Vec<u64>,
     /// Frames rejected on the line (damaged) and by cause.
     pub decoder: DecoderStats,
+    /// Bytes of a last frame that never got its closing delimiter (a capture cut short).
+    pub trailing_bytes: usize,
 }
 
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -84,48 +95,185 @@ pub enum CaptureError {
         first_gap: u64,
         longest: usize,
     },
+    #[error(
+        "the board restarted {restarts} time(s) during the capture (first at index {first}); the Allan variance needs one uninterrupted run: use --longest-run to analyse the longest one ({longest} samples)"
+    )]
+    Restarts {
+        restarts: usize,
+        first: u64,
+        longest: usize,
+    },
+}
+
+/// Decodes a capture as its bytes arrive, in chunks of any size: the one decoder behind
+/// both a live capture and a replay of its file, so both give the same record bit for bit.
+///
+/// **Board restarts.** A board that resets mid-stream announces itself again (a new Info)
+/// and numbers its samples from 0 again. Indices restarting would otherwise look like
+/// batches repeating old ones (discarded), so a restart — an Info after samples, or a batch
+/// going back in both index and board time — ends the current run, is recorded in
+/// [`Capture::restarts`], and the new segment's indices continue past the old segment's
+/// (`session index = segment base + board index`). Samples the board never sent between
+/// its reset and its new start are unknowable and are not counted as lost.
+pub struct StreamDecoder {
+    decoder: FrameDecoder,
+    first_info: Option<DeviceInfo>,
+    settings: Option<SensorSettings>,
+    status: Option<Status>,
+    accounting: SampleAccounting,
+    runs: Vec<Run>,
+    restarts: Vec<u64>,
+    /// Session index of the current segment's board index 0.
+    segment_base: u64,
+    samples_in_segment: bool,
+    /// Board time of the segment's first batch: a reset restarts the board's clock too.
+    segment_start_us: u64,
+    new_run: bool,
+    keep_samples: bool,
+}
+
+impl Default for StreamDecoder {
+    fn default() -> Self {
+        Self::new(true)
+    }
+}
+
+impl StreamDecoder {
+    /// `keep_samples: false` counts without keeping the samples (a long live capture, whose
+    /// samples are in its file anyway).
+    pub fn new(keep_samples: bool) -> Self {
+        StreamDecoder {
+            decoder: FrameDecoder::new(),
+            first_info: None,
+            settings: None,
+            status: None,
+            accounting: SampleAccounting::new(),
+            runs: Vec::new(),
+            restarts: Vec::new(),
+            segment_base: 0,
+            samples_in_segment: false,
+            segment_start_us: 0,
+            new_run: true,
+            keep_samples,
+        }
+    }
+
+    /// Decode a chunk; returns how many Info messages it held (a new Info means new metadata).
+    pub fn feed(&mut self, bytes: &[u8]) -> usize {
+        let mut decoder = std::mem::take(&mut self.decoder);
+        let mut infos = 0;
+        decoder.feed::<DeviceMessage>(bytes, |message| match message {
+            Ok(DeviceMessage::Info(i)) => {
+                infos += 1;
+                self.info(i);
+            }
+            Ok(DeviceMessage::Status(s)) => self.status = Some(s),
+            Ok(DeviceMessage::Samples(batch)) => self.batch(&batch),
+            // Replies and faults carry no samples; damaged frames are in the decoder's stats.
+            Ok(_) | Err(_) => {}
+        });
+        self.decoder = decoder;
+        infos
+    }
+
+    fn info(&mut self, info: DeviceInfo) {
+        if self.samples_in_segment {
+            self.restart();
+        }
+        self.first_info.get_or_insert(info);
+        self.settings = Some(info.settings);
+    }
+
+    fn restart(&mut self) {
+        self.segment_base = self.accounting.expected();
+        self.restarts.push(self.segment_base);
+        self.samples_in_segment = false;
+        self.new_run = true;
+    }
+
+    fn batch(&mut self, batch: &SampleBatch) {
+        // Indices gone back, and the clock before the segment began (or a new index 0 at
+        // another time): the board restarted and its Info was lost on the line. A repeated
+        // batch keeps its own timestamp, so it is not taken for a restart.
+        let board_next = self.accounting.expected() - self.segment_base;
+        let ts = batch.first_timestamp_us;
+        if self.samples_in_segment
+            && batch.first_index < board_next
+            && (ts < self.segment_start_us
+                || (batch.first_index == 0 && ts != self.segment_start_us))
+        {
+            self.restart();
+        }
+        let len = batch.samples.len();
+        let index = self.segment_base.saturating_add(batch.first_index);
+        // Overlapping indices (Err) are counted by the accounting, not stored twice.
+        let Ok(gap) = self.accounting.batch(index, len) else {
+            return;
+        };
+        if !self.samples_in_segment {
+            self.segment_start_us = batch.first_timestamp_us;
+        }
+        self.samples_in_segment = true;
+        if !self.keep_samples {
+            return;
+        }
+        match self.runs.last_mut() {
+            Some(run) if gap.is_none() && !self.new_run => {
+                run.samples.extend_from_slice(&batch.samples)
+            }
+            _ => self.runs.push(Run {
+                first_index: index,
+                first_timestamp_us: batch.first_timestamp_us,
+                settings: self.settings,
+                samples: batch.samples.to_vec(),
+            }),
+        }
+        self.new_run = false;
+    }
+
+    pub fn info_seen(&self) -> Option<&DeviceInfo> {
+        self.first_info.as_ref()
+    }
+    pub fn accounting(&self) -> &SampleAccounting {
+        &self.accounting
+    }
+    pub fn status(&self) -> Option<&Status> {
+        self.status.as_ref()
+    }
+    pub fn stats(&self) -> DecoderStats {
+        self.decoder.stats()
+    }
+    pub fn restarts(&self) -> &[u64] {
+        &self.restarts
+    }
+    /// Bytes of a frame not yet closed by its delimiter.
+    pub fn pending(&self) -> usize {
+        self.decoder.pending()
+    }
+
+    /// The capture so far. Status counters are cumulative since the board powered up, not
+    /// since Start, so they cannot close the index range; losses after the last batch show
+    /// in them.
+    pub fn finish(self) -> Result<Capture, CaptureError> {
+        let info = self.first_info.ok_or(CaptureError::NoInfo)?;
+        Ok(Capture {
+            info,
+            runs: self.runs,
+            status: self.status,
+            accounting: self.accounting,
+            restarts: self.restarts,
+            decoder: self.decoder.stats(),
+            trailing_bytes: self.decoder.pending(),
+        })
+    }
 }
 
 impl Capture {
     /// Decode a capture's bytes.
     pub fn decode(bytes: &[u8]) -> Result<Capture, CaptureError> {
-        let mut decoder = FrameDecoder::new();
-        let mut info = None;
-        let mut status = None;
-        let mut accounting = SampleAccounting::new();
-        let mut runs: Vec<Run> = Vec::new();
-        decoder.feed::<DeviceMessage>(bytes, |message| match message {
-            Ok(DeviceMessage::Info(i)) => info = Some(i),
-            Ok(DeviceMessage::Status(s)) => status = Some(s),
-            Ok(DeviceMessage::Samples(batch)) => {
-                let len = batch.samples.len();
-                // Overlapping indices (Err) are counted by the accounting, not stored twice.
-                if let Ok(gap) = accounting.batch(batch.first_index, len) {
-                    let extends = gap.is_none() && !runs.is_empty();
-                    if extends && let Some(run) = runs.last_mut() {
-                        run.samples.extend_from_slice(&batch.samples);
-                    } else {
-                        runs.push(Run {
-                            first_index: batch.first_index,
-                            first_timestamp_us: batch.first_timestamp_us,
-                            samples: batch.samples.to_vec(),
-                        });
-                    }
-                }
-            }
-            // Replies and faults carry no samples; damaged frames are in the decoder's stats.
-            Ok(_) | Err(_) => {}
-        });
-        // Status counters are cumulative since the board powered up, not since Start, so
-        // they cannot close the index range; losses after the last batch show in them.
-        let info = info.ok_or(CaptureError::NoInfo)?;
-        Ok(Capture {
-            info,
-            runs,
-            status,
-            accounting,
-            decoder: decoder.stats(),
-        })
+        let mut decoder = StreamDecoder::new(true);
+        decoder.feed(bytes);
+        decoder.finish()
     }
 
     pub fn gaps(&self) -> &[Range<u64>] {
@@ -133,28 +281,43 @@ impl Capture {
     }
 
     /// The samples as a record in SI units, named `gx gy gz ax ay az temp`: all of them if
-    /// there is no gap, else an error (or, with `longest_run`, the longest gap-free run).
+    /// there is no gap and no restart, else an error (or, with `longest_run`, the longest
+    /// gap-free run).
     pub fn to_record(&self, source: &str, longest_run: bool) -> Result<Record, CaptureError> {
         let longest = self
             .runs
             .iter()
             .max_by_key(|r| r.samples.len())
             .ok_or(CaptureError::NoSamples)?;
-        if !self.gaps().is_empty() && !longest_run {
-            return Err(CaptureError::Gaps {
-                lost: self.accounting.lost(),
-                gaps: self.gaps().len(),
-                first_gap: self.gaps()[0].start,
-                longest: longest.samples.len(),
-            });
+        if !longest_run {
+            if let Some(first) = self.gaps().first() {
+                return Err(CaptureError::Gaps {
+                    lost: self.accounting.lost(),
+                    gaps: self.gaps().len(),
+                    first_gap: first.start,
+                    longest: longest.samples.len(),
+                });
+            }
+            if let Some(&first) = self.restarts.first() {
+                return Err(CaptureError::Restarts {
+                    restarts: self.restarts.len(),
+                    first,
+                    longest: longest.samples.len(),
+                });
+            }
         }
-        Ok(record_of(source, &self.info, &longest.samples))
+        Ok(self.run_record(longest, source))
+    }
+
+    /// One run's samples in SI units, with the settings the board announced for it.
+    pub fn run_record(&self, run: &Run, source: &str) -> Record {
+        let settings = run.settings.unwrap_or(self.info.settings);
+        record_of(source, &settings, &run.samples)
     }
 }
 
 /// Counts to SI with the board's settings (protocol::mpu6050 sensitivities).
-fn record_of(source: &str, info: &DeviceInfo, samples: &[RawSample]) -> Record {
-    let s = info.settings;
+fn record_of(source: &str, s: &SensorSettings, samples: &[RawSample]) -> Record {
     let (g, a) = (s.gyro_range.rad_s_per_lsb(), s.accel_range.m_s2_per_lsb());
     let column = |f: &dyn Fn(&RawSample) -> f64| samples.iter().map(f).collect::<Vec<_>>();
     let channels = vec![
@@ -176,7 +339,7 @@ fn record_of(source: &str, info: &DeviceInfo, samples: &[RawSample]) -> Record {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use protocol::{FirmwareVersion, PROTOCOL_VERSION, SampleBatch, SensorSettings};
+    use protocol::{FirmwareVersion, PROTOCOL_VERSION};
 
     fn info() -> DeviceInfo {
         DeviceInfo {
@@ -272,5 +435,59 @@ mod tests {
             Capture::decode(&capture(&[batch(0, 3)])).unwrap_err(),
             CaptureError::NoInfo
         );
+    }
+
+    #[test]
+    fn a_board_restart_ends_the_run_and_is_recorded() {
+        let mut restarted = batch(0, 32);
+        if let DeviceMessage::Samples(b) = &mut restarted {
+            b.first_timestamp_us = 1234; // another boot, another time
+        }
+        // With its Info (a reset announces itself) and without (the Info lost on the line).
+        for with_info in [true, false] {
+            let mut messages = vec![DeviceMessage::Info(info()), batch(0, 32), batch(32, 32)];
+            if with_info {
+                messages.push(DeviceMessage::Info(info()));
+            }
+            messages.extend([restarted.clone(), batch(32, 32)]);
+            let c = Capture::decode(&capture(&messages)).unwrap();
+            assert_eq!(c.restarts, [64], "with_info {with_info}");
+            assert_eq!(c.runs.len(), 2);
+            assert_eq!((c.runs[1].first_index, c.runs[1].samples.len()), (64, 64));
+            assert_eq!((c.accounting.received(), c.accounting.lost()), (128, 0));
+            let err = c.to_record("cap", false).unwrap_err();
+            assert!(err.to_string().contains("restarted 1 time"), "{err}");
+            assert_eq!(c.to_record("cap", true).unwrap().len(), 64);
+        }
+        // A repeated batch (same time) is not a restart.
+        let c = Capture::decode(&capture(&[
+            DeviceMessage::Info(info()),
+            batch(0, 32),
+            batch(32, 32),
+            batch(0, 32),
+        ]))
+        .unwrap();
+        assert!(c.restarts.is_empty());
+        assert_eq!(c.accounting.out_of_order_batches(), 1);
+    }
+
+    #[test]
+    fn chunked_decoding_equals_whole() {
+        let bytes = capture(&[
+            DeviceMessage::Info(info()),
+            batch(0, 32),
+            batch(40, 32),
+            batch(72, 5),
+        ]);
+        let whole = Capture::decode(&bytes).unwrap();
+        for chunk in [1, 3, 64, 1000] {
+            let mut d = StreamDecoder::new(true);
+            bytes.chunks(chunk).for_each(|c| {
+                d.feed(c);
+            });
+            let c = d.finish().unwrap();
+            assert_eq!(c.runs, whole.runs);
+            assert_eq!(c.accounting, whole.accounting);
+        }
     }
 }

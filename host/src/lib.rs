@@ -9,5 +9,7 @@ pub mod cli;
 pub mod input;
 pub mod link;
 pub mod record;
+pub mod recorder;
 pub mod report;
 pub mod sim;
+pub mod store;

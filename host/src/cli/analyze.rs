@@ -7,16 +7,26 @@ use crate::analysis::psd::Window;
 use crate::analysis::taus::TauGrid;
 use crate::analysis::{DataType, Estimator};
 use crate::cli::settings::{accel_range, gyro_range};
-use crate::input::{self, CountScale, LoadOptions};
+use crate::cli::stored;
+use crate::input::{CountScale, LoadOptions};
+use crate::record::Record;
 use crate::report;
 use anyhow::{Context, Result};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct AnalyzeArgs {
     /// A capture file, a text/CSV table (optional header, `#` comments, optional time column)
-    /// or a NumPy .npy
+    /// or a NumPy .npy; or a stored session's id or name (an existing path wins)
     pub input: PathBuf,
+    #[command(flatten)]
+    pub analysis: AnalysisArgs,
+}
+
+/// How to read and analyse a record, and where to put the results: shared by `analyze` and
+/// `replay`.
+#[derive(clap::Args, Debug)]
+pub struct AnalysisArgs {
     /// Sample rate in Hz (needed when the file has no time column and no rate in its header)
     #[arg(long)]
     pub rate: Option<f64>,
@@ -96,36 +106,50 @@ fn parse_scale(s: &str) -> Result<(String, f64), String> {
     Ok((name.to_string(), factor))
 }
 
-pub fn run(args: &AnalyzeArgs) -> Result<()> {
-    let counts = if args.counts {
-        Some(CountScale {
-            rad_s_per_lsb: gyro_range(args.gyro_range)?.rad_s_per_lsb(),
-            m_s2_per_lsb: accel_range(args.accel_range)?.m_s2_per_lsb(),
+pub fn run(args: &AnalyzeArgs, store: Option<&Path>) -> Result<()> {
+    let stored::Input { loaded, session } =
+        stored::load(&args.input, &args.analysis.load_options()?, store)?;
+    stored::print_notes(&loaded.notes);
+    let analysed = analyse(loaded.record, &args.analysis)?;
+    stored::keep_analysis(session.as_ref(), &analysed)
+}
+
+impl AnalysisArgs {
+    /// How to read the input, from the reading options.
+    pub fn load_options(&self) -> Result<LoadOptions> {
+        let counts = if self.counts {
+            Some(CountScale {
+                rad_s_per_lsb: gyro_range(self.gyro_range)?.rad_s_per_lsb(),
+                m_s2_per_lsb: accel_range(self.accel_range)?.m_s2_per_lsb(),
+            })
+        } else {
+            None
+        };
+        Ok(LoadOptions {
+            rate_hz: self.rate,
+            names: self.names.clone(),
+            counts,
+            scales: self.scale.clone(),
+            longest_run: self.longest_run,
         })
-    } else {
-        None
-    };
-    let load = LoadOptions {
-        rate_hz: args.rate,
-        names: args.names.clone(),
-        counts,
-        scales: args.scale.clone(),
-        longest_run: args.longest_run,
-    };
-    let reading = report::progress::spinner(format!("reading {}", args.input.display()));
-    let loaded = input::load(&args.input, &load);
-    reading.finish_and_clear();
-    let loaded = loaded?;
-    for note in &loaded.notes {
-        eprintln!("note: {note}");
     }
-    let record = loaded.record;
+}
+
+/// An analysis done: its JSON document and the options that made it (kept with a session).
+pub struct Analysed {
+    pub document: serde_json::Value,
+    pub options: Options,
+}
+
+/// Analyse a record as `args` ask and write every requested output; returns the JSON
+/// document (whether or not it was written).
+pub fn analyse(record: Record, args: &AnalysisArgs) -> Result<Analysed> {
     let record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
     let options = options(args)?;
     let steps = record.channels.len() * pipeline::steps_per_channel(&options);
     let bar = report::progress::bar(steps as u64, "analysing");
     let results = pipeline::analyze(&record, &options, &|| bar.inc(1))
-        .with_context(|| format!("{}", args.input.display()))?;
+        .with_context(|| record.source.clone())?;
     bar.finish_and_clear();
     let document = report::json::document(&record, &options, &results);
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
@@ -153,10 +177,10 @@ pub fn run(args: &AnalyzeArgs) -> Result<()> {
         write(path, &report::html::page(&record, &options, &results)?)?;
         note(json_to_stdout, path, "HTML report");
     }
-    Ok(())
+    Ok(Analysed { document, options })
 }
 
-fn options(args: &AnalyzeArgs) -> Result<Options> {
+fn options(args: &AnalysisArgs) -> Result<Options> {
     let mut estimators = args.estimators.clone();
     if estimators.is_empty() {
         estimators.push(Estimator::Oadev);

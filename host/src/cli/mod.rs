@@ -2,10 +2,18 @@
 
 mod analyze;
 mod bench;
+mod capture;
 mod demo;
+mod export;
+mod import;
 mod ports;
+mod replay;
+mod rm;
+mod sessions;
 pub(crate) mod settings;
+mod show;
 mod simulate;
+mod stored;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -17,6 +25,10 @@ use std::process::ExitCode;
     about = "Characterise the stochastic noise of MEMS IMUs (MPU-6050): capture, Allan/PSD analysis, noise models"
 )]
 pub struct Cli {
+    /// The session store (default: $IMUNOISE_STORE, else the platform data directory,
+    /// e.g. ~/.local/share/imunoise)
+    #[arg(long, global = true, value_name = "DIR")]
+    pub store: Option<std::path::PathBuf>,
     #[command(subcommand)]
     pub command: Command,
 }
@@ -35,18 +47,40 @@ pub enum Command {
     Ports(ports::PortsArgs),
     /// Simulate an MPU-6050 at rest through its signal chain and write the samples (CSV)
     Simulate(simulate::SimulateArgs),
+    /// Record a session into the store from a board's byte stream (now: a replayed capture file)
+    Capture(capture::CaptureArgs),
+    /// List the stored sessions
+    Sessions(sessions::SessionsArgs),
+    /// Everything about one session: metadata, losses, stored analyses
+    Show(show::ShowArgs),
+    /// Write a session's samples in SI units (CSV; gaps marked, never bridged)
+    Export(export::ExportArgs),
+    /// Make a session of a CSV/text, .npy or capture file
+    Import(import::ImportArgs),
+    /// Remove a session and its file
+    Rm(rm::RmArgs),
+    /// Decode a stored capture again and re-run the analysis (kept with the session)
+    Replay(Box<replay::ReplayArgs>),
 }
 
 /// Run the CLI: errors go to stderr with their causes, and the exit code is 1.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    let store = cli.store.as_deref();
     let result = match cli.command {
         Command::Settings(args) => settings::run(&args),
         Command::Demo(args) => demo::run(&args),
-        Command::Analyze(args) => analyze::run(&args),
+        Command::Analyze(args) => analyze::run(&args, store),
         Command::Bench(args) => bench::run(&args),
         Command::Ports(args) => ports::run(&args),
         Command::Simulate(args) => simulate::run(&args),
+        Command::Capture(args) => capture::run(&args, store),
+        Command::Sessions(args) => sessions::run(&args, store),
+        Command::Show(args) => show::run(&args, store),
+        Command::Export(args) => export::run(&args, store),
+        Command::Import(args) => import::run(&args, store),
+        Command::Rm(args) => rm::run(&args, store),
+        Command::Replay(args) => replay::run(&args, store),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,7 +1,12 @@
-//! Talking to a board: the handshake and exact sample accounting now; the serial transport
-//! and the virtual board join here (see DESIGN.md, the sample's journey).
+//! Talking to a board: the byte transport ([`transport::Link`]) and its sources (a replayed
+//! capture file now; the serial port and the virtual board join here), the handshake, and
+//! exact sample accounting (see DESIGN.md, the sample's journey).
 
 pub mod accounting;
 pub mod handshake;
+pub mod replay;
 pub mod serial;
+pub mod transport;
 pub mod virtual_board;
+
+pub use transport::Link;

@@ -1,0 +1,115 @@
+//! `imunoise export ID --format csv`: a session's samples in SI units as CSV
+//! (`time,gx,gy,gz,ax,ay,az,temp`, time = sample index / rate from 0).
+//!
+//! Gaps are never bridged: lost samples have no row, and a `# gap: N samples lost at index
+//! I` comment marks where they were (a board restart likewise gets a `# restart` line), so
+//! the time column stays true to each sample's index.
+
+use crate::capture::Capture;
+use crate::cli::stored::{load_session, open_store};
+use crate::input::LoadOptions;
+use crate::record::Record;
+use crate::store::{Kind, Session};
+use anyhow::{Context, Result, bail};
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Debug)]
+pub struct ExportArgs {
+    /// The session's id or name
+    pub session: String,
+    /// Output format (csv)
+    #[arg(long, default_value = "csv")]
+    pub format: String,
+    /// Output file (default: stdout)
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+pub fn run(args: &ExportArgs, store: Option<&Path>) -> Result<()> {
+    if args.format != "csv" {
+        bail!("--format {}: unknown format; available: csv", args.format);
+    }
+    let store = open_store(store)?;
+    let session = store.find(&args.session)?;
+    let (out, what): (Box<dyn Write>, String) = match &args.out {
+        Some(path) => (
+            Box::new(
+                std::fs::File::create(path)
+                    .with_context(|| format!("--out {}: cannot create", path.display()))?,
+            ),
+            format!("--out {}", path.display()),
+        ),
+        None => (Box::new(std::io::stdout().lock()), "stdout".to_string()),
+    };
+    let mut out = BufWriter::with_capacity(1 << 20, out);
+    write(&session, &mut out)
+        .and_then(|()| Ok(out.flush()?))
+        .with_context(|| format!("exporting session {} to {what}", session.id))
+}
+
+fn write(session: &Session, out: &mut impl Write) -> Result<()> {
+    match session.kind {
+        Kind::Capture => {
+            let bytes = std::fs::read(&session.file)
+                .with_context(|| format!("{}", session.file.display()))?;
+            let capture =
+                Capture::decode(&bytes).with_context(|| format!("{}", session.file.display()))?;
+            write_capture(&capture, out)
+        }
+        Kind::Imported => {
+            let loaded = load_session(session, &LoadOptions::default())?;
+            header(&loaded.record, out)?;
+            Ok(rows(&loaded.record, 0, out)?)
+        }
+    }
+}
+
+/// Runs in order, a comment for each gap and restart between them.
+pub fn write_capture(capture: &Capture, out: &mut impl Write) -> Result<()> {
+    let mut next = 0u64;
+    for (k, run) in capture.runs.iter().enumerate() {
+        let record = capture.run_record(run, "");
+        if k == 0 {
+            header(&record, out)?;
+        }
+        for r in capture
+            .restarts
+            .iter()
+            .filter(|&&r| (next..=run.first_index).contains(&r))
+        {
+            writeln!(out, "# restart: the board restarted at index {r}")?;
+        }
+        if run.first_index > next {
+            writeln!(
+                out,
+                "# gap: {} samples lost at index {next}",
+                run.first_index - next
+            )?;
+        }
+        rows(&record, run.first_index, out)?;
+        next = run.first_index + run.samples.len() as u64;
+    }
+    Ok(())
+}
+
+fn header(record: &Record, out: &mut impl Write) -> std::io::Result<()> {
+    writeln!(out, "time,{}", record.names().join(","))
+}
+
+/// One line per sample: its time from its index, then the channels (shortest round-trip).
+fn rows(record: &Record, first_index: u64, out: &mut impl Write) -> std::io::Result<()> {
+    let mut line = String::new();
+    for i in 0..record.len() {
+        line.clear();
+        let time = (first_index + i as u64) as f64 / record.rate_hz;
+        line.push_str(&time.to_string());
+        for c in &record.channels {
+            line.push(',');
+            line.push_str(&c.values[i].to_string());
+        }
+        line.push('\n');
+        out.write_all(line.as_bytes())?;
+    }
+    Ok(())
+}

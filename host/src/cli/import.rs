@@ -1,0 +1,87 @@
+//! `imunoise import FILE`: a record from elsewhere becomes a session.
+//!
+//! A third-party file (CSV/text, `.npy`) is copied into the store verbatim with the options
+//! needed to read it again (rate, names, scales), not converted: converting SI values back
+//! to counts would invent a quantisation, and a copy keeps every digit. It is read anew
+//! through `input::load` whenever it is analysed or exported. A capture file (the board's
+//! bytes) is stored as a capture session, exactly as if it had been recorded.
+
+use crate::capture::{Capture, looks_like_capture};
+use crate::cli::stored::open_store;
+use crate::input::{self, LoadOptions};
+use crate::store::{Counts, End, ImportSpec, Store};
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Debug)]
+pub struct ImportArgs {
+    /// A text/CSV table, a NumPy .npy or a capture file
+    pub file: PathBuf,
+    /// Sample rate in Hz (needed when the file has no time column and no rate in its header)
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Session name (default: the date and time of the import)
+    #[arg(long)]
+    pub name: Option<String>,
+    /// A note kept with the session
+    #[arg(long)]
+    pub note: Option<String>,
+    /// Channel names, comma-separated, for inputs without a header
+    #[arg(long, value_delimiter = ',')]
+    pub names: Vec<String>,
+}
+
+pub fn run(args: &ImportArgs, store: Option<&Path>) -> Result<()> {
+    let file = &args.file;
+    let bytes = std::fs::read(file).with_context(|| format!("{}", file.display()))?;
+    let store = open_store(store)?;
+    let id = if looks_like_capture(&bytes) {
+        import_capture(&store, args, &bytes)?
+    } else {
+        let spec = ImportSpec {
+            rate_hz: args.rate,
+            names: args.names.clone(),
+            scales: Vec::new(),
+        };
+        let options = LoadOptions {
+            rate_hz: spec.rate_hz,
+            names: spec.names.clone(),
+            ..LoadOptions::default()
+        };
+        // Read it once now: a file that cannot be read must not become a session.
+        let loaded = input::load(file, &options)?;
+        let r = &loaded.record;
+        store
+            .import(
+                file,
+                &spec,
+                args.name.as_deref(),
+                args.note.as_deref(),
+                r.len() as u64,
+                r.rate_hz,
+            )?
+            .id
+    };
+    let session = store.find(&id.to_string())?;
+    println!(
+        "imported {} as session {} '{}': {} samples at {}",
+        file.display(),
+        session.id,
+        session.name,
+        session.counts.samples_received,
+        crate::cli::sessions::rate_bandwidth(&session)
+    );
+    Ok(())
+}
+
+/// A capture file: its bytes through a session writer, like a recording at infinite speed.
+fn import_capture(store: &Store, args: &ImportArgs, bytes: &[u8]) -> Result<i64> {
+    let capture = Capture::decode(bytes).with_context(|| format!("{}", args.file.display()))?;
+    let mut writer = store.begin_capture(args.name.as_deref(), args.note.as_deref())?;
+    writer.write(bytes)?;
+    writer.set_board(&capture.info)?;
+    let mut decoder = crate::capture::StreamDecoder::new(false);
+    decoder.feed(bytes);
+    let counts = Counts::of(&decoder, bytes.len() as u64);
+    Ok(writer.finish(End::Complete, &counts)?)
+}

@@ -1,0 +1,99 @@
+//! `imunoise sessions`: the sessions in the store, one line each (or JSON).
+
+use crate::cli::stored::open_store;
+use crate::store::Session;
+use anyhow::Result;
+use std::path::Path;
+
+#[derive(clap::Args, Debug)]
+pub struct SessionsArgs {
+    /// Print the sessions as JSON
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &SessionsArgs, store: Option<&Path>) -> Result<()> {
+    let store = open_store(store)?;
+    let sessions = store.list()?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&sessions)?);
+    } else if sessions.is_empty() {
+        println!("no sessions in {}", store.dir().display());
+    } else {
+        print!("{}", table(&sessions));
+    }
+    Ok(())
+}
+
+fn table(sessions: &[Session]) -> String {
+    let header = [
+        "id",
+        "name",
+        "start (UTC)",
+        "duration",
+        "rate/bw",
+        "samples",
+        "lost",
+        "state",
+    ];
+    let rows: Vec<[String; 8]> = sessions
+        .iter()
+        .map(|s| {
+            [
+                s.id.to_string(),
+                s.name.clone(),
+                s.started_at
+                    .get(..19)
+                    .unwrap_or(&s.started_at)
+                    .replace('T', " "),
+                s.duration_s.map_or("-".into(), duration),
+                rate_bandwidth(s),
+                s.counts.samples_received.to_string(),
+                s.counts.samples_lost.to_string(),
+                s.state_text(),
+            ]
+        })
+        .collect();
+    let mut widths = header.map(str::len);
+    for row in &rows {
+        for (w, cell) in widths.iter_mut().zip(row) {
+            *w = (*w).max(cell.chars().count());
+        }
+    }
+    let line = |cells: &[&str]| {
+        let padded: Vec<String> = cells
+            .iter()
+            .zip(widths)
+            .map(|(c, w)| format!("{c:<w$}"))
+            .collect();
+        format!("{}\n", padded.join("  ").trim_end())
+    };
+    let mut out = line(&header);
+    for row in &rows {
+        out += &line(&row.each_ref().map(String::as_str));
+    }
+    out
+}
+
+/// `1h02m03s`, `4m05s`, `6.1s`.
+pub fn duration(s: f64) -> String {
+    let whole = s as u64;
+    match whole {
+        0..60 => format!("{s:.1}s"),
+        60..3600 => format!("{}m{:02}s", whole / 60, whole % 60),
+        _ => format!("{}h{:02}m{:02}s", whole / 3600, whole / 60 % 60, whole % 60),
+    }
+}
+
+/// `200/42 Hz` (output rate / gyro bandwidth), or the rate alone for an import.
+pub fn rate_bandwidth(s: &Session) -> String {
+    use protocol::mpu6050::Hz;
+    match (&s.board, s.rate_hz) {
+        (Some(b), _) => match b.gyro_bandwidth_hz {
+            Some(bw) => format!("{}/{} Hz", Hz(b.rate_hz), Hz(bw)),
+            None => format!("{}/- Hz", Hz(b.rate_hz)),
+        },
+        (None, Some(rate)) => format!("{} Hz", Hz(rate)),
+        (None, None) => "-".into(),
+    }
+}

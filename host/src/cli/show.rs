@@ -1,0 +1,198 @@
+//! `imunoise show ID`: everything the store knows about a session: metadata, counts, the
+//! losses with their gap list (from the raw file), the stored analyses.
+
+use crate::capture::Capture;
+use crate::cli::sessions::{duration, rate_bandwidth};
+use crate::cli::stored::open_store;
+use crate::store::{Analysis, Kind, Session, State};
+use anyhow::Result;
+use serde_json::json;
+use std::fmt::Write;
+use std::path::Path;
+
+#[derive(clap::Args, Debug)]
+pub struct ShowArgs {
+    /// The session's id or name
+    pub session: String,
+    /// Print as JSON (with the stored analysis documents in full)
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Gaps listed in the human output; JSON lists all.
+const GAPS_SHOWN: usize = 20;
+
+pub fn run(args: &ShowArgs, store: Option<&Path>) -> Result<()> {
+    let store = open_store(store)?;
+    let session = store.find(&args.session)?;
+    let analyses = store.analyses(session.id)?;
+    let losses = Losses::of(&session);
+    if args.json {
+        let doc = json!({
+            "session": session,
+            "losses": losses,
+            "interruption": interruption(&session),
+            "analyses": analyses,
+        });
+        println!("{}", serde_json::to_string_pretty(&doc)?);
+    } else {
+        print!("{}", text(&session, &losses, &analyses));
+    }
+    Ok(())
+}
+
+/// Losses as decoded from the raw file (the truth, also for a session still recording).
+#[derive(serde::Serialize, Default)]
+struct Losses {
+    /// Half-open ranges of lost sample indices.
+    gaps: Vec<(u64, u64)>,
+    /// Indices at which the board restarted.
+    restarts: Vec<u64>,
+    /// Bytes of an unfinished last frame.
+    trailing_bytes: usize,
+    error: Option<String>,
+}
+
+impl Losses {
+    fn of(session: &Session) -> Losses {
+        if session.kind != Kind::Capture {
+            return Losses::default();
+        }
+        let decoded = std::fs::read(&session.file)
+            .map_err(|e| format!("{}: {e}", session.file.display()))
+            .and_then(|b| Capture::decode(&b).map_err(|e| e.to_string()));
+        match decoded {
+            Ok(c) => Losses {
+                gaps: c.gaps().iter().map(|g| (g.start, g.end)).collect(),
+                restarts: c.restarts.clone(),
+                trailing_bytes: c.trailing_bytes,
+                error: None,
+            },
+            Err(e) => Losses {
+                error: Some(e),
+                ..Losses::default()
+            },
+        }
+    }
+}
+
+/// What an interrupted recording may have lost, in words.
+fn interruption(s: &Session) -> Option<String> {
+    (s.state == State::Incomplete && s.end_reason.as_deref() == Some("interrupted")).then(|| {
+        format!(
+            "the recorder stopped without closing the session (killed, crashed or power lost) at about {}; bytes received in the last {} s before that may not have reached the disk",
+            s.ended_at.as_deref().unwrap_or("an unknown time"),
+            crate::store::SYNC_INTERVAL.as_secs_f64() * 2.0
+        )
+    })
+}
+
+fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
+    let mut o = String::new();
+    let mut kv = |k: &str, v: String| {
+        let _ = writeln!(o, "{k:<22} {v}");
+    };
+    kv("id", s.id.to_string());
+    kv("name", s.name.clone());
+    kv("kind", format!("{:?}", s.kind).to_lowercase());
+    kv("state", s.state_text());
+    kv("file", s.file.display().to_string());
+    kv("start (UTC)", s.started_at.clone());
+    kv("end (UTC)", s.ended_at.clone().unwrap_or("-".into()));
+    kv("duration", s.duration_s.map_or("-".into(), duration));
+    kv("rate/bandwidth", rate_bandwidth(s));
+    if let Some(b) = &s.board {
+        kv("board id", b.board_id.clone());
+        kv("firmware", b.firmware_version.clone());
+        kv("protocol version", b.protocol_version.to_string());
+        kv("DLPF_CFG", b.dlpf_cfg.to_string());
+        kv("SMPLRT_DIV", b.smplrt_div.to_string());
+        kv("gyro range", format!("{} deg/s", b.gyro_range_dps));
+        kv("accel range", format!("{} g", b.accel_range_g));
+    }
+    if let Some(src) = &s.import_source {
+        kv("imported from", src.clone());
+    }
+    let c = &s.counts;
+    kv("bytes", c.bytes.to_string());
+    kv("samples received", c.samples_received.to_string());
+    kv(
+        "samples lost",
+        format!("{} in {} gap(s)", c.samples_lost, c.gaps),
+    );
+    if s.kind == Kind::Capture {
+        kv("board restarts", c.restarts.to_string());
+        kv("out-of-order batches", c.out_of_order_batches.to_string());
+        kv(
+            "frames",
+            format!(
+                "{} ok, {} rejected ({} bytes discarded)",
+                c.frames_ok, c.frames_rejected, c.bytes_discarded
+            ),
+        );
+    }
+    if let Some(b) = &c.board_status {
+        kv(
+            "board counters",
+            format!(
+                "{} acquired, {} lost ({} FIFO overflows), {} dropped in {} batches, {} I2C errors, {} host frames rejected",
+                b.samples_acquired,
+                b.samples_lost,
+                b.fifo_overflows,
+                b.samples_dropped,
+                b.batches_dropped,
+                b.i2c_errors,
+                b.frames_rejected
+            ),
+        );
+    }
+    if let Some(n) = &s.notes {
+        kv("notes", n.clone());
+    }
+    if let Some(i) = interruption(s) {
+        kv("interrupted", i);
+    }
+    if let Some(e) = &losses.error {
+        kv("decoding the file", e.clone());
+    }
+    if losses.trailing_bytes > 0 {
+        kv(
+            "unfinished last frame",
+            format!("{} bytes", losses.trailing_bytes),
+        );
+    }
+    for (start, end) in losses.gaps.iter().take(GAPS_SHOWN) {
+        kv(
+            "gap",
+            format!("{} samples lost at index {start}", end - start),
+        );
+    }
+    if losses.gaps.len() > GAPS_SHOWN {
+        kv(
+            "gap",
+            format!(
+                "... and {} more (--json lists all)",
+                losses.gaps.len() - GAPS_SHOWN
+            ),
+        );
+    }
+    for r in &losses.restarts {
+        kv("restart", format!("the board restarted at index {r}"));
+    }
+    for a in analyses {
+        let command = a.options["command"]
+            .as_array()
+            .map(|v| {
+                v.iter()
+                    .filter_map(|x| x.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            })
+            .unwrap_or_default();
+        kv(
+            "analysis",
+            format!("{} at {}: imunoise {command}", a.id, a.created_at),
+        );
+    }
+    o
+}

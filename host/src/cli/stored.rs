@@ -1,0 +1,93 @@
+//! What the session commands share: opening the store (`--store`, `$IMUNOISE_STORE`, the
+//! platform data directory) and reading an input that is a file or a stored session.
+
+use crate::cli::analyze::Analysed;
+use crate::input::{self, LoadOptions, Loaded};
+use crate::report;
+use crate::store::{self, Kind, Session, Store};
+use anyhow::{Context, Result};
+use std::path::Path;
+
+/// Open the store the user chose (creating it on first use).
+pub fn open_store(flag: Option<&Path>) -> Result<Store> {
+    let dir = store::locate(flag)?;
+    Store::open(&dir).with_context(|| format!("store {}", dir.display()))
+}
+
+/// A record read from a file or from a stored session, and the session if it was one.
+pub struct Input {
+    pub loaded: Loaded,
+    pub session: Option<(Store, Session)>,
+}
+
+/// What a reader says about the input (losses, the run chosen), on stderr.
+pub fn print_notes(notes: &[String]) {
+    for note in notes {
+        eprintln!("note: {note}");
+    }
+}
+
+/// Keep an analysis of a stored session in its catalog row.
+pub fn keep_analysis(session: Option<&(Store, Session)>, analysed: &Analysed) -> Result<()> {
+    {
+        let Some((store, session)) = session else {
+            return Ok(());
+        };
+        let options = serde_json::json!({
+            "command": std::env::args().skip(1).collect::<Vec<_>>(),
+            "options": format!("{:?}", analysed.options),
+        });
+        let id = store.add_analysis(session.id, &options, &analysed.document)?;
+        eprintln!(
+            "stored analysis {id} with session {} '{}'",
+            session.id, session.name
+        );
+        Ok(())
+    }
+}
+
+/// `input` names an existing file (read as such) or else a stored session (its id or name).
+pub fn load(input: &Path, options: &LoadOptions, store: Option<&Path>) -> Result<Input> {
+    if input.exists() {
+        return Ok(Input {
+            loaded: read(input, options)?,
+            session: None,
+        });
+    }
+    let key = input.to_string_lossy();
+    let store = open_store(store)?;
+    let session = store
+        .find(&key)
+        .with_context(|| format!("{key}: no such file"))?;
+    let loaded = load_session(&session, options)?;
+    Ok(Input {
+        loaded,
+        session: Some((store, session)),
+    })
+}
+
+/// A session's record: a capture decoded from its raw bytes, an imported file read again
+/// with the options it was imported with (the user's own options take precedence).
+pub fn load_session(session: &Session, options: &LoadOptions) -> Result<Loaded> {
+    let mut options = options.clone();
+    if session.kind == Kind::Imported
+        && let Some(spec) = &session.import_options
+    {
+        options.rate_hz = options.rate_hz.or(spec.rate_hz);
+        if options.names.is_empty() {
+            options.names = spec.names.clone();
+        }
+        options.scales.splice(0..0, spec.scales.iter().cloned());
+    }
+    let mut loaded = read(&session.file, &options)
+        .with_context(|| format!("session {} '{}'", session.id, session.name))?;
+    loaded.record.source = format!("session {} '{}'", session.id, session.name);
+    Ok(loaded)
+}
+
+fn read(path: &Path, options: &LoadOptions) -> Result<Loaded> {
+    let reading = report::progress::spinner(format!("reading {}", path.display()));
+    let loaded = input::load(path, options);
+    reading.finish_and_clear();
+    Ok(loaded?)
+}

@@ -1,0 +1,353 @@
+//! Sessions: each one a file under `sessions/` (a capture's raw bytes, appended as they
+//! arrive, or an imported file copied verbatim) plus a row in a SQLite catalog
+//! (`catalog.sqlite`) with its metadata, counts and the analyses computed from it.
+//!
+//! The raw file is the truth; the catalog describes it. So a capture killed mid-way loses at
+//! most what was not yet flushed (under a second), and its counts are recomputed from the
+//! file the next time the store is opened ([`Store::open`] recovers interrupted recordings).
+//!
+//! ```text
+//! <store>/catalog.sqlite        the catalog (WAL mode; schema in schema.rs)
+//! <store>/sessions/<id>.imucap  a capture's raw bytes
+//! <store>/sessions/<id>.<ext>   an imported file (csv, txt, npy, ...)
+//! ```
+
+mod catalog;
+pub mod clock;
+pub mod location;
+mod lookup;
+mod schema;
+mod session;
+mod writer;
+
+pub use location::{ENV, locate};
+pub use schema::VERSION as SCHEMA_VERSION;
+pub use session::{Analysis, Board, Counts, ImportSpec, Kind, Session, State};
+pub use writer::{End, RawSink, SYNC_INTERVAL, SessionWriter};
+
+use rusqlite::{Connection, OptionalExtension, params};
+use std::path::{Path, PathBuf};
+use std::time::SystemTime;
+
+/// The catalog's file name in the store directory.
+pub const CATALOG: &str = "catalog.sqlite";
+/// The folder of session files in the store directory.
+pub const SESSIONS: &str = "sessions";
+/// The extension of capture files.
+pub const CAPTURE_EXT: &str = "imucap";
+
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    #[error("no default store directory on this platform: give --store DIR or set {ENV}")]
+    NoDefaultDir,
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("catalog {path}: {source}")]
+    Sql {
+        path: PathBuf,
+        source: rusqlite::Error,
+    },
+    #[error("catalog {path}: {source}")]
+    Schema {
+        path: PathBuf,
+        source: schema::MigrateError,
+    },
+    #[error("no session '{key}' in {store}{}", lookup::suggest(.close))]
+    NotFound {
+        key: String,
+        store: PathBuf,
+        close: Vec<String>,
+    },
+    #[error("'{key}' matches several sessions: {}; give the id or the full name", .matches.join(", "))]
+    Ambiguous { key: String, matches: Vec<String> },
+    #[error("session name '{name}': {reason}")]
+    BadName { name: String, reason: &'static str },
+    #[error("a session named '{0}' exists already")]
+    NameTaken(String),
+}
+
+impl StoreError {
+    pub(crate) fn io(path: &Path) -> impl FnOnce(std::io::Error) -> StoreError + '_ {
+        move |source| StoreError::Io {
+            path: path.to_owned(),
+            source,
+        }
+    }
+}
+
+/// An open store: its directory and a connection to its catalog.
+pub struct Store {
+    dir: PathBuf,
+    conn: Connection,
+}
+
+impl Store {
+    /// Open (creating if needed) the store in `dir`, bring its catalog's schema up to date
+    /// and recover recordings whose recorder is gone.
+    pub fn open(dir: &Path) -> Result<Store, StoreError> {
+        let sessions = dir.join(SESSIONS);
+        std::fs::create_dir_all(&sessions).map_err(StoreError::io(&sessions))?;
+        let conn = catalog::connect(&dir.join(CATALOG))?;
+        let store = Store {
+            dir: dir.to_owned(),
+            conn,
+        };
+        store.recover_interrupted()?;
+        Ok(store)
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    pub fn catalog_path(&self) -> PathBuf {
+        self.dir.join(CATALOG)
+    }
+
+    pub(crate) fn sql(&self) -> impl FnOnce(rusqlite::Error) -> StoreError + '_ {
+        move |source| StoreError::Sql {
+            path: self.catalog_path(),
+            source,
+        }
+    }
+
+    /// Every session, oldest first.
+    pub fn list(&self) -> Result<Vec<Session>, StoreError> {
+        let sql = format!("SELECT {} FROM sessions ORDER BY id", Session::COLUMNS);
+        let mut stmt = self.conn.prepare(&sql).map_err(self.sql())?;
+        let rows = stmt
+            .query_map([], |row| Session::from_row(row, &self.dir))
+            .map_err(self.sql())?;
+        rows.collect::<Result<_, _>>().map_err(self.sql())
+    }
+
+    pub fn get(&self, id: i64) -> Result<Option<Session>, StoreError> {
+        let sql = format!("SELECT {} FROM sessions WHERE id = ?1", Session::COLUMNS);
+        self.conn
+            .query_row(&sql, [id], |row| Session::from_row(row, &self.dir))
+            .optional()
+            .map_err(self.sql())
+    }
+
+    /// The session a user means by `key`: its id, its name, or a unique prefix of its name.
+    /// Absence and ambiguity are errors listing the close matches.
+    pub fn find(&self, key: &str) -> Result<Session, StoreError> {
+        let sessions = self.list()?;
+        lookup::find(&sessions, key).map_err(|e| match e {
+            lookup::Miss::None(close) => StoreError::NotFound {
+                key: key.to_string(),
+                store: self.dir.clone(),
+                close,
+            },
+            lookup::Miss::Several(matches) => StoreError::Ambiguous {
+                key: key.to_string(),
+                matches,
+            },
+        })
+    }
+
+    /// Start a capture session: a catalog row in state `recording` and its empty raw file,
+    /// returned as the writer a capture loop feeds.
+    pub fn begin_capture(
+        &self,
+        name: Option<&str>,
+        notes: Option<&str>,
+    ) -> Result<SessionWriter, StoreError> {
+        let now = SystemTime::now();
+        let (id, name) = self.insert(Kind::Capture, name, notes, now, None)?;
+        let file = self.dir.join(catalog::file_name(id, CAPTURE_EXT));
+        SessionWriter::create(self.catalog_path(), id, name.is_none(), file, now)
+    }
+
+    /// Import a third-party file: copied into the store verbatim, read again with `spec`
+    /// whenever the session is analysed or exported (no conversion, so nothing is lost).
+    pub fn import(
+        &self,
+        source: &Path,
+        spec: &ImportSpec,
+        name: Option<&str>,
+        notes: Option<&str>,
+        samples: u64,
+        rate_hz: f64,
+    ) -> Result<Session, StoreError> {
+        let now = SystemTime::now();
+        let (id, _) = self.insert(Kind::Imported, name, notes, now, Some((source, spec)))?;
+        let ext = source
+            .extension()
+            .and_then(|e| e.to_str())
+            .filter(|e| !e.is_empty() && e.chars().all(|c| c.is_ascii_alphanumeric()))
+            .unwrap_or("dat");
+        let relative = catalog::file_name(id, ext);
+        let target = self.dir.join(&relative);
+        let copied = std::fs::copy(source, &target)
+            .map_err(StoreError::io(source))
+            .and_then(|bytes| {
+                self.conn
+                    .execute(
+                        "UPDATE sessions SET file = ?2, bytes = ?3, samples_received = ?4, \
+                         rate_hz = ?5, state = 'complete', ended_at = started_at, \
+                         ended_unix = started_unix WHERE id = ?1",
+                        params![id, relative, bytes, samples, rate_hz],
+                    )
+                    .map_err(self.sql())
+            });
+        if let Err(e) = copied {
+            // Best effort: leave no half-imported session behind.
+            let _ = std::fs::remove_file(&target);
+            let _ = self
+                .conn
+                .execute("DELETE FROM sessions WHERE id = ?1", [id]);
+            return Err(e);
+        }
+        Ok(self.get(id)?.expect("the session just imported"))
+    }
+
+    fn insert(
+        &self,
+        kind: Kind,
+        name: Option<&str>,
+        notes: Option<&str>,
+        now: SystemTime,
+        import: Option<(&Path, &ImportSpec)>,
+    ) -> Result<(i64, Option<String>), StoreError> {
+        if let Some(name) = name {
+            lookup::check_name(name)?;
+        }
+        // A default name until the board says its rate and bandwidth (SessionWriter renames).
+        let stamp = clock::compact(now);
+        let chosen = match name {
+            Some(n) => {
+                if self.name_taken(n)? {
+                    return Err(StoreError::NameTaken(n.to_string()));
+                }
+                n.to_string()
+            }
+            None => catalog::unique_name(&self.conn, &stamp).map_err(self.sql())?,
+        };
+        let spec = import.map(|(_, s)| serde_json::to_string(s).unwrap_or_default());
+        self.conn
+            .execute(
+                "INSERT INTO sessions (name, kind, file, started_at, started_unix, state, \
+                 recorder_pid, heartbeat_unix, notes, import_source, import_options) \
+                 VALUES (?1, ?2, '', ?3, ?4, 'recording', ?5, ?4, ?6, ?7, ?8)",
+                params![
+                    chosen,
+                    if kind == Kind::Imported {
+                        "imported"
+                    } else {
+                        "capture"
+                    },
+                    clock::iso8601(now),
+                    clock::unix_seconds(now),
+                    std::process::id(),
+                    notes,
+                    import.map(|(p, _)| p.display().to_string()),
+                    spec,
+                ],
+            )
+            .map_err(self.sql())?;
+        let id = self.conn.last_insert_rowid();
+        let relative = catalog::file_name(id, CAPTURE_EXT);
+        self.conn
+            .execute(
+                "UPDATE sessions SET file = ?2 WHERE id = ?1",
+                params![id, relative],
+            )
+            .map_err(self.sql())?;
+        Ok((id, name.map(str::to_string)))
+    }
+
+    fn name_taken(&self, name: &str) -> Result<bool, StoreError> {
+        catalog::name_taken(&self.conn, name).map_err(self.sql())
+    }
+
+    /// Remove a session: its catalog row (with its analyses) and its file.
+    pub fn remove(&self, session: &Session) -> Result<(), StoreError> {
+        self.conn
+            .execute("DELETE FROM sessions WHERE id = ?1", [session.id])
+            .map_err(self.sql())?;
+        match std::fs::remove_file(&session.file) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(StoreError::Io {
+                path: session.file.clone(),
+                source: e,
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// Keep an analysis computed from a session: its JSON document and how it was made.
+    pub fn add_analysis(
+        &self,
+        session: i64,
+        options: &serde_json::Value,
+        document: &serde_json::Value,
+    ) -> Result<i64, StoreError> {
+        self.conn
+            .execute(
+                "INSERT INTO analyses (session_id, created_at, options, document) \
+                 VALUES (?1, ?2, ?3, ?4)",
+                params![
+                    session,
+                    clock::iso8601(SystemTime::now()),
+                    options.to_string(),
+                    document.to_string()
+                ],
+            )
+            .map_err(self.sql())?;
+        Ok(self.conn.last_insert_rowid())
+    }
+
+    pub fn analyses(&self, session: i64) -> Result<Vec<Analysis>, StoreError> {
+        let mut stmt = self
+            .conn
+            .prepare(
+                "SELECT id, created_at, options, document FROM analyses \
+                 WHERE session_id = ?1 ORDER BY id",
+            )
+            .map_err(self.sql())?;
+        let rows = stmt
+            .query_map([session], |row| {
+                let text = |i| -> rusqlite::Result<serde_json::Value> {
+                    let t: String = row.get(i)?;
+                    Ok(serde_json::from_str(&t).unwrap_or(serde_json::Value::String(t)))
+                };
+                Ok(Analysis {
+                    id: row.get(0)?,
+                    created_at: row.get(1)?,
+                    options: text(2)?,
+                    document: text(3)?,
+                })
+            })
+            .map_err(self.sql())?;
+        rows.collect::<Result<_, _>>().map_err(self.sql())
+    }
+
+    /// Sessions left in state `recording` by a recorder that is gone (killed, crashed, power
+    /// lost) become `incomplete (interrupted)`, their counts recomputed from the raw file.
+    fn recover_interrupted(&self) -> Result<(), StoreError> {
+        let mut stmt = self
+            .conn
+            .prepare(
+                "SELECT id, recorder_pid, heartbeat_unix FROM sessions WHERE state = 'recording'",
+            )
+            .map_err(self.sql())?;
+        let recording: Vec<(i64, Option<u32>, Option<f64>)> = stmt
+            .query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))
+            .map_err(self.sql())?
+            .collect::<Result<_, _>>()
+            .map_err(self.sql())?;
+        let now = clock::unix_seconds(SystemTime::now());
+        for (id, pid, heartbeat) in recording {
+            if catalog::recorder_alive(pid, heartbeat, now) {
+                continue;
+            }
+            if let Some(session) = self.get(id)? {
+                catalog::recover(&self.conn, &session).map_err(self.sql())?;
+            }
+        }
+        Ok(())
+    }
+}

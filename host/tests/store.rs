@@ -1,0 +1,283 @@
+//! Sessions through the `imunoise` binary, each test with its own store (`--store`): a
+//! capture killed with SIGKILL stays listed and readable; Ctrl-C ends one as complete;
+//! import, export, show, replay, rm; errors name the thing at fault.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
+
+fn imunoise(store: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .arg("--store")
+        .arg(store)
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .expect("the imunoise binary runs")
+}
+
+fn ok(o: Output) -> String {
+    assert!(
+        o.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn err(o: Output) -> String {
+    assert!(!o.status.success(), "expected a failure");
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A simulated 200 Hz / 42 Hz capture of `seconds`.
+fn capture_file(dir: &Path, seconds: u32) -> PathBuf {
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/mpu6050.toml");
+    let out = dir.join(format!("sim{seconds}.imucap"));
+    let o = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .args(["simulate", "--model"])
+        .arg(&model)
+        .args(["--rate", "200", "--bandwidth", "42", "--format", "capture"])
+        .arg("--duration")
+        .arg(format!("{seconds}s"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    ok(o);
+    out
+}
+
+fn json(text: &str) -> serde_json::Value {
+    serde_json::from_str(text).unwrap_or_else(|e| panic!("{e}: {text}"))
+}
+
+/// `imunoise capture --from-file SOURCE ARGS` running in the background.
+fn spawn_capture(store: &Path, source: &Path, args: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .arg("--store")
+        .arg(store)
+        .arg("capture")
+        .args(args)
+        .arg("--from-file")
+        .arg(source)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+fn signal(pid: u32, sig: &str) {
+    let s = Command::new("kill")
+        .args([sig, &pid.to_string()])
+        .status()
+        .unwrap();
+    assert!(s.success());
+}
+
+#[test]
+fn a_capture_killed_with_sigkill_is_listed_and_readable() {
+    let tmp = tempfile::tempdir().unwrap();
+    let store = tmp.path().join("store");
+    let source = capture_file(tmp.path(), 60);
+    let mut child = spawn_capture(&store, &source, &["--speed", "1", "--name", "killed"]);
+    std::thread::sleep(Duration::from_secs(2));
+    signal(child.id(), "-KILL");
+    child.wait().unwrap();
+
+    let list = json(&ok(imunoise(&store, &["sessions", "--json"])));
+    let s = &list[0];
+    assert_eq!(s["name"], "killed");
+    assert_eq!(s["state"], "incomplete");
+    assert_eq!(s["end_reason"], "interrupted");
+    let received = s["counts"]["samples_received"].as_u64().unwrap();
+    // ~2 s at 200 Hz were sent; at most the last second (and the start-up) may be missing.
+    assert!((150..=420).contains(&received), "{received} samples");
+    let table = ok(imunoise(&store, &["sessions"]));
+    assert!(table.contains("incomplete (interrupted)"), "{table}");
+
+    let shown = ok(imunoise(&store, &["show", "killed"]));
+    assert!(shown.contains("may not have reached the disk"), "{shown}");
+    let file = PathBuf::from(s["file"].as_str().unwrap());
+    let bytes = std::fs::read(&file).unwrap();
+    let c = imunoise::capture::Capture::decode(&bytes).unwrap();
+    assert_eq!(c.accounting.received(), received);
+    assert_eq!(c.accounting.lost(), 0);
+    // The head of the original stream, byte for byte.
+    assert_eq!(bytes, std::fs::read(&source).unwrap()[..bytes.len()]);
+}
+
+#[test]
+fn ctrl_c_ends_a_capture_as_complete() {
+    let tmp = tempfile::tempdir().unwrap();
+    let store = tmp.path().join("store");
+    let source = capture_file(tmp.path(), 60);
+    let child = spawn_capture(&store, &source, &["--speed", "2"]);
+    std::thread::sleep(Duration::from_millis(1500));
+    signal(child.id(), "-INT");
+    let out = ok(child.wait_with_output().unwrap());
+    assert!(out.contains("complete"), "{out}");
+    let list = json(&ok(imunoise(&store, &["sessions", "--json"])));
+    assert_eq!(list[0]["state"], "complete");
+    assert!(list[0]["ended_at"].is_string());
+    assert!(list[0]["name"].as_str().unwrap().ends_with("-200hz-42hz"));
+}
+
+#[test]
+fn sessions_show_export_replay_analyze_rm() {
+    let tmp = tempfile::tempdir().unwrap();
+    let store = tmp.path().join("store");
+    let source = capture_file(tmp.path(), 20);
+    let src = source.to_str().unwrap();
+    ok(imunoise(
+        &store,
+        &[
+            "capture",
+            "--speed",
+            "max",
+            "--name",
+            "bench-a",
+            "--from-file",
+            src,
+        ],
+    ));
+    ok(imunoise(
+        &store,
+        &[
+            "capture",
+            "--speed",
+            "max",
+            "--name",
+            "bench-b",
+            "--duration",
+            "5s",
+            "--from-file",
+            src,
+        ],
+    ));
+    let list = json(&ok(imunoise(&store, &["sessions", "--json"])));
+    assert_eq!(list[0]["counts"]["samples_received"], 4000);
+    assert_eq!(list[0]["board"]["dlpf_cfg"], 3);
+    assert_eq!(list[0]["board"]["smplrt_div"], 4);
+    assert!(list[1]["counts"]["samples_received"].as_u64().unwrap() >= 1000);
+
+    // Ambiguity and absence list the close names.
+    let e = err(imunoise(&store, &["show", "bench"]));
+    assert!(e.contains("bench-a (1), bench-b (2)"), "{e}");
+    let e = err(imunoise(&store, &["show", "bench-c"]));
+    assert!(e.contains("did you mean") && e.contains("bench-a"), "{e}");
+
+    // Export: SI, time from the index; identical to the capture's record.
+    let csv = ok(imunoise(&store, &["export", "bench-a"]));
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("time,gx,gy,gz,ax,ay,az,temp"));
+    assert!(lines.next().unwrap().starts_with("0,"));
+    assert!(lines.next().unwrap().starts_with("0.005,"));
+    assert_eq!(csv.lines().count(), 4001);
+
+    // Replay and analyze by name store their analyses.
+    ok(imunoise(
+        &store,
+        &["replay", "bench-a", "--column", "gx", "--taus", "octave"],
+    ));
+    ok(imunoise(
+        &store,
+        &["analyze", "1", "--column", "gz", "--taus", "octave"],
+    ));
+    let shown = json(&ok(imunoise(&store, &["show", "1", "--json"])));
+    let analyses = shown["analyses"].as_array().unwrap();
+    assert_eq!(analyses.len(), 2);
+    assert_eq!(analyses[0]["document"]["samples"], 4000);
+    assert!(analyses[1]["options"]["command"].to_string().contains("gz"));
+
+    // Import the exported CSV: a copy plus metadata, analysed the same way.
+    let exported = tmp.path().join("a.csv");
+    std::fs::write(&exported, &csv).unwrap();
+    let out = ok(imunoise(
+        &store,
+        &[
+            "import",
+            exported.to_str().unwrap(),
+            "--name",
+            "from-csv",
+            "--note",
+            "exported",
+        ],
+    ));
+    assert!(out.contains("4000 samples at 200 Hz"), "{out}");
+    let shown = json(&ok(imunoise(&store, &["show", "from-csv", "--json"])));
+    assert_eq!(shown["session"]["kind"], "imported");
+    assert_eq!(shown["session"]["notes"], "exported");
+    let again = ok(imunoise(&store, &["export", "from-csv"]));
+    assert_eq!(again.lines().count(), 4001);
+
+    // rm needs --yes without a terminal.
+    let e = err(imunoise(&store, &["rm", "bench-b"]));
+    assert!(e.contains("--yes"), "{e}");
+    ok(imunoise(&store, &["rm", "bench-b", "--yes"]));
+    let list = json(&ok(imunoise(&store, &["sessions", "--json"])));
+    assert_eq!(list.as_array().unwrap().len(), 2);
+    assert!(!store.join("sessions/2.imucap").exists());
+}
+
+#[test]
+fn export_marks_gaps_without_bridging_them() {
+    use imunoise::capture::CaptureWriter;
+    use protocol::{DeviceInfo, DeviceMessage, FirmwareVersion, RawSample, SampleBatch};
+    let tmp = tempfile::tempdir().unwrap();
+    let store = tmp.path().join("store");
+    let mut w = CaptureWriter::new(Vec::new());
+    w.message(&DeviceMessage::Info(DeviceInfo {
+        protocol_version: protocol::PROTOCOL_VERSION,
+        firmware_version: FirmwareVersion {
+            major: 0,
+            minor: 1,
+            patch: 0,
+        },
+        board_id: 1,
+        who_am_i: 0x68,
+        settings: protocol::SensorSettings::for_rate_and_bandwidth(200.0, 42.0).unwrap(),
+        streaming: true,
+        max_samples_per_batch: 32,
+    }))
+    .unwrap();
+    for first in [0u64, 4, 10] {
+        w.message(&DeviceMessage::Samples(SampleBatch {
+            first_index: first,
+            first_timestamp_us: first * 5000,
+            samples: (0..2).map(|_| RawSample::default()).collect(),
+        }))
+        .unwrap();
+    }
+    let file = tmp.path().join("gaps.imucap");
+    std::fs::write(&file, w.into_inner()).unwrap();
+    ok(imunoise(&store, &["import", file.to_str().unwrap()]));
+    let csv = ok(imunoise(&store, &["export", "1"]));
+    let times: Vec<&str> = csv.lines().map(|l| l.split(',').next().unwrap()).collect();
+    assert_eq!(
+        times,
+        [
+            "time",
+            "0",
+            "0.005",
+            "# gap: 2 samples lost at index 2",
+            "0.02",
+            "0.025",
+            "# gap: 4 samples lost at index 6",
+            "0.05",
+            "0.055"
+        ]
+    );
+}
+
+#[test]
+fn an_unwritable_store_is_a_clear_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let blocker = tmp.path().join("not-a-dir");
+    std::fs::write(&blocker, "x").unwrap();
+    let store = blocker.join("store");
+    let e = err(imunoise(&store, &["sessions"]));
+    assert!(e.contains(store.to_str().unwrap()), "{e}");
+    let e = err(imunoise(&tmp.path().join("s"), &["show", "nothing"]));
+    assert!(e.contains("no session 'nothing'"), "{e}");
+}
