@@ -1,28 +1,63 @@
 //! `imunoise capture`: record a session from a board's byte stream into the store, with a
 //! live count of samples and losses; Ctrl-C ends it cleanly.
 //!
-//! The source is a [`Link`]; [`open_link`] is the one place a new source plugs in (the
-//! serial port and the virtual board join there as `--port`).
+//! The source is a [`Link`]; [`open_link`] is the one place a source plugs in: a serial port
+//! (`--port /dev/ttyACM0`), the virtual board (`--port sim`: the firmware's own code on the
+//! simulated MPU-6050), or a capture file replayed (`--from-file`). A board is handshaken
+//! (protocol version), configured and started; the file then holds its `Info`, the acks and
+//! every sample batch, exactly as they arrived.
 
+use crate::cli::settings::{accel_range, gyro_range};
+use crate::cli::simulate::SIMULATED_BOARD_ID;
 use crate::cli::simulate::parse_duration;
 use crate::cli::stored::open_store;
 use crate::link::Link;
+use crate::link::board::Board;
 use crate::link::replay::{ReplayLink, Speed};
+use crate::link::serial::SerialLink;
+use crate::link::virtual_board::VirtualBoard;
 use crate::recorder::{self, Ending, Progress, RecordOptions};
+use crate::sim::model_file;
 use anyhow::{Context, Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressStyle};
+use protocol::{DeviceInfo, SensorSettings};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(clap::Args, Debug)]
 pub struct CaptureArgs {
+    /// The board: a serial port (`imunoise ports` lists them) or `sim` for the virtual board
+    #[arg(
+        long,
+        required_unless_present = "from_file",
+        conflicts_with = "from_file"
+    )]
+    pub port: Option<String>,
     /// Replay this capture file as if a board were sending it (demos, tests)
-    #[arg(long, value_name = "FILE", required = true)]
+    #[arg(long, value_name = "FILE")]
     pub from_file: Option<PathBuf>,
-    /// Replay speed: max, or a factor of the board's own timing (1 = real time)
-    #[arg(long, default_value = "1", requires = "from_file")]
+    /// Output rate in Hz (with --port), e.g. 200
+    #[arg(long, requires = "port", required_unless_present = "from_file")]
+    pub rate: Option<f64>,
+    /// DLPF bandwidth in Hz (with --port): gyro 256 188 98 42 20 10 5 or accel 260 184 94 44 21 10 5
+    #[arg(long, requires = "port", required_unless_present = "from_file")]
+    pub bandwidth: Option<f64>,
+    /// Gyro full scale in deg/s: 250, 500, 1000 or 2000
+    #[arg(long, default_value_t = 250)]
+    pub gyro_range: u32,
+    /// Accel full scale in g: 2, 4, 8 or 16
+    #[arg(long, default_value_t = 2)]
+    pub accel_range: u32,
+    /// Speed of the virtual board or of a replay: max, or a factor (1 = real time)
+    #[arg(long, default_value = "1")]
     pub speed: Speed,
+    /// The virtual board's noise model (default: the built-in examples/mpu6050.toml)
+    #[arg(long, value_name = "FILE")]
+    pub model: Option<PathBuf>,
+    /// The virtual board's random seed
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
     /// Session name (default: YYYYmmdd-HHMMSS-<rate>hz-<bandwidth>hz, UTC)
     #[arg(long)]
     pub name: Option<String>,
@@ -34,14 +69,62 @@ pub struct CaptureArgs {
     pub duration: Option<String>,
 }
 
+/// A board to capture from: which port, which model and seed if it is the virtual one.
+pub struct PortSpec<'a> {
+    pub port: &'a str,
+    pub speed: Speed,
+    pub model: Option<&'a Path>,
+    pub seed: u64,
+}
+
+/// Open a board's port: `sim` is the virtual board, anything else a serial port.
+pub fn open_port(spec: &PortSpec) -> Result<Box<dyn Link>> {
+    if spec.port != "sim" {
+        return Ok(Box::new(SerialLink::open(spec.port)?));
+    }
+    let model = match spec.model {
+        Some(path) => model_file::load(path)?,
+        None => model_file::example(),
+    };
+    let board = VirtualBoard::new(model, spec.seed, SIMULATED_BOARD_ID | spec.seed, spec.speed)
+        .map_err(|e| anyhow!("the virtual board did not start: {e}"))?;
+    Ok(Box::new(board))
+}
+
 /// The link the arguments name.
 fn open_link(args: &CaptureArgs) -> Result<Box<dyn Link>> {
-    match &args.from_file {
-        Some(path) => Ok(Box::new(
+    match (&args.port, &args.from_file) {
+        (Some(port), _) => open_port(&PortSpec {
+            port,
+            speed: args.speed,
+            model: args.model.as_deref(),
+            seed: args.seed,
+        }),
+        (None, Some(path)) => Ok(Box::new(
             ReplayLink::open(path, args.speed)
                 .with_context(|| format!("--from-file {}", path.display()))?,
         )),
-        None => bail!("give a source: --from-file FILE"),
+        (None, None) => bail!("give a source: --port PORT (or sim) or --from-file FILE"),
+    }
+}
+
+/// Handshake (protocol version), configure and start a board; the capture loop then records
+/// its `Info`, the acks and the samples.
+pub fn start_board(link: &mut dyn Link, settings: SensorSettings) -> Result<DeviceInfo> {
+    let mut board = Board::new(link);
+    let info = board.handshake()?;
+    // A board left streaming by an interrupted run must stop before it takes settings.
+    board.stop()?;
+    board.configure(settings)?;
+    board.begin_stream()?;
+    Ok(info)
+}
+
+/// Stop a board after a capture; a board that is gone is reported, not an error (the
+/// session already says how it ended).
+pub fn stop_board(link: &mut dyn Link) {
+    if let Err(e) = Board::new(link).stop() {
+        eprintln!("note: could not stop the board: {e}");
     }
 }
 
@@ -54,6 +137,19 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         .map_err(|e| anyhow!("--duration: {e}"))?;
     let mut link = open_link(args)?;
     let store = open_store(store)?;
+    if let (Some(rate), Some(bandwidth)) = (args.rate, args.bandwidth) {
+        let settings = SensorSettings::for_rate_and_bandwidth(rate, bandwidth)
+            .map_err(|e| anyhow!("--rate {rate} --bandwidth {bandwidth}: {e}"))?
+            .with_ranges(gyro_range(args.gyro_range)?, accel_range(args.accel_range)?);
+        let info = start_board(link.as_mut(), settings)?;
+        eprintln!(
+            "{}: board {:016x}, firmware {}, protocol {}; capturing {settings}",
+            link.describe(),
+            info.board_id,
+            info.firmware_version,
+            info.protocol_version
+        );
+    }
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
@@ -69,6 +165,9 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         show(&bar, p)
     });
     bar.finish_and_clear();
+    if args.port.is_some() {
+        stop_board(link.as_mut());
+    }
     let outcome = outcome?;
     let session = store
         .get(outcome.session_id)?

@@ -16,7 +16,6 @@ use anyhow::{Context, Result};
 use protocol::frame::{self, FrameDecoder, MAX_WIRE_LEN};
 use protocol::mpu6050::SensorSettings;
 use protocol::{DeviceMessage, MAX_SAMPLES_PER_BATCH, RawSample, SampleBatch};
-use std::path::Path;
 
 #[derive(clap::Args, Debug)]
 pub struct DemoArgs {
@@ -123,9 +122,6 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     paper_experiment(args.minutes)
 }
 
-/// The example model (examples/mpu6050.toml), built in so the demo runs anywhere.
-const EXAMPLE_MODEL: &str = include_str!("../../../examples/mpu6050.toml");
-
 /// The paper's experiment: static data at its four settings through the simulated chip's
 /// signal chain, analysed; the gyro's white-noise coefficient next to the model's and to
 /// what the chain predicts (noise above half the output rate folds back).
@@ -134,7 +130,7 @@ fn paper_experiment(minutes: f64) -> Result<()> {
         (0.5..=600.0).contains(&minutes),
         "--minutes {minutes}: between 0.5 and 600, please"
     );
-    let model = model_file::parse(EXAMPLE_MODEL, Path::new("examples/mpu6050.toml"))?;
+    let model = model_file::example();
     let n0 = model.gyro.noise.n;
     println!(
         "\n3. The paper's experiment, simulated: {minutes} min of static data per setting from \

@@ -3,6 +3,7 @@
 //! exact sample accounting (see DESIGN.md, the sample's journey).
 
 pub mod accounting;
+pub mod board;
 pub mod handshake;
 pub mod replay;
 pub mod serial;

@@ -9,29 +9,7 @@ use std::io;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-/// How fast to replay.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Speed {
-    /// As fast as the reader takes the bytes.
-    Max,
-    /// Board time runs this many times faster than wall time (1.0 = real time).
-    Factor(f64),
-}
-
-impl std::str::FromStr for Speed {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Speed, String> {
-        if s.eq_ignore_ascii_case("max") {
-            return Ok(Speed::Max);
-        }
-        match s.parse::<f64>() {
-            Ok(f) if f.is_finite() && f > 0.0 => Ok(Speed::Factor(f)),
-            _ => Err(format!(
-                "speed '{s}': 'max' or a positive factor (1 = real time)"
-            )),
-        }
-    }
-}
+pub use super::transport::Speed;
 
 pub struct ReplayLink {
     bytes: Vec<u8>,

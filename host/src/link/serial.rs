@@ -139,6 +139,20 @@ impl SerialLink {
     }
 }
 
+impl super::Link for SerialLink {
+    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> std::io::Result<usize> {
+        SerialLink::read(self, buf, timeout).map_err(std::io::Error::other)
+    }
+
+    fn write_all(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        SerialLink::write_all(self, bytes).map_err(std::io::Error::other)
+    }
+
+    fn describe(&self) -> String {
+        self.name.clone()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -23,3 +23,27 @@ pub trait Link {
     /// What this link reads from, for messages ("file X.imucap", "/dev/ttyACM0").
     fn describe(&self) -> String;
 }
+
+/// How fast a simulated or replayed source runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Speed {
+    /// As fast as the reader takes the bytes.
+    Max,
+    /// Board time runs this many times faster than wall time (1.0 = real time).
+    Factor(f64),
+}
+
+impl std::str::FromStr for Speed {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Speed, String> {
+        if s.eq_ignore_ascii_case("max") {
+            return Ok(Speed::Max);
+        }
+        match s.parse::<f64>() {
+            Ok(f) if f.is_finite() && f > 0.0 => Ok(Speed::Factor(f)),
+            _ => Err(format!(
+                "speed '{s}': 'max' or a positive factor (1 = real time, 60 = a minute per second)"
+            )),
+        }
+    }
+}

@@ -14,29 +14,7 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-/// How emulated time relates to wall time.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Speed {
-    /// Emulated seconds per wall second (1 = real time).
-    Factor(f64),
-    /// As fast as the host reads.
-    Max,
-}
-
-impl std::str::FromStr for Speed {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        if s.eq_ignore_ascii_case("max") {
-            return Ok(Speed::Max);
-        }
-        match s.parse::<f64>() {
-            Ok(f) if f.is_finite() && f > 0.0 => Ok(Speed::Factor(f)),
-            _ => Err(format!(
-                "--speed {s}: a positive factor (1 = real time, 60 = a minute per second) or max"
-            )),
-        }
-    }
-}
+pub use super::transport::Speed;
 
 /// The simulated sensor shared by the firmware (as its I2C bus and its clock) and the board
 /// (which moves time).
@@ -187,6 +165,21 @@ impl VirtualBoard {
     }
 }
 
+impl super::Link for VirtualBoard {
+    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> std::io::Result<usize> {
+        Ok(VirtualBoard::read(self, buf, timeout))
+    }
+
+    fn write_all(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        self.write(bytes);
+        Ok(())
+    }
+
+    fn describe(&self) -> String {
+        "the virtual board (--port sim)".into()
+    }
+}
+
 /// Queue a frame for the host unless the link's buffer is full (back-pressure).
 fn push_frame(outbox: &mut VecDeque<u8>, frame: &[u8]) -> bool {
     if outbox.len() + frame.len() > LINK_BUFFER {
@@ -271,12 +264,5 @@ mod tests {
             (emulated / elapsed - 10.0).abs() < 1.5,
             "{emulated} s in {elapsed} s"
         );
-    }
-
-    #[test]
-    fn speeds_parse() {
-        assert_eq!("max".parse(), Ok(Speed::Max));
-        assert_eq!("60".parse(), Ok(Speed::Factor(60.0)));
-        assert!("0".parse::<Speed>().unwrap_err().contains("--speed 0"));
     }
 }

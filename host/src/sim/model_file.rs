@@ -116,6 +116,17 @@ struct CycleSpec {
 }
 
 /// Read and check a model file.
+/// The documented example model (examples/mpu6050.toml), built in so that the demo and the
+/// virtual board run anywhere.
+pub const EXAMPLE: &str = include_str!("../../../examples/mpu6050.toml");
+
+/// [`EXAMPLE`], parsed.
+pub fn example() -> ImuModel {
+    // The example is part of the build and tested (`the_example_model_parses`); a failure here
+    // would be a broken build, so fall back to the default model rather than panic.
+    parse(EXAMPLE, Path::new("examples/mpu6050.toml")).unwrap_or_default()
+}
+
 pub fn load(path: &Path) -> Result<ImuModel, ModelFileError> {
     let text = std::fs::read_to_string(path).map_err(|source| ModelFileError::Read {
         file: path.to_owned(),
@@ -327,6 +338,11 @@ impl Checker<'_> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn the_example_model_parses() {
+        let model = super::parse(super::EXAMPLE, std::path::Path::new("example")).unwrap();
+        assert_eq!(model.gyro.noise.n, 1.5e-4);
+    }
     use super::*;
 
     fn parse_str(text: &str) -> Result<ImuModel, ModelFileError> {
