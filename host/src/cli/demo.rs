@@ -1,37 +1,47 @@
-//! `imunoise demo`: a tour of what works today, on generated data — the sensor settings of
-//! the paper this project follows, and a stream of sample batches framed exactly as the
-//! board frames them, damaged on the way, decoded and accounted for to the last sample.
+//! `imunoise demo`: the whole chain with no hardware — the sensor settings of the paper this
+//! project follows; a stream of sample batches framed exactly as the board frames them,
+//! damaged on the way, decoded and accounted for to the last sample; and the paper's
+//! experiment on the virtual board (capture at each setting, stored sessions, the sweep
+//! table, the folding prediction, an HTML report).
 
-use crate::analysis::pipeline::{self, Options};
 use crate::analysis::units::arw_to_deg_per_sqrt_h;
+use crate::cli::capture::PortSpec;
 use crate::cli::settings::aliases;
+use crate::cli::simulate::parse_duration;
+use crate::cli::stored::open_store;
+use crate::cli::sweep;
 use crate::link::accounting::SampleAccounting;
-use crate::record::{Channel, Quantity, Record};
+use crate::link::replay::Speed;
+use crate::record::Quantity;
 use crate::report::sig;
 use crate::sim::chain::white_noise_inflation;
 use crate::sim::dlpf::{DlpfDesign, Sensor};
-use crate::sim::imu::{Imu, ImuModel};
 use crate::sim::model_file;
+use crate::store::Store;
+use crate::store::clock::compact;
 use anyhow::{Context, Result};
 use protocol::frame::{self, FrameDecoder, MAX_WIRE_LEN};
+use protocol::mpu6050::Hz;
 use protocol::mpu6050::SensorSettings;
 use protocol::{DeviceMessage, MAX_SAMPLES_PER_BATCH, RawSample, SampleBatch};
+use std::time::SystemTime;
 
 #[derive(clap::Args, Debug)]
 pub struct DemoArgs {
     /// Seconds of generated samples to frame
     #[arg(long, default_value_t = 10.0)]
     pub seconds: f64,
-    /// Minutes of simulated static data per setting for the paper's experiment
-    #[arg(long, default_value_t = 10.0)]
-    pub minutes: f64,
+    /// Simulated static data per setting for the paper's experiment (long enough to see
+    /// bias instability and rate random walk)
+    #[arg(long, default_value = "2h")]
+    pub duration: String,
 }
 
 /// The four settings compared in the paper: (output rate Hz, gyro bandwidth Hz).
 pub const PAPER_SETTINGS: [(f64, f64); 4] =
     [(200.0, 256.0), (200.0, 42.0), (50.0, 256.0), (50.0, 42.0)];
 
-pub fn run(args: &DemoArgs) -> Result<()> {
+pub fn run(args: &DemoArgs, store: Option<&std::path::Path>) -> Result<()> {
     println!(
         "imunoise demo: the paper's experiment on the simulated MPU-6050, and the protocol layer\n(the virtual board that ties them together comes next)\n"
     );
@@ -119,88 +129,71 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         accounting.gaps().len(),
         accounting.gaps()
     );
-    paper_experiment(args.minutes)
+    paper_experiment(&args.duration, &open_store(store)?)
 }
 
-/// The paper's experiment: static data at its four settings through the simulated chip's
-/// signal chain, analysed; the gyro's white-noise coefficient next to the model's and to
-/// what the chain predicts (noise above half the output rate folds back).
-fn paper_experiment(minutes: f64) -> Result<()> {
-    anyhow::ensure!(
-        (0.5..=600.0).contains(&minutes),
-        "--minutes {minutes}: between 0.5 and 600, please"
-    );
+/// The paper's experiment on the virtual board: each setting captured (the firmware's own
+/// code on the simulated MPU-6050, at maximum speed), stored as a session, analysed; the
+/// sweep table, the gyro's white-noise coefficient against what the signal chain predicts,
+/// and an HTML report.
+fn paper_experiment(duration: &str, store: &Store) -> Result<()> {
+    let seconds = parse_duration(duration).map_err(|e| anyhow::anyhow!("--duration: {e}"))?;
     let model = model_file::example();
     let n0 = model.gyro.noise.n;
     println!(
-        "\n3. The paper's experiment, simulated: {minutes} min of static data per setting from \
-         examples/mpu6050.toml\n   (gyro N0 = {} deg/sqrt(h)), through the MPU-6050's DLPF, \
-         decimation without anti-aliasing and LSB rounding,\n   then analysed (IEEE-952 fit to \
-         the overlapping Allan variance, 68.3 % intervals):",
-        sig(arw_to_deg_per_sqrt_h(n0), 3)
+        "\n3. The paper's experiment on the virtual board: {duration} of static data per setting \
+         (the firmware's code on the\n   simulated MPU-6050 of examples/mpu6050.toml, gyro N0 = {} \
+         deg/sqrt(h)), captured into the store {}",
+        sig(arw_to_deg_per_sqrt_h(n0), 3),
+        store.dir().display()
     );
+    let settings: Vec<SensorSettings> = PAPER_SETTINGS
+        .iter()
+        .map(|&(rate, bw)| SensorSettings::for_rate_and_bandwidth(rate, bw))
+        .collect::<Result<_, _>>()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let spec = PortSpec {
+        port: "sim",
+        speed: Speed::Max,
+        model: None,
+        seed: 1,
+    };
+    let rows = sweep::sweep(store, &spec, &settings, seconds, "demo")?;
+    print!("{}", sweep::table(&rows));
     println!(
-        "   {:>14}  {:>26}  {:>8}  {:>9}",
-        "setting", "gyro N, mean of x y z", "N / N0", "predicted"
+        "\n   gyro N against the signal chain's prediction (noise above half the rate folds back):"
     );
-    for (i, (rate, bandwidth)) in PAPER_SETTINGS.into_iter().enumerate() {
-        let settings = SensorSettings::for_rate_and_bandwidth(rate, bandwidth)
-            .map_err(|e| anyhow::anyhow!("{rate} Hz / {bandwidth} Hz: {e}"))?;
-        let seconds = minutes * 60.0;
-        let record = simulate(&model, settings, seconds, i as u64 + 1);
-        let results = pipeline::analyze(&record, &Options::default(), &|| {})?;
-        let gyro: Vec<_> = results
+    println!("   {:>14}  {:>8}  {:>9}", "setting", "N / N0", "predicted");
+    for row in &rows {
+        let gyro: Vec<f64> = row
+            .results
             .iter()
             .filter(|r| r.quantity == Quantity::AngularRate)
-            .filter_map(|r| r.fit.as_ref().ok())
+            .filter_map(|r| r.fit.as_ref().ok().map(|f| f.n.value))
             .collect();
-        let mean = |f: &dyn Fn(&crate::analysis::fit::NoiseFit) -> f64| {
-            gyro.iter().map(|g| f(g)).sum::<f64>() / gyro.len().max(1) as f64
-        };
-        let (n, lo, hi) = (mean(&|g| g.n.value), mean(&|g| g.n.lo), mean(&|g| g.n.hi));
-        let design = DlpfDesign::for_setting(settings.dlpf, Sensor::Gyro);
-        let predicted = white_noise_inflation(&design, 1 + usize::from(settings.smplrt_div));
+        let n = gyro.iter().sum::<f64>() / gyro.len().max(1) as f64;
+        let s = row.settings;
+        let design = DlpfDesign::for_setting(s.dlpf, Sensor::Gyro);
+        let predicted = white_noise_inflation(&design, 1 + usize::from(s.smplrt_div));
         println!(
-            "   {rate:>5} Hz/{bandwidth:>3} Hz  {:>7} [{} .. {}] deg/sqrt(h)  {:>8.3}  {:>9.3}{}",
-            sig(arw_to_deg_per_sqrt_h(n), 3),
-            sig(arw_to_deg_per_sqrt_h(lo), 3),
-            sig(arw_to_deg_per_sqrt_h(hi), 3),
+            "   {:>6} Hz/{:>3} Hz  {:>8.3}  {:>9.3}{}",
+            Hz(s.output_rate_hz()),
+            Hz(s.dlpf.row().map_or(0.0, |r| r.gyro_bandwidth_hz)),
             n / n0,
             predicted,
-            if aliases(&settings) {
-                "  folds back"
-            } else {
-                ""
-            }
+            if aliases(&s) { "  folds back" } else { "" }
         );
     }
+    let reports = store.dir().join("reports");
+    std::fs::create_dir_all(&reports).with_context(|| format!("creating {}", reports.display()))?;
+    let path = reports.join(format!("demo-{}.html", compact(SystemTime::now())));
+    std::fs::write(&path, sweep::html(&rows)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    println!("\nreport: {}", path.display());
+    println!(
+        "sessions: `imunoise sessions`, `imunoise show demo-200hz-42hz`, `imunoise analyze demo-50hz-256hz --plot a.svg`"
+    );
     Ok(())
-}
-
-/// `seconds` of the model at `settings`, as a record in SI units.
-fn simulate(model: &ImuModel, settings: SensorSettings, seconds: f64, seed: u64) -> Record {
-    let mut imu = Imu::new(model, settings, seed, seconds);
-    let rows = (seconds * settings.output_rate_hz()).floor() as usize;
-    let mut columns: [Vec<f64>; 7] = std::array::from_fn(|_| Vec::with_capacity(rows));
-    for _ in 0..rows {
-        let s = imu.next_si();
-        let values = [
-            s.gyro[0], s.gyro[1], s.gyro[2], s.accel[0], s.accel[1], s.accel[2], s.temp,
-        ];
-        for (column, v) in columns.iter_mut().zip(values) {
-            column.push(v);
-        }
-    }
-    let names = ["gx", "gy", "gz", "ax", "ay", "az", "temp"];
-    Record {
-        source: format!("simulated {settings}"),
-        rate_hz: settings.output_rate_hz(),
-        channels: names
-            .iter()
-            .zip(columns)
-            .map(|(name, values)| Channel::named(*name, values))
-            .collect(),
-    }
 }
 
 /// Batches of generated raw samples: a level sensor (1 g on Z at +/-2 g, 25 degC) with a

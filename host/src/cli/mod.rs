@@ -14,6 +14,7 @@ pub(crate) mod settings;
 mod show;
 mod simulate;
 mod stored;
+mod sweep;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -49,6 +50,8 @@ pub enum Command {
     Simulate(simulate::SimulateArgs),
     /// Record a session into the store from a board's byte stream (now: a replayed capture file)
     Capture(capture::CaptureArgs),
+    /// The paper's experiment: one session per setting, then N, B, K per axis per setting
+    Sweep(sweep::SweepArgs),
     /// List the stored sessions
     Sessions(sessions::SessionsArgs),
     /// Everything about one session: metadata, losses, stored analyses
@@ -69,12 +72,13 @@ pub fn main() -> ExitCode {
     let store = cli.store.as_deref();
     let result = match cli.command {
         Command::Settings(args) => settings::run(&args),
-        Command::Demo(args) => demo::run(&args),
+        Command::Demo(args) => demo::run(&args, store),
         Command::Analyze(args) => analyze::run(&args, store),
         Command::Bench(args) => bench::run(&args),
         Command::Ports(args) => ports::run(&args),
         Command::Simulate(args) => simulate::run(&args),
         Command::Capture(args) => capture::run(&args, store),
+        Command::Sweep(args) => sweep::run(&args, store),
         Command::Sessions(args) => sessions::run(&args, store),
         Command::Show(args) => show::run(&args, store),
         Command::Export(args) => export::run(&args, store),
