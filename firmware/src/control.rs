@@ -192,7 +192,14 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
     }
 
     fn fault(&mut self, error: ErrorCode) {
-        self.run = None;
+        // The samples the sensor made since the last drain will never be read: count them
+        // lost (by the run's sample grid), so the run's end is accounted like any gap.
+        if let Some(run) = self.run.take() {
+            let now = self.clock.now_us();
+            let (produced, _) = run.grid().produced(now, now);
+            let lost = produced.saturating_sub(run.next_index());
+            self.counters.samples_lost = self.counters.samples_lost.saturating_add(lost);
+        }
         self.ready = false;
         // Best effort: the sensor may be the problem.
         let _ = self.dev.disable_fifo();

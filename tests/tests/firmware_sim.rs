@@ -466,6 +466,14 @@ fn a_sensor_that_stops_answering_is_reported_not_waited_on() {
         [DeviceMessage::Fault(ErrorCode::SensorNotResponding)]
     );
     assert!(!board.fw.streaming());
+    // The samples made between the last drain and the fault are counted lost, never
+    // silently dropped: at most the firmware's 0.5 s patience plus a drain interval.
+    let lost = board.status().samples_lost;
+    let rate = SensorSettings::default().output_rate_hz();
+    assert!(
+        lost > 0 && (lost as f64) < 0.6 * rate,
+        "lost {lost} at {rate} Hz"
+    );
     // Start is refused with the reason while it stays away, and works once it is back.
     let r = board.command(Command::Start);
     assert!(matches!(
