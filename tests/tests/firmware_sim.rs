@@ -2,11 +2,12 @@
 //! "virtual board". Configuration, loss-free streaming, overflow accounting, faults, and the
 //! frames as the host decodes them.
 
-use embedded_hal::i2c::{ErrorType, I2c, Operation};
+use embedded_hal::i2c::I2c;
 use firmware::acquire::FIFO_SAMPLES;
-use firmware::{BoardConfig, Clock, Firmware};
+use firmware::{BoardConfig, Firmware};
 use imunoise::link::accounting::SampleAccounting;
-use imunoise::sim::device::{SimI2cError, SimMpu6050};
+use imunoise::link::virtual_board::SharedSensor;
+use imunoise::sim::device::SimMpu6050;
 use imunoise::sim::imu::ImuModel;
 use imunoise::sim::noise::NoiseTerms;
 use protocol::frame::{FrameDecoder, MAX_WIRE_LEN, encode};
@@ -14,28 +15,7 @@ use protocol::mpu6050::{AccelRange, DEFAULT_ADDRESS, DlpfCfg, GyroRange, SensorS
 use protocol::{Command, DeviceMessage, ErrorCode, RawSample, Request, SampleBatch, Status};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use std::cell::RefCell;
 use std::ops::Range;
-use std::rc::Rc;
-
-/// The simulated sensor, shared by the firmware (as its I2C bus and its clock) and the test
-/// (which moves time and injects faults).
-#[derive(Clone)]
-struct Shared(Rc<RefCell<SimMpu6050>>);
-
-impl ErrorType for Shared {
-    type Error = SimI2cError;
-}
-impl I2c for Shared {
-    fn transaction(&mut self, a: u8, ops: &mut [Operation<'_>]) -> Result<(), SimI2cError> {
-        self.0.borrow_mut().transaction(a, ops)
-    }
-}
-impl Clock for Shared {
-    fn now_us(&mut self) -> u64 {
-        self.0.borrow().time_us()
-    }
-}
 
 struct NoDelay;
 impl embedded_hal::delay::DelayNs for NoDelay {
@@ -57,8 +37,8 @@ fn model() -> ImuModel {
 
 /// A board: firmware + simulated sensor + the host's decoder.
 struct Board {
-    sim: Shared,
-    fw: Firmware<Shared, Shared>,
+    sim: SharedSensor,
+    fw: Firmware<SharedSensor, SharedSensor>,
     decoder: FrameDecoder,
     seq: u16,
     /// The link takes frames only while this is true (back-pressure when false).
@@ -69,7 +49,7 @@ struct Board {
 
 impl Board {
     fn new(seed: u64) -> Self {
-        let sim = Shared(Rc::new(RefCell::new(SimMpu6050::new(model(), seed))));
+        let sim = SharedSensor::new(SimMpu6050::new(model(), seed));
         let mut fw = Firmware::new(
             sim.clone(),
             sim.clone(),
@@ -90,8 +70,8 @@ impl Board {
         }
     }
 
-    fn sim(&self) -> std::cell::RefMut<'_, SimMpu6050> {
-        self.sim.0.borrow_mut()
+    fn sim(&self) -> std::sync::MutexGuard<'_, SimMpu6050> {
+        self.sim.lock()
     }
 
     fn receive(&mut self, bytes: &[u8]) {
@@ -160,7 +140,7 @@ impl Board {
     }
 
     fn now(&self) -> u64 {
-        self.sim.0.borrow().time_us()
+        self.sim.lock().time_us()
     }
 }
 
@@ -174,7 +154,7 @@ struct Oracle {
 impl Oracle {
     fn at_start(board: &Board) -> Self {
         Oracle {
-            sim: board.sim.0.borrow().clone(),
+            sim: board.sim.lock().clone(),
             samples: Vec::new(),
         }
     }

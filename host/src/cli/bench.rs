@@ -6,6 +6,7 @@
 //!    the deviations; plus imunoise's peak memory over the input's size (Linux).
 //! 2. A full `analyze` (six channels, oadev with CIs, PSD, fit) of an 8-hour 200 Hz record.
 //! 3. The simulator's cost per noise term: an hour of six axes at 1 kHz.
+//! 4. Decoding a large capture file (target: at least 100 MB/s).
 
 use crate::analysis::pipeline::{self, Options};
 use crate::analysis::{Estimator, allan, into_phase};
@@ -33,6 +34,9 @@ pub struct BenchArgs {
     /// Hours of 200 Hz six-axis data for the full-analysis benchmark
     #[arg(long, default_value_t = 8.0)]
     pub hours: f64,
+    /// Size of the capture for the decoding benchmark, MB
+    #[arg(long, default_value_t = 200)]
+    pub capture_mb: usize,
     /// Python interpreter with allantools and numpy installed
     #[arg(long, default_value = "python3")]
     pub python: String,
@@ -86,7 +90,69 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     full_analysis(args.hours)?;
     simulator_terms();
+    decode_throughput(args.capture_mb);
     Ok(())
+}
+
+/// Decoding a large capture (random samples in full batches), keeping the samples as
+/// `replay` does and counting only as the live capture loop does.
+fn decode_throughput(megabytes: usize) {
+    use crate::capture::{Capture, CaptureWriter, StreamDecoder};
+    use protocol::{DeviceMessage, RawSample, SampleBatch};
+    use rand::Rng;
+    println!("\n4. Decoding a {megabytes} MB capture");
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut writer = CaptureWriter::new(Vec::with_capacity(megabytes << 20));
+    let settings = protocol::SensorSettings::default();
+    let info = protocol::DeviceInfo {
+        protocol_version: protocol::PROTOCOL_VERSION,
+        firmware_version: firmware::FIRMWARE_VERSION,
+        board_id: 0,
+        who_am_i: protocol::mpu6050::WHO_AM_I_VALUE,
+        settings,
+        streaming: true,
+        max_samples_per_batch: protocol::MAX_SAMPLES_PER_BATCH as u16,
+    };
+    let mut index = 0u64;
+    let mut ok = writer.message(&DeviceMessage::Info(info)).is_ok();
+    // A full batch of random samples frames to about 640 bytes.
+    let batches = (megabytes * 1_000_000) / 640;
+    while ok && index < (batches * protocol::MAX_SAMPLES_PER_BATCH) as u64 {
+        let samples = (0..protocol::MAX_SAMPLES_PER_BATCH)
+            .map(|_| RawSample {
+                gyro: [rng.random(), rng.random(), rng.random()],
+                accel: [rng.random(), rng.random(), rng.random()],
+                temp: rng.random(),
+            })
+            .collect();
+        let batch = SampleBatch {
+            first_index: index,
+            first_timestamp_us: index * 1000,
+            samples,
+        };
+        ok = writer.message(&DeviceMessage::Samples(batch)).is_ok();
+        index += protocol::MAX_SAMPLES_PER_BATCH as u64;
+    }
+    let bytes = writer.into_inner();
+    let mb = bytes.len() as f64 / 1e6;
+    let start = Instant::now();
+    let decoded = Capture::decode(&bytes);
+    let keeping = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let mut counting = StreamDecoder::new(false);
+    bytes.chunks(1 << 16).for_each(|chunk| {
+        counting.feed(chunk);
+    });
+    let counting_s = start.elapsed().as_secs_f64();
+    match decoded {
+        Ok(c) => println!(
+            "   {mb:.0} MB, {} samples: {:.0} MB/s keeping samples, {:.0} MB/s counting only",
+            c.accounting.received(),
+            mb / keeping,
+            mb / counting_s
+        ),
+        Err(e) => println!("   decoding failed: {e}"),
+    }
 }
 
 /// One hour of six axes at 1 kHz (21.6 million samples) of each noise term alone: the
