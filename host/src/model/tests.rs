@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::record::Channel;
+use rand::Rng;
 
 const RATE: f64 = 20.0;
 const HOURS: f64 = 1.0;
@@ -138,4 +139,63 @@ fn names_rate_ramp() {
         unreachable!()
     };
     assert!(within(slope, 2e-8, 0.25), "slope {slope}");
+}
+
+#[test]
+fn no_false_discoveries_over_seeds() {
+    for seed in 20..26 {
+        let o = run(&record(baseline(), seed), None, None, &settings()).unwrap();
+        assert!(o.steps.is_empty(), "seed {seed}: {}", report::table(&o));
+    }
+}
+
+#[test]
+fn names_temperature() {
+    let coeff = 2e-5;
+    let mut r = record(baseline(), 15);
+    let n = r.len();
+    let mut rng = ChaCha8Rng::seed_from_u64(99);
+    let temp: Vec<f64> = (0..n)
+        .map(|i| {
+            let t = i as f64 / RATE;
+            25.0 + 10.0 * (1.0 - (-t / 900.0).exp())
+                + 0.01 * rng.sample::<f64, _>(rand_distr::StandardNormal)
+        })
+        .collect();
+    let gx = &mut r.channels[0].values;
+    gx.iter_mut()
+        .zip(&temp)
+        .for_each(|(v, t)| *v += coeff * (t - 25.0));
+    r.channels.push(Channel::named("temp", temp));
+    let o = run(&r, None, Some("temp"), &settings()).unwrap();
+    eprintln!("{}", report::table(&o));
+    let Effect::Temperature { coeff: found } = assert_named(&o, "temperature") else {
+        unreachable!()
+    };
+    assert!(within(found, coeff, 0.25), "coeff {found}");
+}
+
+/// The speed target: a 3-hour 100 Hz record with a hidden effect, end to end.
+/// `cargo test --release -p imunoise --lib model::tests::speed -- --ignored --nocapture`
+#[test]
+#[ignore]
+fn speed_3h_100hz() {
+    let n = 3 * 3600 * 100;
+    let mut t = baseline();
+    t.gauss_markov = Some(GaussMarkov {
+        sigma: 1e-4,
+        tau_c: 5.0,
+    });
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut g = AxisNoise::new(t, 100.0, n as f64 / 100.0, &mut rng);
+    let r = Record {
+        source: "speed".into(),
+        rate_hz: 100.0,
+        channels: vec![Channel::named("gx", g.take(n, &mut rng))],
+    };
+    let start = std::time::Instant::now();
+    let o = run(&r, None, None, &Settings::default()).unwrap();
+    let elapsed = start.elapsed().as_secs_f64();
+    eprintln!("{}\n3 h at 100 Hz: {elapsed:.1} s", report::table(&o));
+    assert!(elapsed < 30.0, "{elapsed} s");
 }
