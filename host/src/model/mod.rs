@@ -22,7 +22,8 @@
 //!
 //! **Candidates.** Each effect the model does not have yet: Gauss-Markov (tau_c grid-searched
 //! over log-spaced values around the disagreeing range, sigma^2 fitted), sinusoid (frequency of
-//! the largest PSD peak above the model's density, amplitude from the peak's excess power),
+//! the PSD bin standing most above its neighbourhood and the fitted white level, amplitude
+//! from the peak's excess power),
 //! temperature (coefficient of the regression of the rate on the temperature channel; only with
 //! a temperature channel), rate ramp (slope of the regression of the rate on time),
 //! quantization, bias instability, rate random walk (only when the model has them at zero).
@@ -45,7 +46,6 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
-use std::f64::consts::PI;
 
 /// A model whose gap is below this explains the measured curve (see the module docs).
 pub const GAP_ACCEPT: f64 = 1.5;
@@ -57,7 +57,8 @@ pub const MIN_SHRINK: f64 = 0.25;
 pub const MAX_STEPS: usize = 3;
 /// |z| above this marks a disagreeing tau.
 pub const Z_DISAGREE: f64 = 2.0;
-/// A PSD bin must exceed the model's density by this factor to count as a sinusoid's peak.
+/// A PSD bin must exceed its neighbourhood's median and the fitted white level by this factor
+/// to count as a sinusoid's peak.
 pub const PEAK_RATIO: f64 = 10.0;
 
 /// Settings of [`run`].
@@ -749,33 +750,47 @@ pub fn ramp_slope(rate: &[f64], tau0: f64) -> f64 {
     sxy / sxx
 }
 
-/// The model's one-sided PSD at `f` (IEEE-952 terms only: 2 x the two-sided density).
-fn model_psd(t: &NoiseTerms, f: f64) -> f64 {
-    let w = 2.0 * PI * f;
-    2.0 * (t.n * t.n + t.b * t.b / w + t.k * t.k / (w * w) + t.q * t.q * w * w)
+/// Median of the PSD bins 4..=12 away from bin `i` on either side (the peak's neighbourhood,
+/// clear of a Hann window's main lobe).
+fn local_background(density: &[f64], i: usize) -> f64 {
+    let mut around: Vec<f64> = (4..=12)
+        .flat_map(|d| [i.checked_sub(d), Some(i + d)])
+        .flatten()
+        .filter(|&j| j >= 1 && j < density.len())
+        .map(|j| density[j])
+        .collect();
+    if around.is_empty() {
+        return f64::INFINITY;
+    }
+    around.sort_by(f64::total_cmp);
+    around[around.len() / 2]
 }
 
-/// The largest PSD peak above the model's density (at least [`PEAK_RATIO`] times it): its
-/// frequency (power-weighted centroid of the peak's bins) and amplitude sqrt(2 x excess power).
+/// The largest PSD peak: the bin that most exceeds the median of its neighbourhood
+/// ([`local_background`]), by at least [`PEAK_RATIO`], and also exceeds the fitted white level
+/// (one-sided 2 N^2) by that factor. A smooth spectrum (white, flicker, random walk, a
+/// Gauss-Markov knee) has no such bin. Frequency: the power-weighted centroid of the peak's
+/// bins (+-3); amplitude: sqrt(2 x their power above the background).
 fn sinusoid_from_psd(data: &Data, model: &Model) -> Option<Sinusoid> {
     let psd = data.psd.as_ref()?;
-    if psd.freq.len() < 8 {
+    if psd.freq.len() < 16 {
         return None;
     }
     let df = psd.freq[1] - psd.freq[0];
-    let ratio = |i: usize| psd.density[i] / model_psd(&model.terms, psd.freq[i]);
-    // Skip the lowest bins, where the window's leakage of the drifts lives.
-    let (peak, r) = (3..psd.freq.len())
-        .map(|i| (i, ratio(i)))
+    let white = 2.0 * model.terms.n * model.terms.n;
+    let (peak, r) = (2..psd.freq.len())
+        .filter(|&i| psd.density[i] > PEAK_RATIO * white)
+        .map(|i| (i, psd.density[i] / local_background(&psd.density, i)))
         .max_by(|a, b| a.1.total_cmp(&b.1))?;
     if r < PEAK_RATIO {
         return None;
     }
+    let background = local_background(&psd.density, peak);
     let lo = peak.saturating_sub(3).max(1);
     let hi = (peak + 3).min(psd.freq.len() - 1);
     let (mut power, mut moment) = (0.0, 0.0);
     for i in lo..=hi {
-        let excess = (psd.density[i] - model_psd(&model.terms, psd.freq[i])).max(0.0) * df;
+        let excess = (psd.density[i] - background).max(0.0) * df;
         power += excess;
         moment += excess * psd.freq[i];
     }
