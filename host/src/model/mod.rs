@@ -20,7 +20,7 @@
 //! exceeds it by chance, while a missing effect that changes the deviation by 2x over a
 //! decade of tau typically gives a gap of 3 or more).
 //!
-//! **Candidates.** Each effect the model does not have yet: Gauss-Markov (tau_c grid-searched
+//! **Candidates.** Each effect the model does not have yet: Gauss-Markov (tau_c grid-searched,
 //! over log-spaced values around the disagreeing range, sigma^2 fitted), sinusoid (frequency of
 //! the PSD bin standing most above its neighbourhood and the fitted white level, amplitude
 //! from the peak's excess power),
@@ -206,6 +206,8 @@ pub struct Outcome {
     pub n: usize,
     pub measured: Deviation,
     pub baseline: Model,
+    /// The pipeline's five-term fit the baseline came from (its R is not in the baseline).
+    pub baseline_fit: fit::NoiseFit,
     pub initial: Comparison,
     pub steps: Vec<Step>,
     /// Why the loop stopped.
@@ -397,6 +399,7 @@ pub fn run(
         n: channel.values.len(),
         measured: data.measured,
         baseline,
+        baseline_fit: fitted,
         initial,
         steps,
         stop,
@@ -636,7 +639,7 @@ fn candidates(data: &Data, model: &Model, current: &Comparison) -> Vec<(Effect, 
     let tau0 = 1.0 / data.rate_hz;
     let duration = n as f64 * tau0;
     if t.gauss_markov.is_none() {
-        // tau_c over the disagreeing span (or the whole curve), 8 per decade.
+        // tau_c over the disagreeing span (or the whole curve), 16 per decade.
         let (lo, hi) = if current.disagreeing.is_empty() {
             (data.measured.tau[0], *data.measured.tau.last().unwrap())
         } else {
@@ -654,7 +657,7 @@ fn candidates(data: &Data, model: &Model, current: &Comparison) -> Vec<(Effect, 
         };
         let lo = (lo / 4.0).max(2.0 * tau0);
         let hi = (hi * 2.0).min(duration / 4.0).max(lo);
-        let count = ((hi / lo).log10() * 8.0).ceil() as usize + 1;
+        let count = ((hi / lo).log10() * 16.0).ceil() as usize + 1;
         let best = (0..count)
             .map(|i| lo * (hi / lo).powf(i as f64 / (count - 1).max(1) as f64))
             .map(|tau_c| refit(data, model, Some(Column::GaussMarkov(tau_c))))

@@ -110,6 +110,7 @@ pub fn document(o: &Outcome) -> Value {
         },
         "measured": {"tau": o.measured.tau, "adev": o.measured.dev},
         "baseline": model_keys(&o.baseline),
+        "baseline_fit": o.baseline_fit,
         "gap_initial": o.initial.gap,
         "initial": comparison_json(&o.initial),
         "steps": steps,

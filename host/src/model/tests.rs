@@ -199,3 +199,17 @@ fn speed_3h_100hz() {
     eprintln!("{}\n3 h at 100 Hz: {elapsed:.1} s", report::table(&o));
     assert!(elapsed < 30.0, "{elapsed} s");
 }
+
+#[test]
+fn two_effects_two_steps() {
+    let mut t = baseline();
+    t.sinusoid = Some(Sinusoid {
+        amplitude: 1e-4,
+        freq_hz: 0.02,
+    });
+    t.r = 2e-8;
+    let o = outcome(t, 16);
+    let kinds: Vec<&str> = o.steps.iter().map(|s| s.effect.kind()).collect();
+    assert_eq!(kinds, ["sinusoid", "rate_ramp"], "{:?}", o.steps);
+    assert!(o.final_comparison().gap < GAP_ACCEPT);
+}
