@@ -8,6 +8,7 @@ pub mod capture;
 pub mod cli;
 pub mod input;
 pub mod link;
+pub mod model;
 pub mod record;
 pub mod recorder;
 pub mod report;

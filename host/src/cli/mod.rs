@@ -6,6 +6,7 @@ mod capture;
 mod demo;
 mod export;
 mod import;
+mod model;
 mod ports;
 mod replay;
 mod rm;
@@ -64,6 +65,8 @@ pub enum Command {
     Rm(rm::RmArgs),
     /// Decode a stored capture again and re-run the analysis (kept with the session)
     Replay(Box<replay::ReplayArgs>),
+    /// Fit, simulate, compare, name the effect the noise model misses, add it and repeat
+    Model(Box<model::ModelArgs>),
 }
 
 /// Run the CLI: errors go to stderr with their causes, and the exit code is 1.
@@ -85,6 +88,7 @@ pub fn main() -> ExitCode {
         Command::Import(args) => import::run(&args, store),
         Command::Rm(args) => rm::run(&args, store),
         Command::Replay(args) => replay::run(&args, store),
+        Command::Model(args) => model::run(&args, store),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,74 @@
+//! `imunoise model INPUT`: fit -> simulate -> compare -> name the missing effect -> refit, on
+//! one channel (see `model`).
+
+use crate::cli::stored;
+use crate::input::LoadOptions;
+use crate::model::{self, Settings, report};
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Debug)]
+pub struct ModelArgs {
+    /// A capture file, a text/CSV table or a NumPy .npy; or a stored session's id or name
+    pub input: PathBuf,
+    /// Sample rate in Hz (needed when the file has no time column and no rate in its header)
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// The channel to model (default: the first gyro channel)
+    #[arg(long)]
+    pub column: Option<String>,
+    /// A temperature channel: enables the temperature-sensitivity candidate
+    #[arg(long)]
+    pub temp_column: Option<String>,
+    /// Write the outcome as JSON to PATH (`-` for stdout, which then carries only the JSON)
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<PathBuf>,
+    /// Write an HTML report (measured vs simulated band at every step) to PATH
+    #[arg(long, value_name = "PATH")]
+    pub report: Option<PathBuf>,
+    /// Seed of the first realisation (realisation i uses seed + i)
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Simulated realisations per model
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(2..))]
+    pub realisations: u64,
+}
+
+pub fn run(args: &ModelArgs, store: Option<&Path>) -> Result<()> {
+    let options = LoadOptions {
+        rate_hz: args.rate,
+        ..LoadOptions::default()
+    };
+    let stored::Input { loaded, .. } = stored::load(&args.input, &options, store)?;
+    stored::print_notes(&loaded.notes);
+    let record = loaded.record;
+    let settings = Settings {
+        realisations: args.realisations as usize,
+        seed: args.seed,
+    };
+    let outcome = model::run(
+        &record,
+        args.column.as_deref(),
+        args.temp_column.as_deref(),
+        &settings,
+    )
+    .with_context(|| record.source.clone())?;
+    let to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    if !to_stdout {
+        print!("{}", report::table(&outcome));
+    }
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&report::document(&outcome))?;
+        if to_stdout {
+            println!("{text}");
+        } else {
+            std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+        }
+    }
+    if let Some(path) = &args.report {
+        let page = report::html(&outcome)?;
+        std::fs::write(path, page).with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("wrote HTML report: {}", path.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,60 @@
+//! `imunoise model` end to end: a CSV with a hidden sinusoid gives one step naming it, in
+//! JSON with the documented keys, and an HTML report.
+
+use std::process::Command;
+
+#[test]
+fn model_names_a_sinusoid_in_json_and_html() {
+    let dir = std::env::temp_dir().join(format!("imunoise-model-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("in.csv");
+    // White noise (a fixed LCG + Box-Muller, N = 1e-4 rad/s/sqrt(Hz) at 20 Hz) plus a
+    // 0.02 Hz sinusoid of 1e-4 rad/s, 30 minutes.
+    let mut state: u64 = 12345;
+    let mut uniform = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    let mut text = String::from("gx\n");
+    for i in 0..36_000 {
+        let g = (-2.0 * uniform().ln()).sqrt() * (2.0 * std::f64::consts::PI * uniform()).cos();
+        let t = i as f64 / 20.0;
+        let y = 1e-4 * 20f64.sqrt() * g + 1e-4 * (2.0 * std::f64::consts::PI * 0.02 * t).sin();
+        text.push_str(&format!("{y}\n"));
+    }
+    std::fs::write(&csv, text).unwrap();
+    let html = dir.join("model.html");
+    let out = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .args([
+            "model",
+            csv.to_str().unwrap(),
+            "--rate",
+            "20",
+            "--json",
+            "-",
+        ])
+        .args(["--report", html.to_str().unwrap(), "--seed", "3"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in ["baseline", "gap_initial", "steps", "gap_final", "model"] {
+        assert!(doc.get(key).is_some(), "no {key}");
+    }
+    let steps = doc["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 1, "{doc:#}");
+    assert_eq!(steps[0]["effect"]["kind"], "sinusoid");
+    let f = steps[0]["effect"]["freq_hz"].as_f64().unwrap();
+    assert!((f / 0.02 - 1.0).abs() < 0.05, "{f}");
+    assert!(doc["gap_final"].as_f64() < doc["gap_initial"].as_f64());
+    assert!(doc["model"]["sinusoid"]["amplitude"].as_f64().is_some());
+    let page = std::fs::read_to_string(&html).unwrap();
+    assert!(page.matches("<svg").count() >= 2);
+    std::fs::remove_dir_all(&dir).ok();
+}
