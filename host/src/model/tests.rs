@@ -175,31 +175,6 @@ fn names_temperature() {
     assert!(within(found, coeff, 0.25), "coeff {found}");
 }
 
-/// The speed target: a 3-hour 100 Hz record with a hidden effect, end to end.
-/// `cargo test --release -p imunoise --lib model::tests::speed -- --ignored --nocapture`
-#[test]
-#[ignore]
-fn speed_3h_100hz() {
-    let n = 3 * 3600 * 100;
-    let mut t = baseline();
-    t.gauss_markov = Some(GaussMarkov {
-        sigma: 1e-4,
-        tau_c: 5.0,
-    });
-    let mut rng = ChaCha8Rng::seed_from_u64(5);
-    let mut g = AxisNoise::new(t, 100.0, n as f64 / 100.0, &mut rng);
-    let r = Record {
-        source: "speed".into(),
-        rate_hz: 100.0,
-        channels: vec![Channel::named("gx", g.take(n, &mut rng))],
-    };
-    let start = std::time::Instant::now();
-    let o = run(&r, None, None, &Settings::default()).unwrap();
-    let elapsed = start.elapsed().as_secs_f64();
-    eprintln!("{}\n3 h at 100 Hz: {elapsed:.1} s", report::table(&o));
-    assert!(elapsed < 30.0, "{elapsed} s");
-}
-
 #[test]
 fn two_effects_two_steps() {
     let mut t = baseline();
@@ -212,71 +187,4 @@ fn two_effects_two_steps() {
     let kinds: Vec<&str> = o.steps.iter().map(|s| s.effect.kind()).collect();
     assert_eq!(kinds, ["sinusoid", "rate_ramp"], "{:?}", o.steps);
     assert!(o.final_comparison().gap < GAP_ACCEPT);
-}
-
-/// How often each hidden effect is named, its key parameter within 25 % and the gap halved,
-/// over ten record seeds (a survey, not a gate). Measured (1 h at 20 Hz, R = 20): none 0/10
-/// steps; Gauss-Markov named 10/10, tau_c within 25 % 9/10, gap halved 10/10; sinusoid
-/// 10/10, 10/10, 10/10; rate ramp (2e-8, 4x ADEV at tau = 1000 s only) named 4/10 (6/10 at
-/// 4e-8): a ramp shows in the last few, noisy Allan points of a 1 h record, where the
-/// baseline's rate random walk often covers it, so the gap often stays below 1.5.
-/// `cargo test --release -p imunoise --lib model::tests::survey -- --ignored --nocapture`
-#[test]
-#[ignore]
-fn survey_over_seeds() {
-    let cases: [(&str, NoiseTerms, f64); 4] = [
-        ("none", baseline(), 0.0),
-        (
-            "gauss_markov",
-            NoiseTerms {
-                gauss_markov: Some(GaussMarkov {
-                    sigma: 1e-4,
-                    tau_c: 5.0,
-                }),
-                ..baseline()
-            },
-            5.0,
-        ),
-        (
-            "sinusoid",
-            NoiseTerms {
-                sinusoid: Some(Sinusoid {
-                    amplitude: 1e-4,
-                    freq_hz: 0.02,
-                }),
-                ..baseline()
-            },
-            0.02,
-        ),
-        (
-            "rate_ramp",
-            NoiseTerms {
-                r: 2e-8,
-                ..baseline()
-            },
-            2e-8,
-        ),
-    ];
-    for (kind, terms, truth) in cases {
-        let (mut named, mut param, mut halved, mut steps) = (0, 0, 0, 0);
-        for seed in 100..110 {
-            let o = run(&record(terms, seed), None, None, &settings()).unwrap();
-            steps += o.steps.len();
-            let Some(s) = o.steps.first() else { continue };
-            if s.effect.kind() == kind {
-                named += 1;
-                let value = match s.effect {
-                    Effect::GaussMarkov { tau_c, .. } => tau_c,
-                    Effect::Sinusoid { freq_hz, .. } => freq_hz,
-                    Effect::RateRamp { slope } => slope,
-                    _ => 0.0,
-                };
-                param += usize::from(within(value, truth, 0.25));
-                halved += usize::from(s.gap_after <= 0.5 * s.gap_before);
-            }
-        }
-        eprintln!(
-            "{kind}: named {named}/10, parameter within 25 % {param}/10, gap halved {halved}/10, steps in all {steps}"
-        );
-    }
 }
