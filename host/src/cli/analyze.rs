@@ -27,33 +27,14 @@ pub struct AnalyzeArgs {
 /// `replay`.
 #[derive(clap::Args, Debug)]
 pub struct AnalysisArgs {
-    /// Sample rate in Hz (needed when the file has no time column and no rate in its header)
-    #[arg(long)]
-    pub rate: Option<f64>,
+    #[command(flatten)]
+    pub read: ReadArgs,
     /// Whether the samples are rates (rad/s, m/s^2) or phase (integrated: rad, m/s)
     #[arg(long, value_enum, default_value_t = DataTypeArg::Rate)]
     pub data_type: DataTypeArg,
     /// Analyse only this channel (repeatable); default: every channel
     #[arg(long = "column", value_name = "NAME")]
     pub columns: Vec<String>,
-    /// Channel names, comma-separated, for inputs without a header (e.g. gx,gy,gz,ax,ay,az)
-    #[arg(long, value_delimiter = ',')]
-    pub names: Vec<String>,
-    /// The values are raw MPU-6050 counts: convert with --gyro-range and --accel-range
-    #[arg(long)]
-    pub counts: bool,
-    /// Gyro full scale of the raw counts, deg/s (250, 500, 1000, 2000)
-    #[arg(long, default_value_t = 250, requires = "counts")]
-    pub gyro_range: u32,
-    /// Accel full scale of the raw counts, g (2, 4, 8, 16)
-    #[arg(long, default_value_t = 2, requires = "counts")]
-    pub accel_range: u32,
-    /// Multiply a channel by a factor, e.g. gx=0.001 (repeatable)
-    #[arg(long, value_name = "NAME=FACTOR", value_parser = parse_scale)]
-    pub scale: Vec<(String, f64)>,
-    /// A capture with gaps: analyse its longest gap-free run (the losses are reported)
-    #[arg(long)]
-    pub longest_run: bool,
     /// Estimator (repeatable): oadev adev mdev hdev ohdev tdev totdev; default oadev
     #[arg(long = "estimator", value_name = "NAME")]
     pub estimators: Vec<Estimator>,
@@ -108,13 +89,39 @@ fn parse_scale(s: &str) -> Result<(String, f64), String> {
 
 pub fn run(args: &AnalyzeArgs, store: Option<&Path>) -> Result<()> {
     let stored::Input { loaded, session } =
-        stored::load(&args.input, &args.analysis.load_options()?, store)?;
+        stored::load(&args.input, &args.analysis.read.load_options()?, store)?;
     stored::print_notes(&loaded.notes);
     let analysed = analyse(loaded.record, &args.analysis)?;
     stored::keep_analysis(session.as_ref(), &analysed)
 }
 
-impl AnalysisArgs {
+/// How to read a record: shared by every command that takes one (analyze, replay, model).
+#[derive(clap::Args, Debug)]
+pub struct ReadArgs {
+    /// Sample rate in Hz (needed when the file has no time column and no rate in its header)
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Channel names, comma-separated, for inputs without a header (e.g. gx,gy,gz,ax,ay,az)
+    #[arg(long, value_delimiter = ',')]
+    pub names: Vec<String>,
+    /// The values are raw MPU-6050 counts: convert with --gyro-range and --accel-range
+    #[arg(long)]
+    pub counts: bool,
+    /// Gyro full scale of the raw counts, deg/s (250, 500, 1000, 2000)
+    #[arg(long, default_value_t = 250, requires = "counts")]
+    pub gyro_range: u32,
+    /// Accel full scale of the raw counts, g (2, 4, 8, 16)
+    #[arg(long, default_value_t = 2, requires = "counts")]
+    pub accel_range: u32,
+    /// Multiply a channel by a factor, e.g. gx=0.001 (repeatable)
+    #[arg(long, value_name = "NAME=FACTOR", value_parser = parse_scale)]
+    pub scale: Vec<(String, f64)>,
+    /// A capture with gaps: analyse its longest gap-free run (the losses are reported)
+    #[arg(long)]
+    pub longest_run: bool,
+}
+
+impl ReadArgs {
     /// How to read the input, from the reading options.
     pub fn load_options(&self) -> Result<LoadOptions> {
         let counts = if self.counts {

@@ -1,8 +1,8 @@
 //! `imunoise model INPUT`: fit -> simulate -> compare -> name the missing effect -> refit, on
 //! one channel (see `model`).
 
+use crate::cli::analyze::ReadArgs;
 use crate::cli::stored;
-use crate::input::LoadOptions;
 use crate::model::{self, Settings, report};
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
@@ -11,9 +11,8 @@ use std::path::{Path, PathBuf};
 pub struct ModelArgs {
     /// A capture file, a text/CSV table or a NumPy .npy; or a stored session's id or name
     pub input: PathBuf,
-    /// Sample rate in Hz (needed when the file has no time column and no rate in its header)
-    #[arg(long)]
-    pub rate: Option<f64>,
+    #[command(flatten)]
+    pub read: ReadArgs,
     /// The channel to model (default: the first gyro channel)
     #[arg(long)]
     pub column: Option<String>,
@@ -35,11 +34,8 @@ pub struct ModelArgs {
 }
 
 pub fn run(args: &ModelArgs, store: Option<&Path>) -> Result<()> {
-    let options = LoadOptions {
-        rate_hz: args.rate,
-        ..LoadOptions::default()
-    };
-    let stored::Input { loaded, .. } = stored::load(&args.input, &options, store)?;
+    let stored::Input { loaded, .. } =
+        stored::load(&args.input, &args.read.load_options()?, store)?;
     stored::print_notes(&loaded.notes);
     let record = loaded.record;
     let settings = Settings {

@@ -17,7 +17,7 @@ pub struct ReplayArgs {
 
 pub fn run(args: &ReplayArgs, store: Option<&Path>) -> Result<()> {
     let stored::Input { loaded, session } =
-        stored::load(&args.input, &args.analysis.load_options()?, store)?;
+        stored::load(&args.input, &args.analysis.read.load_options()?, store)?;
     let r = &loaded.record;
     eprintln!(
         "replayed {}: {} samples at {} Hz",
