@@ -46,6 +46,10 @@ impl Clock for BoardClock {
     }
 }
 
+// The few panics below are at power-up, before the USB link (the only channel to the host)
+// exists and before any sample is taken: a board that cannot set up its clocks or USB has
+// nobody to report to, so panic-probe logs the reason over RTT. Nothing after setup panics;
+// the data path reports every error to the host.
 #[hal::entry]
 fn main() -> ! {
     let Some(mut pac) = pac::Peripherals::take() else {

@@ -52,12 +52,8 @@ pub struct CaptureArgs {
     /// Speed of the virtual board or of a replay: max, or a factor (1 = real time)
     #[arg(long, default_value = "1")]
     pub speed: Speed,
-    /// The virtual board's noise model (default: the built-in examples/mpu6050.toml)
-    #[arg(long, value_name = "FILE")]
-    pub model: Option<PathBuf>,
-    /// The virtual board's random seed
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    #[command(flatten)]
+    pub virtual_board: VirtualBoardArgs,
     /// Session name (default: YYYYmmdd-HHMMSS-<rate>hz-<bandwidth>hz, UTC)
     #[arg(long)]
     pub name: Option<String>,
@@ -67,6 +63,17 @@ pub struct CaptureArgs {
     /// Stop after this much data: 2h, 30m, 90s (default: until the source ends or Ctrl-C)
     #[arg(long)]
     pub duration: Option<String>,
+}
+
+/// The virtual board's options (`--port sim`), shared by `capture` and `sweep`.
+#[derive(clap::Args, Debug)]
+pub struct VirtualBoardArgs {
+    /// The virtual board's noise model (default: the built-in examples/mpu6050.toml)
+    #[arg(long, value_name = "FILE")]
+    pub model: Option<PathBuf>,
+    /// The virtual board's random seed
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
 }
 
 /// A board to capture from: which port, which model and seed if it is the virtual one.
@@ -97,8 +104,8 @@ fn open_link(args: &CaptureArgs) -> Result<Box<dyn Link>> {
         (Some(port), _) => open_port(&PortSpec {
             port,
             speed: args.speed,
-            model: args.model.as_deref(),
-            seed: args.seed,
+            model: args.virtual_board.model.as_deref(),
+            seed: args.virtual_board.seed,
         }),
         (None, Some(path)) => Ok(Box::new(
             ReplayLink::open(path, args.speed)

@@ -5,12 +5,13 @@
 
 use crate::analysis::pipeline::{self, ChannelResult, Options};
 use crate::analysis::units::{self, NoiseTerm};
-use crate::cli::capture::{PortSpec, open_port, start_board, stop_board};
+use crate::cli::capture::{PortSpec, VirtualBoardArgs, open_port, start_board, stop_board};
 use crate::cli::settings::aliases;
 use crate::cli::simulate::parse_duration;
 use crate::cli::stored::open_store;
 use crate::link::replay::Speed;
 use crate::recorder::{self, Ending, RecordOptions};
+use crate::report::html::escape;
 use crate::report::plot::{self, Figure, Line, Panel};
 use crate::report::{self, json, sig};
 use crate::store::Store;
@@ -35,12 +36,8 @@ pub struct SweepArgs {
     /// Speed of the virtual board: max, or a factor (1 = real time)
     #[arg(long, default_value = "1")]
     pub speed: Speed,
-    /// The virtual board's noise model (default: the built-in examples/mpu6050.toml)
-    #[arg(long, value_name = "FILE")]
-    pub model: Option<PathBuf>,
-    /// The virtual board's random seed
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    #[command(flatten)]
+    pub virtual_board: VirtualBoardArgs,
     /// Session names are PREFIX-<rate>hz-<bandwidth>hz
     #[arg(long, default_value = "sweep")]
     pub prefix: String,
@@ -87,8 +84,8 @@ pub fn run(args: &SweepArgs, store: Option<&Path>) -> Result<()> {
     let spec = PortSpec {
         port: &args.port,
         speed: args.speed,
-        model: args.model.as_deref(),
-        seed: args.seed,
+        model: args.virtual_board.model.as_deref(),
+        seed: args.virtual_board.seed,
     };
     let rows = sweep(&store, &spec, &settings, seconds, &args.prefix)?;
     print!("{}", table(&rows));
@@ -308,12 +305,6 @@ pub fn html(rows: &[SweepRow]) -> Result<String> {
     }
     h.push_str("</body></html>\n");
     Ok(h)
-}
-
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
 }
 
 #[cfg(test)]

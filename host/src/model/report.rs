@@ -3,6 +3,7 @@
 
 use super::{Comparison, GAP_ACCEPT, MIN_SHRINK, Model, Outcome, PENALTY_PER_PARAMETER};
 use crate::record::Quantity;
+use crate::report::html::escape;
 use crate::report::plot::{self, Figure, Line, Panel};
 use serde_json::{Value, json};
 use std::fmt::Write;
@@ -235,10 +236,4 @@ pub fn html(o: &Outcome) -> Result<String, plot::PlotError> {
     }
     page.push_str("</body></html>\n");
     Ok(page)
-}
-
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
 }

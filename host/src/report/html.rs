@@ -124,7 +124,8 @@ fn terms_table(h: &mut String, r: &ChannelResult) {
     h.push_str("</table>\n");
 }
 
-fn escape(s: &str) -> String {
+/// Text made safe to put inside HTML elements and attribute values.
+pub fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
