@@ -27,6 +27,12 @@ fi
 subcommand=$1
 shift
 
+# The board's defmt log level. firmware/board/.cargo/config.toml sets it too, but cargo reads
+# config from the working directory, not from --manifest-path, so builds from the repository
+# root would otherwise get defmt's default (errors only) and an emulated board would log
+# nothing.
+export DEFMT_LOG="${DEFMT_LOG:-info}"
+
 # Split the caller's args at `--` so that --target goes before arguments meant for the tool.
 cargo_args=()
 tool_args=()

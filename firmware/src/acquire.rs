@@ -179,6 +179,12 @@ impl Acquisition {
             self.reset_fifo(dev, before)?;
             return Ok(report);
         }
+        if n == 0 {
+            // Nothing to pop, and no bus can read zero bytes (rp2040-hal aborts such a
+            // transfer with an error), so a drain between two samples ends here.
+            self.failing_since_us = None;
+            return Ok(report);
+        }
         let bytes = &mut self.buf[..usize::from(count)];
         if let Err(e) = dev.read_fifo(bytes) {
             // Some bytes may have been popped: the FIFO is no longer aligned.

@@ -16,8 +16,9 @@
 //!
 //! States: stopped (configure allowed) and streaming. Every command is answered: GetInfo
 //! with Info, Ping with Pong, GetStatus with Status, the others with Ack or Nack and the
-//! reason ([`ErrorCode`]). Frames that fail COBS, CRC or decoding are counted
-//! ([`Status::frames_rejected`]) and otherwise ignored. A fault while streaming (the sensor
+//! reason ([`ErrorCode`]). Frames that fail COBS or CRC are counted
+//! ([`Status::frames_rejected`]) and otherwise ignored; an intact frame that is no known
+//! command is counted too and refused by its `seq` ([`ErrorCode::UnknownCommand`]). A fault while streaming (the sensor
 //! stops answering, resets itself, or reports an impossible FIFO count) sends
 //! [`DeviceMessage::Fault`] and stops; the next Configure or Start sets the sensor up again.
 
@@ -26,7 +27,7 @@ use crate::driver::Mpu6050;
 use crate::timing::Clock;
 use embedded_hal::delay::DelayNs;
 use embedded_hal::i2c::I2c;
-use protocol::frame::{FrameDecoder, MAX_WIRE_LEN, encode};
+use protocol::frame::{FrameDecoder, FrameError, MAX_WIRE_LEN, encode};
 use protocol::{
     Command, DeviceInfo, DeviceMessage, ErrorCode, MAX_SAMPLES_PER_BATCH, PROTOCOL_VERSION,
     Request, SampleBatch, SensorSettings, Status,
@@ -144,10 +145,25 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
     pub fn handle_bytes(&mut self, incoming: &[u8], out: &mut impl FnMut(&[u8]) -> bool) {
         for byte in incoming {
             let mut request = None;
+            let mut unknown_seq = None;
             self.decoder
-                .feed::<Request>(core::slice::from_ref(byte), |r| request = r.ok());
+                .feed_salvaging::<Request>(core::slice::from_ref(byte), |r| match r {
+                    Ok(r) => request = Some(r),
+                    // Intact but unreadable: its leading seq (a varint, as in every
+                    // Request) names it in the refusal. Damaged frames are only counted.
+                    Err((FrameError::Malformed, body)) => {
+                        unknown_seq = protocol::peek_request_seq(body)
+                    }
+                    Err(_) => {}
+                });
             if let Some(request) = request {
                 self.handle(request, out);
+            }
+            if let Some(seq) = unknown_seq {
+                self.reply(Reply::Nack {
+                    seq,
+                    error: ErrorCode::UnknownCommand,
+                });
             }
         }
         self.flush_replies(out);

@@ -12,7 +12,9 @@ use crate::link::accounting::SampleAccounting;
 use crate::record::{Channel, Record};
 use protocol::frame::{self, DecoderStats, FrameDecoder, MAX_WIRE_LEN};
 use protocol::mpu6050::temperature_celsius;
-use protocol::{DeviceInfo, DeviceMessage, RawSample, SampleBatch, SensorSettings, Status};
+use protocol::{
+    DeviceInfo, DeviceMessage, ErrorCode, RawSample, SampleBatch, SensorSettings, Status,
+};
 use std::io::Write;
 use std::ops::Range;
 
@@ -78,6 +80,28 @@ pub struct Capture {
     pub decoder: DecoderStats,
     /// Bytes of a last frame that never got its closing delimiter (a capture cut short).
     pub trailing_bytes: usize,
+    /// What the board said went wrong: commands it refused and faults it reported.
+    pub board_errors: Vec<BoardError>,
+}
+
+/// A refusal or fault the board sent, at the session index reached when it arrived.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct BoardError {
+    /// Samples the session had accounted for (received or lost) when it came.
+    pub at_index: u64,
+    /// The refused command's `seq`, or `None` for a fault (streaming then stopped).
+    pub refused_seq: Option<u16>,
+    pub error: ErrorCode,
+}
+
+impl std::fmt::Display for BoardError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.refused_seq {
+            Some(seq) => write!(f, "refused command #{seq}: {}", self.error),
+            None => write!(f, "fault: {}", self.error),
+        }?;
+        write!(f, " (at sample {})", self.at_index)
+    }
 }
 
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -130,6 +154,7 @@ pub struct StreamDecoder {
     segment_start_us: u64,
     new_run: bool,
     keep_samples: bool,
+    board_errors: Vec<BoardError>,
 }
 
 impl Default for StreamDecoder {
@@ -155,6 +180,7 @@ impl StreamDecoder {
             segment_start_us: 0,
             new_run: true,
             keep_samples,
+            board_errors: Vec::new(),
         }
     }
 
@@ -169,7 +195,9 @@ impl StreamDecoder {
             }
             Ok(DeviceMessage::Status(s)) => self.status = Some(s),
             Ok(DeviceMessage::Samples(batch)) => self.batch(&batch),
-            // Replies and faults carry no samples; damaged frames are in the decoder's stats.
+            Ok(DeviceMessage::Nack { seq, error }) => self.board_error(Some(seq), error),
+            Ok(DeviceMessage::Fault(error)) => self.board_error(None, error),
+            // Acks and pongs carry nothing to keep; damaged frames are in the decoder's stats.
             Ok(_) | Err(_) => {}
         });
         self.decoder = decoder;
@@ -182,6 +210,14 @@ impl StreamDecoder {
         }
         self.first_info.get_or_insert(info);
         self.settings = Some(info.settings);
+    }
+
+    fn board_error(&mut self, refused_seq: Option<u16>, error: ErrorCode) {
+        self.board_errors.push(BoardError {
+            at_index: self.accounting.expected(),
+            refused_seq,
+            error,
+        });
     }
 
     fn restart(&mut self) {
@@ -246,6 +282,10 @@ impl StreamDecoder {
     pub fn restarts(&self) -> &[u64] {
         &self.restarts
     }
+    /// Refusals and faults so far.
+    pub fn board_errors(&self) -> &[BoardError] {
+        &self.board_errors
+    }
     /// Bytes of a frame not yet closed by its delimiter.
     pub fn pending(&self) -> usize {
         self.decoder.pending()
@@ -264,6 +304,7 @@ impl StreamDecoder {
             restarts: self.restarts,
             decoder: self.decoder.stats(),
             trailing_bytes: self.decoder.pending(),
+            board_errors: self.board_errors,
         })
     }
 }

@@ -3,7 +3,7 @@
 //! samples and losses live. It ends when the source ends, the duration is reached, the user
 //! stops it (Ctrl-C: `complete`), or the link fails (`incomplete`, with the reason).
 
-use crate::capture::{Capture, StreamDecoder};
+use crate::capture::{BoardError, Capture, StreamDecoder};
 use crate::link::Link;
 use crate::store::{Counts, End, SessionWriter, Store, StoreError};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -45,6 +45,8 @@ pub struct Progress {
     pub samples_expected: u64,
     pub samples_wanted: Option<u64>,
     pub rate_hz: Option<f64>,
+    /// Refusals and faults the board sent since the previous progress report.
+    pub new_board_errors: Vec<BoardError>,
 }
 
 pub struct Outcome {
@@ -110,6 +112,7 @@ fn run(
     let started = Instant::now();
     let mut buf = vec![0u8; 1 << 16];
     let mut catalog_warned = false;
+    let mut board_errors_shown = 0;
     let ending = loop {
         if stop.load(Ordering::Relaxed) {
             break Ending::Stopped;
@@ -143,12 +146,15 @@ fn run(
             .zip(rate_hz)
             .map(|(d, r)| (d * r).round() as u64);
         let expected = decoder.accounting().expected();
+        let new_board_errors = decoder.board_errors()[board_errors_shown..].to_vec();
+        board_errors_shown += new_board_errors.len();
         progress(&Progress {
             elapsed: started.elapsed(),
             counts,
             samples_expected: expected,
             samples_wanted: wanted,
             rate_hz,
+            new_board_errors,
         });
         if wanted.is_some_and(|w| expected >= w) {
             break Ending::DurationReached;

@@ -221,24 +221,37 @@ impl FrameDecoder {
         bytes: &[u8],
         mut on_message: impl FnMut(Result<T, FrameError>),
     ) {
+        self.feed_salvaging(bytes, |outcome: Result<T, (FrameError, &[u8])>| {
+            on_message(outcome.map_err(|(error, _)| error))
+        });
+    }
+
+    /// [`FrameDecoder::feed`], but a frame whose CRC matched and whose body is not a `T`
+    /// ([`FrameError::Malformed`]) comes with its body, so the receiver can salvage what the
+    /// body still says (the firmware reads a request's `seq` to refuse it by name). Other
+    /// rejections come with an empty body: their bytes are not trustworthy.
+    pub fn feed_salvaging<T: DeserializeOwned>(
+        &mut self,
+        bytes: &[u8],
+        mut on_message: impl FnMut(Result<T, (FrameError, &[u8])>),
+    ) {
         for &byte in bytes {
             let Some(frame) = self.push(byte) else {
                 continue;
             };
-            let mut malformed_len = None;
-            let outcome = match frame {
-                Err(error) => Err(error),
-                Ok(body) => postcard::from_bytes::<T>(body).map_err(|_| {
-                    malformed_len = Some(body.len() + CRC_LEN);
-                    FrameError::Malformed
-                }),
-            };
-            if let Some(len) = malformed_len {
-                // push() counted it as a good frame; it is not one after all.
-                self.stats.frames_ok -= 1;
-                self.count_rejected(FrameError::Malformed, len as u64);
+            match frame {
+                Err(error) => on_message(Err((error, &[]))),
+                Ok(body) => match postcard::from_bytes::<T>(body) {
+                    Ok(message) => on_message(Ok(message)),
+                    Err(_) => {
+                        let len = body.len() + CRC_LEN;
+                        // push() counted it as a good frame; it is not one after all.
+                        self.stats.frames_ok -= 1;
+                        self.count_rejected(FrameError::Malformed, len as u64);
+                        on_message(Err((FrameError::Malformed, &self.buf[..len - CRC_LEN])));
+                    }
+                },
             }
-            on_message(outcome);
         }
     }
 

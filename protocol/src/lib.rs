@@ -28,7 +28,10 @@ pub use mpu6050::SensorSettings;
 /// refuses a board whose [`DeviceInfo::protocol_version`] differs. To make that refusal
 /// possible across versions, two things never change: [`DeviceMessage::Info`] is variant 0
 /// and `protocol_version` is the first field of [`DeviceInfo`] (see [`peek_info_version`]).
-pub const PROTOCOL_VERSION: u16 = 1;
+///
+/// History: 1, the first; 2 added [`ErrorCode::UnknownCommand`] (the board now refuses an
+/// intact frame it cannot read instead of only counting it).
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// Most samples one [`SampleBatch`] carries: 32 samples are 32 ms at 1 kHz, so a batch
 /// leaves the board at least every 32 ms at the top rate while one frame stays well under
@@ -230,6 +233,10 @@ pub enum ErrorCode {
     /// can have made, or none for far too long) while the sensor still reads awake.
     /// Appended last so that the encodings of the other codes stay as they were.
     FifoCountImplausible { count: u16 },
+    /// A frame arrived intact (its CRC matched) but is no command this firmware knows: a
+    /// host speaking another protocol version, or a bug. Refused by its `seq`. Appended
+    /// last, like the one before.
+    UnknownCommand,
 }
 
 impl core::fmt::Display for ErrorCode {
@@ -257,6 +264,9 @@ impl core::fmt::Display for ErrorCode {
                 f,
                 "the sensor's FIFO count ({count} bytes) disagrees with its sample rate"
             ),
+            ErrorCode::UnknownCommand => {
+                f.write_str("an intact frame that is no command this firmware knows")
+            }
         }
     }
 }
@@ -276,6 +286,13 @@ pub fn peek_info_version(body: &[u8]) -> Option<u16> {
     }
     let (version, _): (u16, &[u8]) = postcard::take_from_bytes(rest).ok()?;
     Some(version)
+}
+
+/// The `seq` at the head of a frame body meant as a [`Request`], even when the rest is
+/// not a command this version knows (`seq` is the first field, a postcard varint).
+pub fn peek_request_seq(body: &[u8]) -> Option<u16> {
+    let (seq, _): (u16, &[u8]) = postcard::take_from_bytes(body).ok()?;
+    Some(seq)
 }
 
 #[cfg(test)]

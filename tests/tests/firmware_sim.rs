@@ -89,15 +89,17 @@ impl Board {
     /// Send a command; return the replies it produced (not sample batches).
     fn command(&mut self, command: Command) -> Vec<DeviceMessage> {
         self.seq = self.seq.wrapping_add(1);
+        let request = Request {
+            seq: self.seq,
+            command,
+        };
+        self.send(&request)
+    }
+
+    /// Any message as a framed request; the replies it gets.
+    fn send(&mut self, message: &impl serde::Serialize) -> Vec<DeviceMessage> {
         let mut buf = [0u8; MAX_WIRE_LEN];
-        let n = encode(
-            &Request {
-                seq: self.seq,
-                command,
-            },
-            &mut buf,
-        )
-        .unwrap();
+        let n = encode(message, &mut buf).unwrap();
         let mut wire = Vec::new();
         let open = self.link_open;
         self.fw.handle_bytes(&buf[..n], &mut |f| {
@@ -169,6 +171,9 @@ impl Oracle {
                 .write_read(DEFAULT_ADDRESS, &[reg::FIFO_COUNT_H], &mut c)
                 .unwrap();
             let n = usize::from(u16::from_be_bytes(c)) / 14;
+            if n == 0 {
+                continue;
+            }
             let mut bytes = vec![0u8; n * 14];
             self.sim
                 .write_read(DEFAULT_ADDRESS, &[reg::FIFO_R_W], &mut bytes)
@@ -564,6 +569,36 @@ fn commands_are_answered_and_bad_frames_counted() {
         DeviceMessage::Status(s) => {
             assert_eq!(s.frames_rejected, 2);
             assert!(!s.streaming);
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+/// An intact frame that is no command (as from a host of another protocol version): refused
+/// by its seq with UnknownCommand, counted as rejected, and streaming goes on.
+#[test]
+fn unknown_command_is_refused_by_seq_while_streaming() {
+    let mut board = Board::new(10);
+    board.ack(Command::Configure(SensorSettings::default()));
+    board.ack(Command::Start);
+    board.poll_at(100_000);
+    // seq 4242, then a command variant this protocol does not have.
+    let replies = board.send(&(4242u16, 99u32));
+    assert_eq!(
+        replies,
+        vec![DeviceMessage::Nack {
+            seq: 4242,
+            error: ErrorCode::UnknownCommand
+        }]
+    );
+    let before = board.batches.iter().map(|b| b.samples.len()).sum::<usize>();
+    board.poll_at(200_000);
+    let after = board.batches.iter().map(|b| b.samples.len()).sum::<usize>();
+    assert_eq!(after - before, 10, "100 Hz for 100 ms after the refusal");
+    match &board.command(Command::GetStatus)[..] {
+        [DeviceMessage::Status(s)] => {
+            assert_eq!(s.frames_rejected, 1);
+            assert!(s.streaming);
         }
         other => panic!("{other:?}"),
     }

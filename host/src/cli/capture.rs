@@ -193,6 +193,13 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         c.bytes,
         session.file.display()
     );
+    let board_errors = outcome.capture.as_ref().map_or(0, |c| c.board_errors.len());
+    if board_errors > 0 {
+        println!(
+            "the board reported {board_errors} error(s): `imunoise show {}` lists them",
+            session.id
+        );
+    }
     match outcome.ending {
         Ending::LinkFailed(e) => Err(anyhow!(
             "{}: {e}; session {} kept as incomplete",
@@ -215,6 +222,9 @@ fn progress_bar() -> ProgressBar {
 
 /// Elapsed and remaining time, samples, losses and data rate.
 fn show(bar: &ProgressBar, p: &Progress) {
+    for e in &p.new_board_errors {
+        bar.println(format!("board: {e}"));
+    }
     if let Some(wanted) = p.samples_wanted {
         bar.set_length(wanted);
     }

@@ -1,5 +1,7 @@
 //! `imunoise export ID --format csv`: a session's samples in SI units as CSV
-//! (`time,gx,gy,gz,ax,ay,az,temp`, time = sample index / rate from 0).
+//! (`time,gx,gy,gz,ax,ay,az,temp`, time = sample index / rate from 0), or with
+//! `--units counts` a capture's raw sensor counts (`index,gx,...,temp`, the MPU-6050's
+//! register values, exactly as the board sent them).
 //!
 //! Gaps are never bridged: lost samples have no row, and a `# gap: N samples lost at index
 //! I` comment marks where they were (a board restart likewise gets a `# restart` line), so
@@ -11,6 +13,7 @@ use crate::input::LoadOptions;
 use crate::record::Record;
 use crate::store::{Kind, Session};
 use anyhow::{Context, Result, bail};
+use protocol::RawSample;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
@@ -24,6 +27,16 @@ pub struct ExportArgs {
     /// Output file (default: stdout)
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Values in SI units (rad/s, m/s^2, degC) or the sensor's raw counts (captures only)
+    #[arg(long, value_enum, default_value = "si")]
+    pub units: Units,
+}
+
+/// What the exported values are.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Units {
+    Si,
+    Counts,
 }
 
 pub fn run(args: &ExportArgs, store: Option<&Path>) -> Result<()> {
@@ -43,20 +56,24 @@ pub fn run(args: &ExportArgs, store: Option<&Path>) -> Result<()> {
         None => (Box::new(std::io::stdout().lock()), "stdout".to_string()),
     };
     let mut out = BufWriter::with_capacity(1 << 20, out);
-    write(&session, &mut out)
+    write(&session, args.units, &mut out)
         .and_then(|()| Ok(out.flush()?))
         .with_context(|| format!("exporting session {} to {what}", session.id))
 }
 
-fn write(session: &Session, out: &mut impl Write) -> Result<()> {
+fn write(session: &Session, units: Units, out: &mut impl Write) -> Result<()> {
     match session.kind {
         Kind::Capture => {
             let bytes = std::fs::read(&session.file)
                 .with_context(|| format!("{}", session.file.display()))?;
             let capture =
                 Capture::decode(&bytes).with_context(|| format!("{}", session.file.display()))?;
-            write_capture(&capture, out)
+            write_capture(&capture, units, out)
         }
+        Kind::Imported if units == Units::Counts => bail!(
+            "--units counts: session {} was imported from a file; raw counts exist only for captures",
+            session.id
+        ),
         Kind::Imported => {
             let loaded = load_session(session, &LoadOptions::default())?;
             header(&loaded.record, out)?;
@@ -66,12 +83,15 @@ fn write(session: &Session, out: &mut impl Write) -> Result<()> {
 }
 
 /// Runs in order, a comment for each gap and restart between them.
-pub fn write_capture(capture: &Capture, out: &mut impl Write) -> Result<()> {
+pub fn write_capture(capture: &Capture, units: Units, out: &mut impl Write) -> Result<()> {
     let mut next = 0u64;
     for (k, run) in capture.runs.iter().enumerate() {
         let record = capture.run_record(run, "");
         if k == 0 {
-            header(&record, out)?;
+            match units {
+                Units::Si => header(&record, out)?,
+                Units::Counts => writeln!(out, "index,gx,gy,gz,ax,ay,az,temp")?,
+            }
         }
         for r in capture
             .restarts
@@ -87,8 +107,26 @@ pub fn write_capture(capture: &Capture, out: &mut impl Write) -> Result<()> {
                 run.first_index - next
             )?;
         }
-        rows(&record, run.first_index, out)?;
+        match units {
+            Units::Si => rows(&record, run.first_index, out)?,
+            Units::Counts => count_rows(&run.samples, run.first_index, out)?,
+        }
         next = run.first_index + run.samples.len() as u64;
+    }
+    Ok(())
+}
+
+/// One line per sample: its index, then the raw counts in the SI columns' order.
+fn count_rows(
+    samples: &[RawSample],
+    first_index: u64,
+    out: &mut impl Write,
+) -> std::io::Result<()> {
+    for (i, r) in samples.iter().enumerate() {
+        let [gx, gy, gz] = r.gyro;
+        let [ax, ay, az] = r.accel;
+        let index = first_index + i as u64;
+        writeln!(out, "{index},{gx},{gy},{gz},{ax},{ay},{az},{}", r.temp)?;
     }
     Ok(())
 }

@@ -6,6 +6,7 @@ mod capture;
 mod demo;
 mod export;
 mod import;
+mod info;
 mod model;
 mod ports;
 mod replay;
@@ -13,6 +14,7 @@ mod rm;
 mod sessions;
 pub(crate) mod settings;
 mod show;
+mod sim_device;
 mod simulate;
 mod stored;
 mod sweep;
@@ -45,10 +47,15 @@ pub enum Command {
     Analyze(Box<analyze::AnalyzeArgs>),
     /// Time the analysis engine against allantools on the same generated data
     Bench(bench::BenchArgs),
+    /// A board's identity, protocol version, settings and counters (after a handshake)
+    Info(info::InfoArgs),
     /// List serial ports (USB vendor/product, our board marked)
     Ports(ports::PortsArgs),
     /// Simulate an MPU-6050 at rest through its signal chain and write the samples (CSV)
     Simulate(simulate::SimulateArgs),
+    /// Serve the simulated MPU-6050 to an I2C bus model in another process (the emulated board)
+    #[command(name = "sim-device")]
+    SimDevice(sim_device::SimDeviceArgs),
     /// Record a session into the store from a board's byte stream (now: a replayed capture file)
     Capture(capture::CaptureArgs),
     /// The paper's experiment: one session per setting, then N, B, K per axis per setting
@@ -78,8 +85,10 @@ pub fn main() -> ExitCode {
         Command::Demo(args) => demo::run(&args, store),
         Command::Analyze(args) => analyze::run(&args, store),
         Command::Bench(args) => bench::run(&args),
+        Command::Info(args) => info::run(&args),
         Command::Ports(args) => ports::run(&args),
         Command::Simulate(args) => simulate::run(&args),
+        Command::SimDevice(args) => sim_device::run(&args),
         Command::Capture(args) => capture::run(&args, store),
         Command::Sweep(args) => sweep::run(&args, store),
         Command::Sessions(args) => sessions::run(&args, store),

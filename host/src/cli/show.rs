@@ -1,7 +1,7 @@
 //! `imunoise show ID`: everything the store knows about a session: metadata, counts, the
 //! losses with their gap list (from the raw file), the stored analyses.
 
-use crate::capture::Capture;
+use crate::capture::{BoardError, Capture};
 use crate::cli::sessions::{duration, rate_bandwidth};
 use crate::cli::stored::open_store;
 use crate::store::{Analysis, Kind, Session, State};
@@ -50,6 +50,8 @@ struct Losses {
     restarts: Vec<u64>,
     /// Bytes of an unfinished last frame.
     trailing_bytes: usize,
+    /// Commands the board refused and faults it reported.
+    board_errors: Vec<BoardError>,
     error: Option<String>,
 }
 
@@ -66,6 +68,7 @@ impl Losses {
                 gaps: c.gaps().iter().map(|g| (g.start, g.end)).collect(),
                 restarts: c.restarts.clone(),
                 trailing_bytes: c.trailing_bytes,
+                board_errors: c.board_errors.clone(),
                 error: None,
             },
             Err(e) => Losses {
@@ -160,6 +163,9 @@ fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
             "unfinished last frame",
             format!("{} bytes", losses.trailing_bytes),
         );
+    }
+    for e in &losses.board_errors {
+        kv("board error", e.to_string());
     }
     for (start, end) in losses.gaps.iter().take(GAPS_SHOWN) {
         kv(

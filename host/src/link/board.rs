@@ -8,7 +8,7 @@
 use super::Link;
 use super::handshake::{HandshakeError, accept_info};
 use protocol::frame::{self, FrameDecoder, MAX_WIRE_LEN};
-use protocol::{Command, DeviceInfo, DeviceMessage, ErrorCode, Request, SensorSettings};
+use protocol::{Command, DeviceInfo, DeviceMessage, ErrorCode, Request, SensorSettings, Status};
 use std::time::{Duration, Instant};
 
 /// How long a board may take to answer a command.
@@ -95,6 +95,23 @@ impl<'a> Board<'a> {
             }) => Ok(()),
             other => other,
         }
+    }
+
+    /// Ask for the board's counters (samples acquired, lost, dropped; errors).
+    pub fn status(&mut self) -> Result<Status, BoardError> {
+        self.send(Command::GetStatus)?;
+        let mut found = None;
+        self.wait(|body| match postcard::from_bytes::<DeviceMessage>(body) {
+            Ok(DeviceMessage::Status(s)) => {
+                found = Some(s);
+                true
+            }
+            _ => false,
+        })?;
+        found.ok_or_else(|| BoardError::Timeout {
+            link: self.link.describe(),
+            command: "get status",
+        })
     }
 
     /// Ask for info and start streaming, without reading the replies: the capture loop

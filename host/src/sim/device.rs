@@ -112,6 +112,25 @@ pub struct SimMpu6050 {
     time_us: u64,
     faults: Faults,
     resets: u32,
+    /// Byte-level bus state: the next written byte is a register pointer.
+    expect_pointer: bool,
+    /// Byte-level bus state: a byte was written since the last (non-repeated) start.
+    written_since_start: bool,
+    /// What the device did, when asked to keep a journal ([`SimMpu6050::keep_journal`]).
+    journal: Option<Vec<JournalEntry>>,
+}
+
+/// An event in the device's journal: the truth a test compares a capture with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JournalEntry {
+    /// The FIFO was emptied (USER_CTRL bit 2, or a device reset) at this time, us.
+    FifoReset { time_us: u64 },
+    /// A sample was made at this time, us; `in_fifo` if it was appended to the FIFO.
+    Sample {
+        time_us: u64,
+        raw: RawSample,
+        in_fifo: bool,
+    },
 }
 
 #[derive(Debug, Clone)]
@@ -146,6 +165,9 @@ impl SimMpu6050 {
             time_us: 0,
             faults: Faults::default(),
             resets: 0,
+            expect_pointer: true,
+            written_since_start: false,
+            journal: None,
         };
         dev.device_reset();
         dev.resets = 0;
@@ -166,6 +188,25 @@ impl SimMpu6050 {
 
     pub fn faults_mut(&mut self) -> &mut Faults {
         &mut self.faults
+    }
+
+    /// Start keeping a journal of FIFO resets and samples made (see [`JournalEntry`]).
+    pub fn keep_journal(&mut self) {
+        self.journal.get_or_insert_with(Vec::new);
+    }
+
+    /// The journal's entries since the last call (empty if no journal is kept).
+    pub fn take_journal(&mut self) -> Vec<JournalEntry> {
+        self.journal
+            .as_mut()
+            .map(std::mem::take)
+            .unwrap_or_default()
+    }
+
+    fn note(&mut self, entry: JournalEntry) {
+        if let Some(journal) = &mut self.journal {
+            journal.push(entry);
+        }
     }
 
     /// The current time, us.
@@ -237,7 +278,7 @@ impl SimMpu6050 {
         self.regs = [0; 128];
         self.regs[usize::from(reg::PWR_MGMT_1)] = SLEEP;
         self.regs[usize::from(reg::WHO_AM_I)] = WHO_AM_I_VALUE;
-        self.fifo.clear();
+        self.clear_fifo();
         self.fifo_last_read = 0;
         self.pointer = 0;
         self.run = None;
@@ -275,7 +316,14 @@ impl SimMpu6050 {
         self.regs[usize::from(reg::ACCEL_XOUT_H)..][..14].copy_from_slice(&bytes);
         let enable = self.regs[usize::from(reg::INT_ENABLE)];
         self.regs[usize::from(reg::INT_STATUS)] |= enable & DATA_RDY;
-        if self.regs[usize::from(reg::USER_CTRL)] & USER_FIFO_EN != 0 {
+        let in_fifo = self.regs[usize::from(reg::USER_CTRL)] & USER_FIFO_EN != 0;
+        let time_us = self.time_us;
+        self.note(JournalEntry::Sample {
+            time_us,
+            raw,
+            in_fifo,
+        });
+        if in_fifo {
             let en = self.regs[usize::from(reg::FIFO_EN)];
             let channels = [
                 (ACCEL_FIFO_EN, 0..6),
@@ -292,6 +340,12 @@ impl SimMpu6050 {
                 }
             }
         }
+    }
+
+    fn clear_fifo(&mut self) {
+        self.fifo.clear();
+        let time_us = self.time_us;
+        self.note(JournalEntry::FifoReset { time_us });
     }
 
     /// Append one byte, dropping the oldest when full (and flagging the overflow).
@@ -345,7 +399,7 @@ impl SimMpu6050 {
             }
             reg::USER_CTRL => {
                 if value & FIFO_RESET != 0 {
-                    self.fifo.clear();
+                    self.clear_fifo();
                 }
                 self.regs[i] = value & !(FIFO_RESET | SIG_COND_RESET);
             }
@@ -381,49 +435,93 @@ impl ErrorType for SimMpu6050 {
 }
 
 impl I2c for SimMpu6050 {
-    /// Operations in one transaction: a write after a read is a repeated start, so its first
-    /// byte is a new register pointer; adjacent writes (or reads) continue one another.
+    /// A transaction is its bus events in order ([`SimMpu6050::bus_start`] ...): a write
+    /// after a read is a repeated start, so its first byte is a new register pointer;
+    /// adjacent writes (or reads) continue one another.
     fn transaction(
         &mut self,
         address: u8,
         operations: &mut [Operation<'_>],
     ) -> Result<(), Self::Error> {
-        if address != self.address || Self::take(&mut self.faults.nack_address) {
-            return Err(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Address));
-        }
-        if Self::take(&mut self.faults.bus_error) {
-            return Err(SimI2cError::Bus);
-        }
-        let writes = operations
-            .iter()
-            .any(|op| matches!(op, Operation::Write(b) if !b.is_empty()));
-        if writes && Self::take(&mut self.faults.nack_data) {
-            return Err(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Data));
-        }
-        let mut expect_pointer = true;
+        self.bus_start(address, false)?;
         for op in operations {
             match op {
                 Operation::Write(bytes) => {
                     for &b in bytes.iter() {
-                        if expect_pointer {
-                            self.pointer = b & 0x7F;
-                            expect_pointer = false;
-                        } else {
-                            self.write_register(self.pointer, b);
-                            self.step_pointer();
-                        }
+                        self.bus_write(b)?;
                     }
+                }
+                // A read phase clocks at least one byte (the master ends it with a NACK on
+                // the last byte), so a zero-byte read cannot happen on a bus; rp2040-hal
+                // refuses one with an abort. Failing it here finds drivers that ask for it.
+                Operation::Read([]) => {
+                    self.bus_stop();
+                    return Err(SimI2cError::Bus);
                 }
                 Operation::Read(buf) => {
                     for b in buf.iter_mut() {
-                        *b = self.read_register(self.pointer);
-                        self.step_pointer();
+                        *b = self.bus_read();
                     }
-                    expect_pointer = true;
                 }
             }
         }
+        self.bus_stop();
         Ok(())
+    }
+}
+
+/// The bus seen byte by byte, as a bus model that reports each event drives it (the
+/// emulated RP2040's I2C controller through `imunoise sim-device`). [`I2c::transaction`] is
+/// these events in order, so both paths are one device.
+impl SimMpu6050 {
+    /// A start (or, with `repeated`, a repeated start) addressed to `address`: acknowledged
+    /// if it is this device's, unless an address NACK or a bus error is injected (those are
+    /// counted per transaction, so a repeated start does not consume them).
+    pub fn bus_start(&mut self, address: u8, repeated: bool) -> Result<(), SimI2cError> {
+        if address != self.address || (!repeated && Self::take(&mut self.faults.nack_address)) {
+            return Err(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Address));
+        }
+        if !repeated {
+            if Self::take(&mut self.faults.bus_error) {
+                return Err(SimI2cError::Bus);
+            }
+            self.written_since_start = false;
+        }
+        self.expect_pointer = true;
+        Ok(())
+    }
+
+    /// A written byte: the register pointer if it is the first since a start or a read,
+    /// else a register write (the pointer then advances). The first written byte of a
+    /// transaction is refused, without effect, while a data NACK is injected.
+    pub fn bus_write(&mut self, byte: u8) -> Result<(), SimI2cError> {
+        if !self.written_since_start && Self::take(&mut self.faults.nack_data) {
+            return Err(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Data));
+        }
+        self.written_since_start = true;
+        if self.expect_pointer {
+            self.pointer = byte & 0x7F;
+            self.expect_pointer = false;
+        } else {
+            self.write_register(self.pointer, byte);
+            self.step_pointer();
+        }
+        Ok(())
+    }
+
+    /// A read byte: the register at the pointer (which then advances). A write after reads
+    /// starts with a new pointer, as after a repeated start.
+    pub fn bus_read(&mut self) -> u8 {
+        let b = self.read_register(self.pointer);
+        self.step_pointer();
+        self.expect_pointer = true;
+        b
+    }
+
+    /// A stop: the transaction ends.
+    pub fn bus_stop(&mut self) {
+        self.expect_pointer = true;
+        self.written_since_start = false;
     }
 }
 
@@ -451,6 +549,16 @@ mod tests {
         let mut buf = vec![0; n];
         dev.write_read(ADDR, &[r], &mut buf).unwrap();
         buf
+    }
+
+    #[test]
+    fn a_zero_byte_read_is_a_bus_error() {
+        let mut dev = device();
+        assert_eq!(
+            dev.write_read(ADDR, &[reg::FIFO_R_W], &mut []),
+            Err(SimI2cError::Bus)
+        );
+        assert_eq!(read1(&mut dev, reg::WHO_AM_I), 0x68, "the bus recovers");
     }
 
     fn read1(dev: &mut SimMpu6050, r: u8) -> u8 {

@@ -1,0 +1,55 @@
+//! `imunoise sim-device --stdio`: the simulated MPU-6050 for a bus model in another process
+//! (the emulated RP2040 in `tests/emu/`), one line per I2C event ([`crate::sim::bus_server`]).
+
+use crate::sim::bus_server;
+use crate::sim::device::SimMpu6050;
+use crate::sim::model_file;
+use anyhow::{Context, Result, bail};
+use std::io::{BufReader, BufWriter, Write};
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct SimDeviceArgs {
+    /// Serve the line protocol on standard input and output (the only transport)
+    #[arg(long)]
+    pub stdio: bool,
+    /// The device's noise model (default: the built-in examples/mpu6050.toml)
+    #[arg(long, value_name = "FILE")]
+    pub model: Option<PathBuf>,
+    /// Random seed of the noise processes
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Write the device's journal here: every FIFO reset and every sample made, raw counts
+    #[arg(long, value_name = "FILE")]
+    pub journal: Option<PathBuf>,
+}
+
+pub fn run(args: &SimDeviceArgs) -> Result<()> {
+    if !args.stdio {
+        bail!("give --stdio: the device is served on standard input and output");
+    }
+    let model = match &args.model {
+        Some(path) => model_file::load(path)?,
+        None => model_file::example(),
+    };
+    let mut device = SimMpu6050::new(model, args.seed);
+    let mut journal = match &args.journal {
+        Some(path) => {
+            device.keep_journal();
+            let file = std::fs::File::create(path)
+                .with_context(|| format!("--journal {}: cannot create", path.display()))?;
+            Some(BufWriter::new(file))
+        }
+        None => None,
+    };
+    let input = BufReader::new(std::io::stdin().lock());
+    let output = BufWriter::new(std::io::stdout().lock());
+    bus_server::serve(
+        &mut device,
+        input,
+        output,
+        journal.as_mut().map(|j| j as &mut dyn Write),
+    )
+    .context("serving the simulated device")?;
+    Ok(())
+}

@@ -1,0 +1,218 @@
+// The emulated-board tests (run by tests/emu/run): the release firmware image on rp2040js,
+// imunoise's simulated MPU-6050 on its I2C bus, and the unmodified host CLI capturing
+// through a pseudo-terminal.
+//
+//   1. handshake: info and protocol version through the pty;
+//   2. the paper's four settings, 10 s of emulated time each: every sample the sensor put
+//      in its FIFO arrives, in order, bit-exact, none lost;
+//   3. a stall (IN transfers refused for longer than the FIFO and the firmware's queue
+//      hold): the firmware's loss count equals the gap the host sees, every sample after
+//      the gap is the sensor's sample of that index, and streaming recovers;
+//   4. refusals while streaming (Configure, an unknown command): nacked by seq, and the
+//      capture goes on without a loss.
+
+import { after, before, test } from 'node:test';
+import assert from 'node:assert/strict';
+import { spawn } from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { EmulatedBoard } from './lib/board.mjs';
+import { defaults } from './lib/paths.mjs';
+import { COMMAND, frame, requests, varint } from './lib/frames.mjs';
+import { compare, readCounts, readJournal } from './lib/journal.mjs';
+
+const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'imunoise-emu-test-'));
+const store = path.join(dir, 'store');
+const pty = path.join(dir, 'tty');
+const journalFile = path.join(dir, 'journal.csv');
+let board;
+let finished = false;
+let running;
+const speed = { emulatedS: 0, wallS: 0 };
+
+/** Run imunoise without blocking the event loop (the emulator runs meanwhile). */
+function imunoise(args, { onSpawn } = {}) {
+  return new Promise((resolve, reject) => {
+    const child = spawn(defaults.imunoise, [...args, '--store', store], {
+      stdio: ['ignore', 'pipe', 'pipe'],
+    });
+    let stdout = '';
+    let stderr = '';
+    child.stdout.on('data', (d) => (stdout += d));
+    child.stderr.on('data', (d) => (stderr += d));
+    child.on('error', reject);
+    child.on('exit', (code) => {
+      if (code !== 0) reject(new Error(`imunoise ${args.join(' ')} exited ${code}:\n${stderr}`));
+      else resolve({ stdout, stderr });
+    });
+    onSpawn?.(child);
+  });
+}
+
+const json = async (args) => JSON.parse((await imunoise([...args, '--json'])).stdout);
+
+/** Resolves once the emulated clock passes `us`. */
+function emulatedTime(us) {
+  return new Promise((resolve) => {
+    const check = () => (board.nowUs() >= us ? resolve() : setTimeout(check, 20));
+    check();
+  });
+}
+
+/** Capture with the given options, timing it in emulated and wall seconds. */
+async function capture(name, rate, bandwidth, duration, during) {
+  const startUs = board.nowUs();
+  const wallStart = performance.now();
+  let child;
+  const done = imunoise(
+    ['capture', '--port', pty, '--rate', String(rate), '--bandwidth', String(bandwidth), '--duration', duration, '--name', name],
+    { onSpawn: (c) => (child = c) },
+  );
+  await during?.(child);
+  const result = await done;
+  const emulatedS = (board.nowUs() - startUs) / 1e6;
+  const wallS = (performance.now() - wallStart) / 1e3;
+  speed.emulatedS += emulatedS;
+  speed.wallS += wallS;
+  console.error(`[test] ${name}: ${emulatedS.toFixed(2)} s emulated in ${wallS.toFixed(1)} s wall`);
+  return result;
+}
+
+/** A session's samples as raw counts, held against what the simulated device made. */
+async function received(name) {
+  board.device.ask(`f ${board.nowUs()}`);
+  const { stdout } = await imunoise(['export', name, '--units', 'counts']);
+  const counts = readCounts(stdout);
+  return { ...counts, ...compare(counts.rows, readJournal(journalFile)) };
+}
+
+before(async () => {
+  board = new EmulatedBoard({
+    elf: defaults.elf,
+    imunoise: defaults.imunoise,
+    dir,
+    pty,
+    seed: 7,
+    journal: journalFile,
+    defmtPrint: defaults.defmtPrint,
+  });
+  await board.openPty();
+  let lastState = performance.now();
+  running = board.run({
+    until: () => {
+      if (process.env.EMU_VERBOSE && performance.now() - lastState > 5000) {
+        lastState = performance.now();
+        console.error(`[emu] ${board.state()}`);
+      }
+      return finished;
+    },
+  });
+  await board.usbConnected;
+});
+
+after(async () => {
+  finished = true;
+  await running;
+  await board.close();
+  console.error(
+    `[test] emulation speed while capturing: ${speed.emulatedS.toFixed(1)} s emulated in ${speed.wallS.toFixed(1)} s wall = ${(speed.emulatedS / speed.wallS).toFixed(2)} emulated s per wall s`,
+  );
+  fs.rmSync(dir, { recursive: true, force: true });
+});
+
+test('1. handshake: info and protocol version through the pty', async () => {
+  const info = await json(['info', '--port', pty]);
+  assert.equal(info.info.protocol_version, info.host_protocol_version);
+  assert.equal(info.info.who_am_i, 0x68, 'the simulated MPU-6050 answers WHO_AM_I');
+  assert.equal(info.info.board_id, 0, 'the emulator build reports board id 0 (no flash chip)');
+  assert.equal(info.info.streaming, false);
+  assert.equal(info.info.max_samples_per_batch, 32);
+  assert.ok(info.status.uptime_us > 0);
+});
+
+/** Emulated seconds per setting (EMU_SECONDS shortens it while developing). */
+const SECONDS = Number(process.env.EMU_SECONDS ?? 10);
+
+for (const [rate, bandwidth] of [
+  [200, 256],
+  [200, 42],
+  [50, 256],
+  [50, 42],
+]) {
+  test(`2. ${rate} Hz / ${bandwidth} Hz for ${SECONDS} s: every sample, bit-exact, none lost`, async () => {
+    const name = `emu-${rate}-${bandwidth}`;
+    await capture(name, rate, bandwidth, `${SECONDS}s`);
+    const show = await json(['show', name]);
+    const wanted = rate * SECONDS;
+    assert.deepEqual(show.losses.gaps, [], 'no gap in the indices');
+    assert.deepEqual(show.losses.board_errors, []);
+    const got = await received(name);
+    assert.ok(got.epoch, 'the first sample received is a sample the device made after a FIFO reset');
+    assert.equal(got.rows[0].index, 0);
+    assert.equal(got.rows.at(-1).index, got.rows.length - 1, 'indices 0..n-1, each once');
+    assert.ok(got.rows.length >= wanted, `${got.rows.length} samples for ${wanted} wanted`);
+    assert.equal(got.mismatches, 0, `samples differing from the device's: ${JSON.stringify(got.firstMismatch)}`);
+    // The device made its samples on its own exact period (the firmware's grid is held to
+    // it): rate x time, exactly, over the samples received.
+    const { samples } = got.epoch;
+    const spanUs = samples[got.rows.length - 1].t - samples[0].t;
+    assert.ok(Math.abs(spanUs - ((got.rows.length - 1) * 1e6) / rate) <= 1, `span ${spanUs} us`);
+  });
+}
+
+test('3. a stall longer than the FIFO and the queue hold: exact loss count, then recovery', async () => {
+  const before = (await json(['info', '--port', pty])).status;
+  const rate = 1000;
+  // The sensor's FIFO holds 73 samples (73 ms at 1 kHz) and the firmware's USB queue 4 KiB
+  // (about 280 ms of batches): 600 ms without IN transfers must lose samples.
+  const stallUs = 600_000;
+  await capture('emu-stall', rate, 188, '4s', async (child) => {
+    await emulatedTime(board.nowUs() + 1_000_000);
+    // The host stops reading: its process is stopped while its USB buffers stay full.
+    child.kill('SIGSTOP');
+    board.holdIn(stallUs);
+    await emulatedTime(board.nowUs() + stallUs);
+    child.kill('SIGCONT');
+  });
+  const after = (await json(['info', '--port', pty])).status;
+  const show = await json(['show', 'emu-stall']);
+  const lost = show.losses.gaps.reduce((n, [start, end]) => n + end - start, 0);
+  const dropped = after.samples_dropped - before.samples_dropped;
+  const overflowLost = after.samples_lost - before.samples_lost;
+  assert.ok(lost > 0, 'the stall lost samples');
+  assert.equal(lost, dropped + overflowLost, "the host's gap count equals the firmware's loss report");
+  const got = await received('emu-stall');
+  assert.equal(got.mismatches, 0, `after the gap too, sample i is the device's sample i: ${JSON.stringify(got.firstMismatch)}`);
+  assert.equal(got.rows.length + lost, got.rows.at(-1).index + 1, 'received + lost = made');
+  const afterGap = got.rows.filter((r) => r.index >= show.losses.gaps.at(-1)[1]).length;
+  assert.ok(afterGap >= rate, `streaming recovered: ${afterGap} samples after the gap`);
+  console.error(`[test] stall of ${stallUs / 1000} ms: ${lost} samples lost (${dropped} dropped from the USB queue, ${overflowLost} in FIFO overflows), ${afterGap} received after it`);
+});
+
+test('4. Configure and an unknown command while streaming: nacked, capture goes on', async () => {
+  const sentBefore = board.fromHost.length;
+  const unknownSeq = 4242;
+  let configureSeq;
+  await capture('emu-refusals', 200, 42, '5s', async () => {
+    await emulatedTime(board.nowUs() + 1_500_000);
+    // The host's own Configure frame from setting up this capture, sent again while streaming.
+    const configure = requests(board.fromHost.slice(sentBefore)).findLast((r) => r.command === COMMAND.Configure);
+    assert.ok(configure, 'the host configured the board');
+    board.inject(configure.wire);
+    // An intact frame with a command variant this protocol does not have.
+    board.inject(frame([...varint(unknownSeq), 99]));
+    configureSeq = configure.seq;
+  });
+  const show = await json(['show', 'emu-refusals']);
+  const refusals = show.losses.board_errors.map((e) => [e.refused_seq, e.error]);
+  assert.deepEqual(refusals, [
+    [configureSeq, 'Busy'],
+    [unknownSeq, 'UnknownCommand'],
+  ]);
+  assert.deepEqual(show.losses.gaps, [], 'no sample lost');
+  const got = await received('emu-refusals');
+  assert.equal(got.mismatches, 0);
+  assert.ok(got.rows.length >= 1000, `${got.rows.length} samples`);
+  assert.ok(show.losses.board_errors[0].at_index < got.rows.length - 200, 'samples kept coming after the refusals');
+});
