@@ -1,0 +1,67 @@
+//! `imunoise compare`'s table: per channel and term, each session's value with its interval,
+//! and which sessions differ significantly.
+
+use super::sig;
+use crate::analysis::compare::{Comparison, TermRow};
+use std::fmt::Write;
+
+pub fn render(c: &Comparison) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "sessions:");
+    for (i, label) in c.sessions.iter().enumerate() {
+        let _ = writeln!(out, "  [{}] {label}", i + 1);
+    }
+    let _ = writeln!(
+        out,
+        "\nIEEE-952 terms per session, value [{} % interval]; verdict at family-wise level \
+         alpha = {} per channel and term\ntest: {}\n",
+        sig(c.confidence * 100.0, 3),
+        c.alpha,
+        c.test
+    );
+    for row in &c.rows {
+        render_row(&mut out, row);
+    }
+    if !c.skipped_channels.is_empty() {
+        let _ = writeln!(
+            out,
+            "not in every session (not compared): {}",
+            c.skipped_channels.join(", ")
+        );
+    }
+    out
+}
+
+fn render_row(out: &mut String, row: &TermRow) {
+    let _ = write!(out, "{:<6} {:?} {:<16}", row.channel, row.term, row.unit);
+    for (i, value) in row.values.iter().enumerate() {
+        let text = match value {
+            Some(t) => format!("{} [{} .. {}]", sig(t.value, 3), sig(t.lo, 2), sig(t.hi, 2)),
+            None => "no fit".to_string(),
+        };
+        let _ = write!(out, "  [{}] {text:<27}", i + 1);
+    }
+    let _ = writeln!(out, "  {}", verdict(row));
+}
+
+/// "consistent", or the significantly different pairs with their adjusted p.
+pub fn verdict(row: &TermRow) -> String {
+    let differing: Vec<String> = row
+        .pairs
+        .iter()
+        .filter(|p| p.significant)
+        .map(|p| {
+            format!(
+                "[{}] vs [{}] (p_holm {})",
+                p.a + 1,
+                p.b + 1,
+                sig(p.p_holm, 2)
+            )
+        })
+        .collect();
+    if differing.is_empty() {
+        "consistent".to_string()
+    } else {
+        format!("DIFFER: {}", differing.join(", "))
+    }
+}
