@@ -43,7 +43,10 @@ fn analysed(terms: NoiseTerms, seed: u64) -> Vec<ChannelResult> {
     pipeline::analyze(&record, &Options::default(), &|| {}).unwrap()
 }
 
+/// As `imunoise compare` does it: fits aligned to a common start, then the tests.
 fn compared(sessions: &[Vec<ChannelResult>]) -> Comparison {
+    let mut sessions = sessions.to_vec();
+    compare::align_fit_start(&mut sessions, 0.683);
     let fits: Vec<SessionFits> = sessions
         .iter()
         .enumerate()
@@ -206,4 +209,30 @@ fn cli_compares_a_session_with_files() {
     let missing = imunoise(&["--store", store, "compare", "bench-a", "nope"]);
     assert_eq!(missing.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&missing.stderr).contains("nope"));
+}
+
+/// Fits that started at different taus are refitted from the latest start, and then equal
+/// the fit made from that start in the first place.
+#[test]
+fn fits_are_aligned_to_the_latest_start() {
+    let record = Record {
+        source: "white".into(),
+        rate_hz: RATE_HZ,
+        channels: vec![Channel::named("gx", samples(truth(), 9, 30_000))],
+    };
+    let from = |tau_min: f64| {
+        let options = Options {
+            fit_tau_min: Some(tau_min),
+            ..Options::default()
+        };
+        pipeline::analyze(&record, &options, &|| {}).unwrap()
+    };
+    let mut sessions = vec![from(0.1), from(0.4)];
+    let start = compare::align_fit_start(&mut sessions, 0.683).unwrap();
+    let reference = from(0.4);
+    let expected = reference[0].fit.as_ref().unwrap();
+    assert!((start - expected.tau_min).abs() < 1e-12, "{start}");
+    for session in &sessions {
+        assert_eq!(session[0].fit.as_ref().unwrap(), expected);
+    }
 }

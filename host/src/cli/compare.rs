@@ -26,7 +26,8 @@ pub struct CompareArgs {
     /// Confidence of the printed intervals (the test's standard errors come from them)
     #[arg(long, default_value_t = 0.683)]
     pub confidence: f64,
-    /// Shortest tau of every noise fit in seconds (default: chosen per record as in analyze)
+    /// Shortest tau of every noise fit in seconds (default: the latest of the automatic starts
+    /// analyze would choose per record, so that every fit covers the same taus)
     #[arg(long, value_name = "SECONDS")]
     pub fit_tau_min: Option<f64>,
     /// Write the comparison as JSON to PATH (`-` for stdout, which then carries only the JSON)
@@ -62,12 +63,17 @@ pub fn run(args: &CompareArgs, store: Option<&Path>) -> Result<()> {
         bar.finish_and_clear();
         analysed.push((record.source, results));
     }
-    let sessions: Vec<SessionFits> = analysed
-        .iter()
-        .map(|(label, channels)| SessionFits {
-            label: label.clone(),
-            channels,
-        })
+    let (labels, mut results): (Vec<String>, Vec<Vec<ChannelResult>>) =
+        analysed.into_iter().unzip();
+    if args.fit_tau_min.is_none()
+        && let Some(start) = compare::align_fit_start(&mut results, args.confidence)
+    {
+        eprintln!("note: every fit starts at tau = {start} s (the latest automatic start)");
+    }
+    let sessions: Vec<SessionFits> = labels
+        .into_iter()
+        .zip(&results)
+        .map(|(label, channels)| SessionFits { label, channels })
         .collect();
     let comparison = compare::compare(&sessions, args.alpha, args.confidence);
     if comparison.rows.is_empty() {

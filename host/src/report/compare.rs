@@ -36,10 +36,10 @@ fn render_row(out: &mut String, row: &TermRow) {
     let _ = write!(out, "{:<6} {:?} {:<16}", row.channel, row.term, row.unit);
     for (i, value) in row.values.iter().enumerate() {
         let text = match value {
-            Some(t) => format!("{} [{} .. {}]", sig(t.value, 3), sig(t.lo, 2), sig(t.hi, 2)),
+            Some(t) => format!("{} [{} .. {}]", sig(t.value, 3), sig(t.lo, 3), sig(t.hi, 3)),
             None => "no fit".to_string(),
         };
-        let _ = write!(out, "  [{}] {text:<27}", i + 1);
+        let _ = write!(out, "  [{}] {text:<30}", i + 1);
     }
     let _ = writeln!(out, "  {}", verdict(row));
 }
