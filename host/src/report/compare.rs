@@ -51,11 +51,17 @@ pub fn verdict(row: &TermRow) -> String {
         .iter()
         .filter(|p| p.significant)
         .map(|p| {
+            // Far out in the tail the p value underflows to 0: say how small it is instead.
+            let p_text = if p.p_holm < 1e-15 {
+                "< 1e-15".to_string()
+            } else {
+                sig(p.p_holm, 2)
+            };
             format!(
-                "[{}] vs [{}] (p_holm {})",
+                "[{}] vs [{}] (z {:.1}, p_holm {p_text})",
                 p.a + 1,
                 p.b + 1,
-                sig(p.p_holm, 2)
+                p.z
             )
         })
         .collect();
