@@ -269,4 +269,12 @@ fn cli_writes_filter_json_and_yaml() {
         .unwrap();
     assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--filter f.txt"));
+
+    let zero = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .args(["analyze", csv.to_str().unwrap(), "--rate", "50"])
+        .args(["--filter-period", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(zero.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&zero.stderr).contains("--filter-period 0:"));
 }

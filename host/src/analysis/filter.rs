@@ -105,7 +105,7 @@ fn serialize_gm<S: serde::Serializer>(
 pub fn for_channels(results: &[ChannelResult], period_s: f64) -> Result<Vec<FilterNoise>, String> {
     if !(period_s.is_finite() && period_s > 0.0) {
         return Err(format!(
-            "filter period {period_s} s: must be a positive number of seconds"
+            "the filter period must be a positive number of seconds, not {period_s}"
         ));
     }
     Ok(results

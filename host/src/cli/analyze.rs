@@ -173,7 +173,8 @@ pub fn analyse(record: Record, args: &AnalysisArgs) -> Result<Analysed> {
     }
     if args.filter_period.is_some() || !args.filter.is_empty() {
         let period = args.filter_period.unwrap_or(1.0 / record.rate_hz);
-        let filters = filter::for_channels(&results, period).map_err(anyhow::Error::msg)?;
+        let filters = filter::for_channels(&results, period)
+            .map_err(|e| anyhow::anyhow!("--filter-period {period}: {e}"))?;
         let filter_document = report::filter::document(&record, &filters);
         if !json_to_stdout {
             print!("{}", report::filter::render(&filters));
