@@ -196,6 +196,16 @@ fn filter_numbers(n: f64, k: f64, gm: GaussMarkov, dt: f64) -> FilterNoise {
     filter::filter_noise("gx", SensorKind::Gyro, "rad/s", &fit, Ok(gm_fit), dt)
 }
 
+/// `imunoise analyze FILE --rate 50 ARGS...`.
+fn analyze(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .arg("analyze")
+        .args(args)
+        .args(["--rate", "50"])
+        .output()
+        .unwrap()
+}
+
 /// `analyze --filter-period 0.01 --filter f.json --filter f.yaml`: the table, both files and
 /// the `filter` key of the JSON document, each number derived from the fitted N and K as the
 /// module documentation says.
@@ -216,13 +226,20 @@ fn cli_writes_filter_json_and_yaml() {
     }
     std::fs::write(&csv, text).unwrap();
     let (json_path, yaml_path) = (dir.path().join("f.json"), dir.path().join("f.yaml"));
-    let out = Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .args(["analyze", csv.to_str().unwrap(), "--rate", "50"])
-        .args(["--filter-period", "0.01"])
-        .args(["--filter", json_path.to_str().unwrap()])
-        .args(["--filter", yaml_path.to_str().unwrap()])
-        .output()
-        .unwrap();
+    let (csv, json, yaml) = (
+        csv.to_str().unwrap(),
+        json_path.to_str().unwrap(),
+        yaml_path.to_str().unwrap(),
+    );
+    let out = analyze(&[
+        csv,
+        "--filter-period",
+        "0.01",
+        "--filter",
+        json,
+        "--filter",
+        yaml,
+    ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -262,19 +279,12 @@ fn cli_writes_filter_json_and_yaml() {
     assert!(yaml.contains("period_s: 1.0e-2"), "{yaml}");
     assert!(yaml.contains("  - channel: \"gx\""), "{yaml}");
 
-    let bad = Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .args(["analyze", csv.to_str().unwrap(), "--rate", "50"])
-        .args(["--filter", "f.txt"])
-        .output()
-        .unwrap();
-    assert_eq!(bad.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("--filter f.txt"));
-
-    let zero = Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .args(["analyze", csv.to_str().unwrap(), "--rate", "50"])
-        .args(["--filter-period", "0"])
-        .output()
-        .unwrap();
-    assert_eq!(zero.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&zero.stderr).contains("--filter-period 0:"));
+    for (option, value, expected) in [
+        ("--filter", "f.txt", "--filter f.txt"),
+        ("--filter-period", "0", "--filter-period 0:"),
+    ] {
+        let bad = analyze(&[csv, option, value]);
+        assert_eq!(bad.status.code(), Some(1));
+        assert!(String::from_utf8_lossy(&bad.stderr).contains(expected));
+    }
 }
