@@ -198,6 +198,7 @@ fn cli_compares_a_session_with_files() {
         String::from_utf8_lossy(&table.stderr)
     );
     assert!(text.contains("DIFFER: [1] vs [2]"), "{text}");
+    assert!(text.contains("rows differ significantly: gx N"), "{text}");
     assert!(text.contains("rad/s/sqrt(Hz)"), "{text}");
 
     let one = imunoise(&["--store", store, "compare", "bench-a"]);

@@ -279,6 +279,11 @@ fn cli_writes_filter_json_and_yaml() {
     assert!(yaml.contains("period_s: 1.0e-2"), "{yaml}");
     assert!(yaml.contains("  - channel: \"gx\""), "{yaml}");
 
+    let document = analyze(&[csv, "--filter-period", "0.01", "--json", "-"]);
+    assert!(document.status.success());
+    let document: serde_json::Value = serde_json::from_slice(&document.stdout).unwrap();
+    assert_eq!(document["filter"]["channels"][0], doc["channels"][0]);
+
     for (option, value, expected) in [
         ("--filter", "f.txt", "--filter f.txt"),
         ("--filter-period", "0", "--filter-period 0:"),

@@ -22,6 +22,23 @@ pub fn render(c: &Comparison) -> String {
     for row in &c.rows {
         render_row(&mut out, row);
     }
+    let differing: Vec<String> = c
+        .rows
+        .iter()
+        .filter(|r| r.pairs.iter().any(|p| p.significant))
+        .map(|r| format!("{} {:?}", r.channel, r.term))
+        .collect();
+    let _ = writeln!(
+        out,
+        "\n{} of {} rows differ significantly{}",
+        differing.len(),
+        c.rows.len(),
+        if differing.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", differing.join(", "))
+        }
+    );
     if !c.skipped_channels.is_empty() {
         let _ = writeln!(
             out,
