@@ -11,7 +11,10 @@
 
 pub mod allan;
 pub mod ci;
+pub mod compare;
+pub mod filter;
 pub mod fit;
+pub mod gauss_markov;
 pub mod noise_id;
 pub mod pipeline;
 pub mod psd;

@@ -2,6 +2,7 @@
 //! terms for every channel of a record; a table on stdout, and on request JSON, a plot,
 //! Kalibr's IMU YAML and a self-contained HTML report.
 
+use crate::analysis::filter;
 use crate::analysis::pipeline::{self, Options};
 use crate::analysis::psd::Window;
 use crate::analysis::taus::TauGrid;
@@ -66,6 +67,13 @@ pub struct AnalysisArgs {
     /// Write a self-contained HTML report to PATH
     #[arg(long, value_name = "PATH")]
     pub report: Option<PathBuf>,
+    /// Filter period dt in seconds: print continuous- and discrete-time process noise for a
+    /// Kalman filter at that period (default with --filter: the sample period)
+    #[arg(long, value_name = "SECONDS")]
+    pub filter_period: Option<f64>,
+    /// Write the filter noise parameters to PATH.json or PATH.yaml (repeatable)
+    #[arg(long = "filter", value_name = "PATH")]
+    pub filter: Vec<PathBuf>,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -158,10 +166,24 @@ pub fn analyse(record: Record, args: &AnalysisArgs) -> Result<Analysed> {
     let results = pipeline::analyze(&record, &options, &|| bar.inc(1))
         .with_context(|| record.source.clone())?;
     bar.finish_and_clear();
-    let document = report::json::document(&record, &options, &results);
+    let mut document = report::json::document(&record, &options, &results);
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     if !json_to_stdout {
         print!("{}", report::table::render(&record, &options, &results));
+    }
+    if args.filter_period.is_some() || !args.filter.is_empty() {
+        let period = args.filter_period.unwrap_or(1.0 / record.rate_hz);
+        let filters = filter::for_channels(&results, period)
+            .map_err(|e| anyhow::anyhow!("--filter-period {period}: {e}"))?;
+        let filter_document = report::filter::document(&record, &filters);
+        if !json_to_stdout {
+            print!("{}", report::filter::render(&filters));
+        }
+        for path in &args.filter {
+            write(path, &report::filter::file_text(path, &filter_document)?)?;
+            note(json_to_stdout, path, "filter noise parameters");
+        }
+        document["filter"] = filter_document;
     }
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&document)?;

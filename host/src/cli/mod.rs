@@ -3,6 +3,7 @@
 mod analyze;
 mod bench;
 mod capture;
+mod compare;
 mod demo;
 mod export;
 mod import;
@@ -74,6 +75,8 @@ pub enum Command {
     Replay(Box<replay::ReplayArgs>),
     /// Fit, simulate, compare, name the effect the noise model misses, add it and repeat
     Model(Box<model::ModelArgs>),
+    /// Several sessions' noise terms side by side with intervals: which differ significantly
+    Compare(Box<compare::CompareArgs>),
 }
 
 /// Run the CLI: errors go to stderr with their causes, and the exit code is 1.
@@ -98,6 +101,7 @@ pub fn main() -> ExitCode {
         Command::Rm(args) => rm::run(&args, store),
         Command::Replay(args) => replay::run(&args, store),
         Command::Model(args) => model::run(&args, store),
+        Command::Compare(args) => compare::run(&args, store),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

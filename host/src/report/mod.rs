@@ -1,7 +1,9 @@
 //! Results for people and machines: the text table, the JSON document, figures (SVG/PNG),
 //! Kalibr's IMU YAML and a self-contained HTML report.
 
+pub mod compare;
 pub mod figures;
+pub mod filter;
 pub mod html;
 pub mod json;
 pub mod kalibr;
