@@ -6,7 +6,11 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn imunoise(args: &[&str]) -> Output {
+    // A store of the tests' own: a name that is not a file is looked up as a session, and
+    // the user's store must neither answer nor be touched.
+    let store = std::env::temp_dir().join(format!("imunoise-analyze-tests-{}", std::process::id()));
     Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .env("IMUNOISE_STORE", store)
         .args(args)
         .output()
         .expect("the imunoise binary runs")

@@ -9,8 +9,8 @@
 // - the firmware arms its OUT endpoint before enumeration ends and rp2040js drops that
 //   request: arms are remembered per endpoint and served when bytes arrive from the host;
 // - a host that does not read: the pty fills, socat stops reading, and the harness then
-//   withholds the completion of IN transfers, as a USB host controller NAKs them, so the
-//   firmware sees real back-pressure.
+//   holds back IN transfers, as a USB host controller NAKs them, so the firmware sees real
+//   back-pressure.
 
 import { Simulator, USBCDC } from 'rp2040js';
 import { spawn } from 'node:child_process';
@@ -22,6 +22,10 @@ const FLASH_START = 0x10000000;
 const RAM_START = 0x20000000;
 /// The vector table follows the 256-byte second-stage bootloader.
 const VECTOR_TABLE = FLASH_START + 0x100;
+/// USB DPRAM: EP0 IN buffer control (EPn IN at + 8n) and its AVAILABLE bit (RP2040
+/// datasheet, 4.1.2.5).
+const EP0_IN_BUFFER_CONTROL = 0x80;
+const BUF_AVAILABLE = 1 << 10;
 
 export class EmulatedBoard {
   /**
@@ -78,7 +82,8 @@ export class EmulatedBoard {
     this.bytesToHost = 0;
     this.hostBlocked = true; // until the pty exists
     this.holdUntilUs = 0;
-    this.heldIn = false;
+    /** The IN buffer-control offset whose transfer waits for the host, if any. */
+    this.heldIn = null;
     this.usbConnected = new Promise((resolve) => this.setupUsb(resolve));
     this.startDefmt();
   }
@@ -103,14 +108,19 @@ export class EmulatedBoard {
       onConnected();
     };
     cdc.onSerialData = (data) => this.toHost(data);
-    const indicate = usb.indicateBufferReady.bind(usb);
-    this.completeIn = () => indicate(cdc.inEndpoint, false);
-    usb.indicateBufferReady = (endpoint, out) => {
-      if (!out && endpoint === cdc.inEndpoint && this.inHeld()) {
-        this.heldIn = true;
+    // A host that does not take data NAKs the IN tokens: the buffer the firmware handed
+    // over stays AVAILABLE (so the firmware cannot queue more) until the host reads.
+    // rp2040js starts a transfer as soon as AVAILABLE is written, so such a write is held
+    // back here and replayed when the host takes data again.
+    const dpramUpdated = usb.DPRAMUpdated.bind(usb);
+    this.startIn = (offset) => dpramUpdated(offset, this.mcu.usbDPRAMView.getUint32(offset, true));
+    usb.DPRAMUpdated = (offset, value) => {
+      const inControl = EP0_IN_BUFFER_CONTROL + 8 * cdc.inEndpoint;
+      if (cdc.inEndpoint > 0 && offset === inControl && value & BUF_AVAILABLE && this.inHeld()) {
+        this.heldIn = offset;
         return;
       }
-      indicate(endpoint, out);
+      dpramUpdated(offset, value);
     };
   }
 
@@ -127,7 +137,7 @@ export class EmulatedBoard {
 
   /** The link's state in words (for logs). */
   state() {
-    return `${(this.nowUs() / 1e6).toFixed(2)} s emulated, ${this.where()}; ${this.device.events} I2C events; to host ${this.bytesToHost} B, from host ${this.fromHost.length} B; host blocked ${this.hostBlocked}, IN held ${this.heldIn}, OUT armed ${JSON.stringify([...this.armed])}, ${this.toDevice.length} B waiting for the board; last I2C ${JSON.stringify(this.device.recent.slice(-12))}; I2C0 state ${this.mcu.i2c[0].state} busy ${this.mcu.i2c[0].busy} stop ${this.mcu.i2c[0].stop} txFIFO ${this.mcu.i2c[0].txFIFO.itemCount} rxFIFO ${this.mcu.i2c[0].rxFIFO.itemCount} enable ${this.mcu.i2c[0].enable} abort ${this.mcu.i2c[0].abortSource}`;
+    return `${(this.nowUs() / 1e6).toFixed(2)} s emulated, ${this.where()}; ${this.device.events} I2C events; to host ${this.bytesToHost} B, from host ${this.fromHost.length} B; host blocked ${this.hostBlocked}, IN held ${this.heldIn !== null}, OUT armed ${JSON.stringify([...this.armed])}, ${this.toDevice.length} B waiting for the board; last I2C ${JSON.stringify(this.device.recent.slice(-12))}; I2C0 state ${this.mcu.i2c[0].state} busy ${this.mcu.i2c[0].busy} stop ${this.mcu.i2c[0].stop} txFIFO ${this.mcu.i2c[0].txFIFO.itemCount} rxFIFO ${this.mcu.i2c[0].rxFIFO.itemCount} enable ${this.mcu.i2c[0].enable} abort ${this.mcu.i2c[0].abortSource}`;
   }
 
   /** Host -> board bytes, into the OUT endpoint whenever the firmware has it armed. */
@@ -169,9 +179,10 @@ export class EmulatedBoard {
   }
 
   releaseIn() {
-    if (this.heldIn && !this.inHeld()) {
-      this.heldIn = false;
-      this.completeIn();
+    if (this.heldIn !== null && !this.inHeld()) {
+      const offset = this.heldIn;
+      this.heldIn = null;
+      this.startIn(offset);
     }
   }
 
