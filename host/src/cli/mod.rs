@@ -2,6 +2,7 @@
 
 mod analyze;
 mod bench;
+mod calibrations;
 mod capture;
 mod demo;
 mod export;
@@ -67,6 +68,8 @@ pub enum Command {
     Replay(Box<replay::ReplayArgs>),
     /// Fit, simulate, compare, name the effect the noise model misses, add it and repeat
     Model(Box<model::ModelArgs>),
+    /// The stored calibrations (per board), or one in full
+    Calibrations(calibrations::CalibrationsArgs),
 }
 
 /// Run the CLI: errors go to stderr with their causes, and the exit code is 1.
@@ -89,6 +92,7 @@ pub fn main() -> ExitCode {
         Command::Rm(args) => rm::run(&args, store),
         Command::Replay(args) => replay::run(&args, store),
         Command::Model(args) => model::run(&args, store),
+        Command::Calibrations(args) => calibrations::run(&args, store),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
