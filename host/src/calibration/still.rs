@@ -18,7 +18,7 @@
 //! shimmed placement passes) and its magnitude within 10 % of g (else the data are not an
 //! accelerometer at rest, or not in m/s^2).
 
-use super::Vec3;
+use super::{Sensor, Vec3};
 use crate::record::Record;
 use serde::Serialize;
 
@@ -52,17 +52,20 @@ impl std::fmt::Display for Motion {
     }
 }
 
-/// The first channel's largest motion relative to its threshold, or None if still. Records
-/// shorter than three windows cannot be judged: they count as still only if they have no
-/// gyro or accelerometer channel at all, else an error.
-pub fn find_motion(record: &Record) -> Result<Option<Motion>, String> {
+/// The largest motion on the channels of `sensors` relative to its threshold, or None if
+/// still. (On a rate table only the gyro should be steady: the accelerometer turns with
+/// the table.) Records shorter than three windows cannot be judged: an error.
+pub fn find_motion(record: &Record, sensors: &[Sensor]) -> Result<Option<Motion>, String> {
     let w = ((record.rate_hz * WINDOW_S).round() as usize).max(1);
     let mut worst: Option<(f64, Motion)> = None;
     for channel in &record.channels {
-        let floor = match channel.name.as_str() {
-            "gx" | "gy" | "gz" => GYRO_FLOOR,
-            "ax" | "ay" | "az" => ACCEL_FLOOR,
-            _ => continue,
+        let floor = match sensors
+            .iter()
+            .find(|s| s.channels().contains(&channel.name.as_str()))
+        {
+            Some(Sensor::Gyro) => GYRO_FLOOR,
+            Some(Sensor::Accel) => ACCEL_FLOOR,
+            None => continue,
         };
         let means: Vec<f64> = channel
             .values
@@ -147,6 +150,8 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, Normal};
 
+    const BOTH: [Sensor; 2] = [Sensor::Gyro, Sensor::Accel];
+
     /// 10 s at 100 Hz at rest with z up (gyro noise 0.001 rad/s, accel 0.02 m/s^2 per sample)
     /// and, if `turn`, a 0.5 s turn about x at 20 deg/s starting at 6 s.
     fn record(turn: bool) -> Record {
@@ -194,18 +199,27 @@ mod tests {
 
     #[test]
     fn still_record_passes_and_a_turn_is_found_where_it_was() {
-        assert_eq!(find_motion(&record(false)).unwrap(), None);
-        let m = find_motion(&record(true)).unwrap().expect("motion");
+        assert_eq!(find_motion(&record(false), &BOTH).unwrap(), None);
+        let m = find_motion(&record(true), &BOTH).unwrap().expect("motion");
         assert!((m.at_s - 6.0).abs() < 1.01, "{m}");
         // The 0.5 s at 20 deg/s lifts one window's gx mean by 10 deg/s = 0.17 rad/s, 50 times
         // its floor; the tilt moves ay by 1.7 m/s^2 in two half steps of 0.85, 42 times its
         // floor: gx is the worst.
         assert_eq!(m.channel, "gx", "{m}");
+        // The accelerometer alone sees the tilt.
+        let m = find_motion(&record(true), &[Sensor::Accel])
+            .unwrap()
+            .expect("tilt");
+        assert_eq!(m.channel, "ay", "{m}");
         let short = Record {
             channels: vec![Channel::named("gx", vec![0.0; 150])],
             ..record(false)
         };
-        assert!(find_motion(&short).unwrap_err().contains("too short"));
+        assert!(
+            find_motion(&short, &BOTH)
+                .unwrap_err()
+                .contains("too short")
+        );
     }
 
     #[test]

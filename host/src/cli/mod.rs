@@ -2,6 +2,7 @@
 
 mod analyze;
 mod bench;
+mod calibrate;
 mod calibrations;
 mod capture;
 mod demo;
@@ -68,6 +69,8 @@ pub enum Command {
     Replay(Box<replay::ReplayArgs>),
     /// Fit, simulate, compare, name the effect the noise model misses, add it and repeat
     Model(Box<model::ModelArgs>),
+    /// Deterministic calibration: accelerometer six positions, gyro bias or rate table, temperature
+    Calibrate(Box<calibrate::CalibrateArgs>),
     /// The stored calibrations (per board), or one in full
     Calibrations(calibrations::CalibrationsArgs),
 }
@@ -92,6 +95,7 @@ pub fn main() -> ExitCode {
         Command::Rm(args) => rm::run(&args, store),
         Command::Replay(args) => replay::run(&args, store),
         Command::Model(args) => model::run(&args, store),
+        Command::Calibrate(args) => calibrate::run(&args, store),
         Command::Calibrations(args) => calibrations::run(&args, store),
     };
     match result {

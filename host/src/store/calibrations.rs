@@ -9,32 +9,47 @@ use serde::{Deserialize, Serialize};
 use std::time::SystemTime;
 
 /// The sensor settings a calibration was made with: bias and noise depend on the DLPF and
-/// ranges, so applying it under other settings deserves a warning.
+/// ranges, so applying it under other settings deserves a warning. A calibration made from
+/// files knows only the rate (None: unknown).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CalibrationSettings {
     pub rate_hz: f64,
-    pub dlpf_cfg: u8,
-    pub gyro_range_dps: f64,
-    pub accel_range_g: f64,
+    pub dlpf_cfg: Option<u8>,
+    pub gyro_range_dps: Option<f64>,
+    pub accel_range_g: Option<f64>,
 }
 
 impl CalibrationSettings {
     pub fn of(board: &Board) -> CalibrationSettings {
         CalibrationSettings {
             rate_hz: board.rate_hz,
-            dlpf_cfg: board.dlpf_cfg,
-            gyro_range_dps: board.gyro_range_dps,
-            accel_range_g: board.accel_range_g,
+            dlpf_cfg: Some(board.dlpf_cfg),
+            gyro_range_dps: Some(board.gyro_range_dps),
+            accel_range_g: Some(board.accel_range_g),
+        }
+    }
+
+    /// Only the rate known (a calibration from files).
+    pub fn rate_only(rate_hz: f64) -> CalibrationSettings {
+        CalibrationSettings {
+            rate_hz,
+            dlpf_cfg: None,
+            gyro_range_dps: None,
+            accel_range_g: None,
         }
     }
 }
 
 impl std::fmt::Display for CalibrationSettings {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let known = |v: Option<String>| v.unwrap_or_else(|| "?".into());
         write!(
             f,
             "{} Hz, DLPF_CFG {}, +-{} deg/s, +-{} g",
-            self.rate_hz, self.dlpf_cfg, self.gyro_range_dps, self.accel_range_g
+            self.rate_hz,
+            known(self.dlpf_cfg.map(|v| v.to_string())),
+            known(self.gyro_range_dps.map(|v| v.to_string())),
+            known(self.accel_range_g.map(|v| v.to_string()))
         )
     }
 }
@@ -128,12 +143,7 @@ mod tests {
     fn calibrations_are_kept_per_board_newest_first() {
         let dir = tempfile::tempdir().unwrap();
         let store = Store::open(dir.path()).unwrap();
-        let settings = CalibrationSettings {
-            rate_hz: 100.0,
-            dlpf_cfg: 3,
-            gyro_range_dps: 250.0,
-            accel_range_g: 2.0,
-        };
+        let settings = CalibrationSettings::rate_only(100.0);
         let cal = |b: f64| Calibration {
             kind: Kind::Gyro,
             corrections: vec![Correction::bias_only(Sensor::Gyro, [b; 3], 25.0)],

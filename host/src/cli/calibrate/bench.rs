@@ -1,0 +1,156 @@
+//! Driving a board through a calibration procedure: turn it (the virtual board is turned by
+//! script, a person is asked to turn a real one), wait for it to be still, capture, check.
+//! Every capture is a stored session, so the raw data behind a calibration are kept.
+
+use super::BoardArgs;
+use crate::calibration::Sensor;
+use crate::calibration::still::find_motion;
+use crate::cli::capture::{PortSpec, open_port, start_board, stop_board, virtual_board};
+use crate::cli::settings::{accel_range, gyro_range};
+use crate::link::Link;
+use crate::link::virtual_board::SharedSensor;
+use crate::record::Record;
+use crate::recorder::{self, RecordOptions};
+use crate::sim::imu::TrueInput;
+use crate::store::{Board, Store};
+use anyhow::{Context, Result, anyhow, bail};
+use protocol::SensorSettings;
+use std::io::BufRead;
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+/// Attempts at one position before giving up (each failure says why).
+const ATTEMPTS: usize = 5;
+
+/// Emulated time the virtual board is left after a turn, as a person would wait before
+/// pressing Enter: the DLPF's step response has long settled.
+const SIM_SETTLE: Duration = Duration::from_secs(1);
+
+pub struct Bench {
+    link: Box<dyn Link>,
+    /// The virtual board's sensor, turned by script; None for a real board.
+    sensor: Option<SharedSensor>,
+    settings: SensorSettings,
+    /// The board and its settings, as the first capture's Info announced them.
+    pub board: Option<Board>,
+    /// The sessions captured, by name.
+    pub sessions: Vec<String>,
+}
+
+impl Bench {
+    pub fn open(port: &str, args: &BoardArgs) -> Result<Bench> {
+        let settings = SensorSettings::for_rate_and_bandwidth(args.rate, args.bandwidth)
+            .map_err(|e| anyhow!("--rate {} --bandwidth {}: {e}", args.rate, args.bandwidth))?
+            .with_ranges(gyro_range(args.gyro_range)?, accel_range(args.accel_range)?);
+        let spec = PortSpec {
+            port,
+            speed: args.speed,
+            model: args.virtual_board.model.as_deref(),
+            seed: args.virtual_board.seed,
+        };
+        let (link, sensor): (Box<dyn Link>, _) = if port == "sim" {
+            let board = virtual_board(&spec)?;
+            let sensor = board.sensor().clone();
+            (Box::new(board), Some(sensor))
+        } else {
+            (open_port(&spec)?, None)
+        };
+        Ok(Bench {
+            link,
+            sensor,
+            settings,
+            board: None,
+            sessions: Vec::new(),
+        })
+    }
+
+    /// Put the sensor in `input`: the virtual board is turned (and left to settle); a
+    /// person is shown `instruction` and asked to press Enter.
+    fn pose(&mut self, input: TrueInput, instruction: &str) -> Result<()> {
+        match &self.sensor {
+            Some(sensor) => {
+                let mut s = sensor.lock();
+                s.set_input(Some(input));
+                s.advance(SIM_SETTLE);
+                eprintln!("sim: {instruction}");
+                Ok(())
+            }
+            None => {
+                eprintln!("{instruction}, hold it still, then press Enter");
+                let mut line = String::new();
+                let n = std::io::stdin()
+                    .lock()
+                    .read_line(&mut line)
+                    .context("reading the answer on stdin")?;
+                if n == 0 {
+                    bail!(
+                        "no answer on stdin (end of input): the procedure needs a person to turn the board"
+                    );
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// Capture `seconds` of samples into a new session noted with `note`; its record.
+    pub fn capture(&mut self, store: &Store, seconds: f64, note: &str) -> Result<Record> {
+        let info = start_board(self.link.as_mut(), self.settings)?;
+        let options = RecordOptions {
+            name: None,
+            notes: Some(note.to_string()),
+            duration_s: Some(seconds),
+            keep_samples: true,
+        };
+        let stop = AtomicBool::new(false);
+        let outcome = recorder::record(self.link.as_mut(), store, &options, &stop, &mut |_| {});
+        stop_board(self.link.as_mut());
+        let outcome = outcome?;
+        let session = store
+            .get(outcome.session_id)?
+            .ok_or_else(|| anyhow!("session {} vanished", outcome.session_id))?;
+        self.board = self.board.take().or_else(|| session.board.clone());
+        self.sessions.push(session.name.clone());
+        let capture = outcome
+            .capture
+            .ok_or_else(|| anyhow!("session {}: nothing decoded", session.id))?;
+        let source = format!("session {} '{}'", session.id, session.name);
+        let record = capture
+            .to_record(&source, false)
+            .with_context(|| source.clone())?;
+        if (record.rate_hz - info.settings.output_rate_hz()).abs() > 1e-9 {
+            bail!(
+                "{source}: the board runs at {} Hz, not the {} Hz asked",
+                record.rate_hz,
+                info.settings.output_rate_hz()
+            );
+        }
+        Ok(record)
+    }
+
+    /// Pose, capture and check until the `steady` sensors were still throughout and `check`
+    /// (e.g. the orientation) passes; each failed attempt is said, and kept as a session.
+    pub fn measure(
+        &mut self,
+        store: &Store,
+        seconds: f64,
+        input: TrueInput,
+        instruction: &str,
+        steady: &[Sensor],
+        check: &dyn Fn(&Record) -> Result<(), String>,
+    ) -> Result<Record> {
+        for attempt in 1..=ATTEMPTS {
+            self.pose(input, instruction)?;
+            let record = self.capture(store, seconds, instruction)?;
+            let verdict = match find_motion(&record, steady) {
+                Err(e) => bail!("--seconds: {e}"),
+                Ok(Some(motion)) => Err(format!("not still: {motion}")),
+                Ok(None) => check(&record),
+            };
+            match verdict {
+                Ok(()) => return Ok(record),
+                Err(why) => eprintln!("attempt {attempt} of {ATTEMPTS}: {why}; again"),
+            }
+        }
+        bail!("{instruction}: no still capture in the right orientation after {ATTEMPTS} attempts")
+    }
+}
