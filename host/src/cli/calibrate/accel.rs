@@ -96,13 +96,21 @@ pub fn run(args: &AccelArgs, store: Option<&Path>) -> Result<()> {
             provenance = Provenance::of_bench(&bench, records[0].2.rate_hz);
         }
         None => {
+            // All six named before any is read, so a missing one is said at once.
+            let mut inputs = Vec::new();
             for (axis, negative) in six_positions() {
-                let label = axis_label(axis, negative);
                 let wanted = GravityAxis { axis, negative };
                 let mut given = args.positions.iter().filter(|(a, _)| *a == wanted);
                 let (Some((_, path)), None) = (given.next(), given.next()) else {
-                    bail!("--position {label}=INPUT: give each of the six positions exactly once");
+                    bail!(
+                        "--position {}=INPUT: give each of the six positions exactly once",
+                        axis_label(axis, negative)
+                    );
                 };
+                inputs.push((axis, negative, path));
+            }
+            for (axis, negative, path) in inputs {
+                let label = axis_label(axis, negative);
                 let record = provenance.load(path, store)?;
                 let m = means(&record, Sensor::Accel.channels())?;
                 check_orientation(m, axis, negative, g)

@@ -140,7 +140,7 @@ fn spin_on_bench(
     seconds: f64,
     rate_deg_s: f64,
 ) -> Result<Vec<Spin>> {
-    if !(rate_deg_s > 0.0) {
+    if rate_deg_s.is_nan() || rate_deg_s <= 0.0 {
         bail!("--table-rate {rate_deg_s}: give a positive rate in deg/s");
     }
     let mut spins = Vec::new();
