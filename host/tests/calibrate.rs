@@ -181,6 +181,19 @@ fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_s
         );
     }
 
+    // The same six captures, given back as stored sessions (ids 1..6, in the order taken:
+    // +x -x +y -y +z -z), give the same calibration to the last digit.
+    let positions = ["+x", "-x", "+y", "-y", "+z", "-z"]
+        .iter()
+        .enumerate()
+        .map(|(i, p)| format!("--position={p}={}", i + 1))
+        .collect::<Vec<_>>();
+    let mut args = vec!["calibrate", "accel", "--json", "--dry-run"];
+    args.extend(positions.iter().map(String::as_str));
+    let again = json(&ok(&store, &args));
+    assert_eq!(again["calibration"], doc["calibration"]);
+    assert_eq!(again["board_id"], doc["board_id"]);
+
     // Rate table at +-100 deg/s, 10 s each: sigma_m = 1.5e-4 / sqrt(10) = 4.7e-5 rad/s; the
     // bias again sigma_m / sqrt(6), K_ij sigma_m sqrt(2) / (2 w).
     let sigma_m = GYRO_N / 10f64.sqrt();
