@@ -15,14 +15,21 @@ pub struct Applied {
 }
 
 impl Applied {
-    /// From a board's calibrations, newest first: the newest correction and the newest
-    /// temperature model of each sensor.
+    /// From a board's calibrations, newest first: per sensor the newest bias, the newest
+    /// matrix K (a static bias measured after a rate table keeps the table's K) and the
+    /// newest temperature model.
     pub fn newest(calibrations: &[Calibration]) -> Applied {
         let mut applied = Applied::default();
         for c in calibrations {
             for k in &c.corrections {
-                if !applied.corrections.iter().any(|x| x.sensor == k.sensor) {
-                    applied.corrections.push(k.clone());
+                match applied
+                    .corrections
+                    .iter_mut()
+                    .find(|x| x.sensor == k.sensor)
+                {
+                    None => applied.corrections.push(k.clone()),
+                    Some(newer) if newer.matrix.is_none() => newer.matrix = k.matrix,
+                    Some(_) => {}
                 }
             }
             for t in &c.temperature {
@@ -170,7 +177,7 @@ mod tests {
             corrections: vec![Correction {
                 sensor: Sensor::Gyro,
                 bias: b,
-                matrix: k,
+                matrix: Some(k),
                 temperature_c: 25.0,
             }],
             temperature: vec![],
@@ -182,9 +189,19 @@ mod tests {
             temperature: vec![model],
             details: serde_json::Value::Null,
         };
-        let applied = Applied::newest(&[newer, older]);
+        let applied = Applied::newest(&[newer.clone(), older]);
         assert_eq!(applied.corrections.len(), 1);
-        assert_eq!(applied.corrections[0].matrix, k);
+        assert_eq!(applied.corrections[0].matrix, Some(k));
+        // A newer static bias keeps the older K.
+        let bias_now = Calibration {
+            kind: Kind::Gyro,
+            corrections: vec![Correction::bias_only(Sensor::Gyro, [1.0; 3], 25.0)],
+            temperature: vec![],
+            details: serde_json::Value::Null,
+        };
+        let both = Applied::newest(&[bias_now, newer.clone()]);
+        assert_eq!(both.corrections[0].bias, [1.0; 3]);
+        assert_eq!(both.corrections[0].matrix, Some(k));
         let notes = apply(&mut record, &applied).unwrap();
         assert!(notes[0].contains("temperature drift"), "{notes:?}");
         for (i, t) in truth.iter().enumerate() {
@@ -196,7 +213,7 @@ mod tests {
         assert_eq!(notes.len(), 1);
         let bad = Applied {
             corrections: vec![Correction {
-                matrix: [[0.0; 3]; 3],
+                matrix: Some([[0.0; 3]; 3]),
                 ..Correction::bias_only(Sensor::Gyro, [0.0; 3], 25.0)
             }],
             temperature: vec![],

@@ -93,13 +93,13 @@ pub fn fit_linear(
     let correction = Correction {
         sensor,
         bias,
-        matrix,
+        matrix: Some(matrix),
         temperature_c,
     };
     let residuals: Vec<Vec3> = observations
         .iter()
         .map(|o| {
-            let model = apply_forward(&correction.matrix, correction.bias, o.truth);
+            let model = apply_forward(&correction.k(), correction.bias, o.truth);
             [0, 1, 2].map(|i| o.measured[i] - model[i])
         })
         .collect();
@@ -194,13 +194,13 @@ mod tests {
         let fit = fit_linear(Sensor::Accel, &obs, 25.0).unwrap();
         for i in 0..3 {
             assert!((fit.correction.bias[i] - b[i]).abs() < 1e-12);
-            for (got, want) in fit.correction.matrix[i].iter().zip(k[i]) {
+            for (got, want) in fit.correction.k()[i].iter().zip(k[i]) {
                 assert!((got - want).abs() < 1e-12);
             }
         }
         assert!(fit.residual_rms < 1e-12);
-        assert!((fit.correction.scale_factors()[0] - 0.01).abs() < 1e-12);
-        assert_eq!(fit.correction.misalignment()[1][1], 0.0);
+        assert!((fit.correction.scale_factors().unwrap()[0] - 0.01).abs() < 1e-12);
+        assert_eq!(fit.correction.misalignment().unwrap()[1][1], 0.0);
         // The correction inverts the model.
         let back = fit
             .correction

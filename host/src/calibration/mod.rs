@@ -65,8 +65,9 @@ pub struct Correction {
     pub sensor: Sensor,
     /// b, in the sensor's SI unit.
     pub bias: Vec3,
-    /// K = I + S + M.
-    pub matrix: Mat3,
+    /// K = I + S + M; None when this calibration measured the bias only (a static gyro
+    /// bias): a correction then takes K from an older calibration, or I.
+    pub matrix: Option<Mat3>,
     /// Mean TEMP_OUT while the calibration data were taken, degC (NaN: unknown); a
     /// temperature model moves the bias from here.
     pub temperature_c: f64,
@@ -78,29 +79,35 @@ impl Correction {
         Correction {
             sensor,
             bias,
-            matrix: identity(),
+            matrix: None,
             temperature_c,
         }
     }
 
-    /// S: the diagonal of K minus one.
-    pub fn scale_factors(&self) -> Vec3 {
-        [0, 1, 2].map(|i| self.matrix[i][i] - 1.0)
+    /// K, I if not measured.
+    pub fn k(&self) -> Mat3 {
+        self.matrix.unwrap_or_else(identity)
     }
 
-    /// M: the off-diagonal of K (zero diagonal).
-    pub fn misalignment(&self) -> Mat3 {
-        let mut m = self.matrix;
-        for (i, row) in m.iter_mut().enumerate() {
-            row[i] = 0.0;
-        }
-        m
+    /// S: the diagonal of K minus one (None: not measured).
+    pub fn scale_factors(&self) -> Option<Vec3> {
+        self.matrix.map(|k| [0, 1, 2].map(|i| k[i][i] - 1.0))
+    }
+
+    /// M: the off-diagonal of K, zero diagonal (None: not measured).
+    pub fn misalignment(&self) -> Option<Mat3> {
+        self.matrix.map(|mut m| {
+            for (i, row) in m.iter_mut().enumerate() {
+                row[i] = 0.0;
+            }
+            m
+        })
     }
 
     /// f_true = K^-1 (f_meas - b - extra_bias); None if K is singular.
     pub fn correct(&self, measured: Vec3, extra_bias: Vec3) -> Option<Vec3> {
         let v = [0, 1, 2].map(|i| measured[i] - self.bias[i] - extra_bias[i]);
-        crate::analysis::noise_id::solve3(self.matrix, v)
+        crate::analysis::noise_id::solve3(self.k(), v)
     }
 }
 

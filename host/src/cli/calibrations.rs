@@ -128,8 +128,6 @@ pub fn describe_calibration(cal: &Calibration) -> String {
 
 fn describe_correction(k: &Correction) -> String {
     let unit = k.sensor.unit();
-    let s = k.scale_factors();
-    let m = k.misalignment();
     let mut out = format!(
         "{:?} (f_meas = (I + S + M) f_true + b, at {:.2} degC):\n",
         k.sensor, k.temperature_c
@@ -139,6 +137,10 @@ fn describe_correction(k: &Correction) -> String {
         "  bias b:           x {:+.5e}  y {:+.5e}  z {:+.5e} {unit}",
         k.bias[0], k.bias[1], k.bias[2]
     );
+    let (Some(s), Some(m)) = (k.scale_factors(), k.misalignment()) else {
+        out += "  scale factor and misalignment: not measured (bias only)\n";
+        return out;
+    };
     let _ = writeln!(
         out,
         "  scale factor S:   x {:+.1}  y {:+.1}  z {:+.1} ppm",
@@ -196,13 +198,15 @@ pub fn apply_latest(store: &Store, session: &Session, record: &mut Record) -> Re
     Ok(())
 }
 
-/// Whether `applied` took anything from `cal`.
+/// Whether `applied` took anything from `cal` (its bias, its matrix or its temperature model).
 fn uses(applied: &Applied, cal: &Calibration) -> bool {
-    cal.corrections
+    cal.corrections.iter().any(|k| {
+        applied.corrections.iter().any(|a| {
+            a.sensor == k.sensor
+                && (a.bias == k.bias || (k.matrix.is_some() && a.matrix == k.matrix))
+        })
+    }) || cal
+        .temperature
         .iter()
-        .any(|k| applied.corrections.contains(k))
-        || cal
-            .temperature
-            .iter()
-            .any(|t| applied.temperature.contains(t))
+        .any(|t| applied.temperature.contains(t))
 }

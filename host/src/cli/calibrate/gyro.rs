@@ -295,16 +295,17 @@ fn solve_table(spins: &[Spin]) -> Result<(Calibration, String)> {
         }
         Err(FitError::Degenerate | FitError::TooFew(_)) if !pairs.is_empty() => {
             text += "not all three axes turned: no misalignment; from the pairs, ";
-            let mut k = Correction {
+            let (mut bias, mut matrix) = ([0.0; 3], identity());
+            for (axis, _, t) in &pairs {
+                bias[*axis] = t.bias;
+                matrix[*axis][*axis] = 1.0 + t.scale_factor;
+            }
+            let k = Correction {
                 sensor: Sensor::Gyro,
-                bias: [0.0; 3],
-                matrix: identity(),
+                bias,
+                matrix: Some(matrix),
                 temperature_c,
             };
-            for (axis, _, t) in &pairs {
-                k.bias[*axis] = t.bias;
-                k.matrix[*axis][*axis] = 1.0 + t.scale_factor;
-            }
             (k, None)
         }
         Err(e) => return Err(e.into()),
