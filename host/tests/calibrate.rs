@@ -264,6 +264,36 @@ fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_s
         let tol = if i < 3 { 4.0 * 6e-5 } else { 4.0 * 1.2e-3 };
         close(&format!("corrected column {i}"), corrected[i], *want, tol);
     }
+    // Applied under other settings, the calibration is used with a warning.
+    let args = [
+        &[
+            "capture",
+            "--port",
+            "sim",
+            "--rate",
+            "200",
+            "--bandwidth",
+            "42",
+        ][..],
+        &[
+            "--model",
+            model,
+            "--duration",
+            "5s",
+            "--speed",
+            "max",
+            "--name",
+            "fast",
+        ],
+    ]
+    .concat();
+    ok(&store, &args);
+    let out = ok(&store, &["export", "fast", "--calibrated"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("warning: calibration 1 was made at 100 Hz") && err.contains("at 200 Hz"),
+        "{err}"
+    );
     // analyze applies the same correction (and says so); a file has no board to look up.
     let out = ok(
         &store,
