@@ -1,10 +1,13 @@
 //! Driving a board through a calibration procedure: turn it (the virtual board is turned by
-//! script, a person is asked to turn a real one), wait for it to be still, capture, check.
+//! script, a person is asked to turn a real one), wait for it to be still (watching the
+//! stream, saying what moves), capture, and check the capture again (still throughout, in
+//! the asked orientation).
 //! Every capture is a stored session, so the raw data behind a calibration are kept.
 
 use super::BoardArgs;
 use crate::calibration::Sensor;
 use crate::calibration::still::find_motion;
+use crate::capture::StreamDecoder;
 use crate::cli::capture::{PortSpec, open_port, start_board, stop_board, virtual_board};
 use crate::cli::settings::{accel_range, gyro_range};
 use crate::link::Link;
@@ -17,10 +20,18 @@ use anyhow::{Context, Result, anyhow, bail};
 use protocol::SensorSettings;
 use std::io::BufRead;
 use std::sync::atomic::AtomicBool;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Attempts at one position before giving up (each failure says why).
 const ATTEMPTS: usize = 5;
+
+/// Before a capture, the sensor must be still for this long (three 1 s windows, the least
+/// the stillness test judges); it is watched for at most `STILL_ROUNDS` such stretches.
+const STILL_S: f64 = 3.0;
+const STILL_ROUNDS: usize = 20;
+
+/// A board that sends nothing for this long (wall time) is gone.
+const SILENCE: Duration = Duration::from_secs(5);
 
 /// Emulated time the virtual board is left after a turn, as a person would wait before
 /// pressing Enter: the DLPF's step response has long settled.
@@ -127,6 +138,48 @@ impl Bench {
         Ok(record)
     }
 
+    /// Watch the board (samples not stored) until `STILL_S` seconds in a row are still,
+    /// saying what moved while they are not.
+    fn wait_until_still(&mut self, steady: &[Sensor]) -> Result<()> {
+        for _ in 0..STILL_ROUNDS {
+            let record = self.peek(STILL_S)?;
+            match find_motion(&record, steady).map_err(anyhow::Error::msg)? {
+                None => return Ok(()),
+                Some(motion) => eprintln!("not still yet ({motion}); waiting"),
+            }
+        }
+        bail!("the board did not keep still for {STILL_S} s in {STILL_ROUNDS} tries")
+    }
+
+    /// `seconds` of samples straight from the board, not stored.
+    fn peek(&mut self, seconds: f64) -> Result<Record> {
+        start_board(self.link.as_mut(), self.settings)?;
+        let wanted = (seconds * self.settings.output_rate_hz()).ceil() as u64;
+        let mut decoder = StreamDecoder::new(true);
+        let mut buf = vec![0u8; 1 << 16];
+        let mut heard = Instant::now();
+        while decoder.accounting().expected() < wanted {
+            let n = self
+                .link
+                .read(&mut buf, Duration::from_millis(100))
+                .with_context(|| self.link.describe())?;
+            if n > 0 {
+                decoder.feed(&buf[..n]);
+                heard = Instant::now();
+            } else if heard.elapsed() > SILENCE {
+                stop_board(self.link.as_mut());
+                bail!(
+                    "{}: no data for {} s",
+                    self.link.describe(),
+                    SILENCE.as_secs()
+                );
+            }
+        }
+        stop_board(self.link.as_mut());
+        let capture = decoder.finish()?;
+        Ok(capture.to_record("the stillness check", true)?)
+    }
+
     /// Pose, capture and check until the `steady` sensors were still throughout and `check`
     /// (e.g. the orientation) passes; each failed attempt is said, and kept as a session.
     pub fn measure(
@@ -140,6 +193,7 @@ impl Bench {
     ) -> Result<Record> {
         for attempt in 1..=ATTEMPTS {
             self.pose(input, instruction)?;
+            self.wait_until_still(steady)?;
             let record = self.capture(store, seconds, instruction)?;
             let verdict = match find_motion(&record, steady) {
                 Err(e) => bail!("--seconds: {e}"),
