@@ -221,6 +221,28 @@ fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_s
         4.0 * sigma_m * 2f64.sqrt() / (2.0 * w),
     );
 
+    // The rate table as a file of (axis, commanded rate, record) lines naming the six stored
+    // sessions (ids 7..12) gives the same calibration.
+    let table = store.join("table.txt");
+    let lines: String = ["x 100", "x -100", "y 100", "y -100", "z 100", "z -100"]
+        .iter()
+        .enumerate()
+        .map(|(i, l)| format!("{l} {}\n", i + 7))
+        .collect();
+    std::fs::write(&table, format!("# axis rate_deg_s record\n{lines}")).unwrap();
+    let again = json(&ok(
+        &store,
+        &[
+            "calibrate",
+            "gyro",
+            "--rate-table",
+            table.to_str().unwrap(),
+            "--json",
+            "--dry-run",
+        ],
+    ));
+    assert_eq!(again["calibration"], doc["calibration"]);
+
     // Both are listed for the virtual board (board id 0x5349_4d00_0000_0000 | seed 1).
     let list = json(&ok(&store, &["calibrations", "--json"]));
     let list = list.as_array().unwrap();
