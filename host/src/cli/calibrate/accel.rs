@@ -7,6 +7,7 @@ use crate::calibration::gravity::{STANDARD, normal_gravity};
 use crate::calibration::still::check_orientation;
 use crate::calibration::{AXES, Calibration, Kind, Sensor};
 use crate::cli::calibrations::describe_calibration;
+use crate::cli::stored::open_store;
 use crate::record::Record;
 use crate::sim::imu::{GravityAxis, TrueInput};
 use anyhow::{Result, anyhow, bail};
@@ -69,7 +70,7 @@ pub fn run(args: &AccelArgs, store: Option<&Path>) -> Result<()> {
         !args.positions.is_empty(),
         "--position AXIS=INPUT for each of the six positions",
     )?;
-    let catalog = super::open(store)?;
+    let catalog = open_store(store)?;
     let mut provenance = Provenance::default();
     let mut records = Vec::new();
     match port {
@@ -79,7 +80,7 @@ pub fn run(args: &AccelArgs, store: Option<&Path>) -> Result<()> {
                 let label = axis_label(axis, negative);
                 let input = TrueInput::at_rest(GravityAxis { axis, negative }, g);
                 let check = |r: &Record| -> Result<(), String> {
-                    let m = means(r, Sensor::Accel.channels()).map_err(|e| e.to_string())?;
+                    let m = means(r, Sensor::Accel).map_err(|e| e.to_string())?;
                     check_orientation(m, axis, negative, g)
                 };
                 let instruction = format!("turn the board so that {label} points up");
@@ -112,7 +113,7 @@ pub fn run(args: &AccelArgs, store: Option<&Path>) -> Result<()> {
             for (axis, negative, path) in inputs {
                 let label = axis_label(axis, negative);
                 let record = provenance.load(path, store)?;
-                let m = means(&record, Sensor::Accel.channels())?;
+                let m = means(&record, Sensor::Accel)?;
                 check_orientation(m, axis, negative, g)
                     .map_err(|e| anyhow!("--position {label}={}: {e}", path.display()))?;
                 records.push((axis, negative, record));
@@ -133,7 +134,7 @@ fn solve(records: &[(usize, bool, Record)], g: f64) -> Result<(Calibration, Stri
         observations.push(Observation {
             label: format!("{} up", axis_label(*axis, *negative)),
             truth,
-            measured: means(record, Sensor::Accel.channels())?,
+            measured: means(record, Sensor::Accel)?,
         });
         temps.push(mean_temperature(record));
     }

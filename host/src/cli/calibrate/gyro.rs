@@ -11,6 +11,7 @@ use crate::calibration::fit::{FitError, Observation, fit_linear, two_point};
 use crate::calibration::static_bias::{StaticBias, static_bias};
 use crate::calibration::{AXES, Calibration, Correction, Kind, Sensor, identity};
 use crate::cli::calibrations::describe_calibration;
+use crate::cli::stored::open_store;
 use crate::record::Record;
 use crate::sim::imu::{GravityAxis, TrueInput};
 use anyhow::{Context, Result, anyhow, bail};
@@ -53,7 +54,7 @@ struct Spin {
 pub fn run(args: &GyroArgs, store: Option<&Path>) -> Result<()> {
     let files = args.from.is_some() || args.rate_table.is_some();
     let port = board_or_files(&args.board.port, files, "--from INPUT or --rate-table FILE")?;
-    let catalog = super::open(store)?;
+    let catalog = open_store(store)?;
     let mut provenance = Provenance::default();
     let (calibration, text) = match (port, args.table_rate) {
         (Some(port), None) => {
@@ -157,7 +158,7 @@ fn spin_on_bench(
                 AXES[axis]
             );
             let check = |r: &Record| -> Result<(), String> {
-                let m = means(r, Sensor::Gyro.channels()).map_err(|e| e.to_string())?;
+                let m = means(r, Sensor::Gyro).map_err(|e| e.to_string())?;
                 check_rate(m[axis], rate * DEG)
             };
             let record = bench.measure(
@@ -229,7 +230,7 @@ fn read_table(path: &Path, provenance: &mut Provenance, store: Option<&Path>) ->
             PathBuf::from(input)
         };
         let record = provenance.load(&input_path, store).with_context(at)?;
-        let m = means(&record, Sensor::Gyro.channels())?;
+        let m = means(&record, Sensor::Gyro)?;
         check_rate(m[axis], rate_deg_s * DEG).map_err(|e| anyhow!("{}: {e}", at()))?;
         spins.push(Spin {
             axis,
@@ -251,7 +252,7 @@ fn solve_table(spins: &[Spin]) -> Result<(Calibration, String)> {
         observations.push(Observation {
             label: format!("{} {:+} deg/s", AXES[s.axis], s.rate_deg_s),
             truth,
-            measured: means(&s.record, Sensor::Gyro.channels())?,
+            measured: means(&s.record, Sensor::Gyro)?,
         });
     }
     let temperature_c = spins

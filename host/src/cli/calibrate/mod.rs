@@ -9,7 +9,7 @@ mod temperature;
 
 use crate::calibration::{Calibration, Sensor, Vec3};
 use crate::cli::capture::VirtualBoardArgs;
-use crate::cli::stored::{self, open_store};
+use crate::cli::stored;
 use crate::input::LoadOptions;
 use crate::link::replay::Speed;
 use crate::record::Record;
@@ -169,20 +169,10 @@ pub fn finish(
     Ok(())
 }
 
-/// The mean of a sensor's three channels (or any three named channels), naming a missing one.
-pub fn means(record: &Record, names: [&str; 3]) -> Result<Vec3> {
-    let mut m = [0.0; 3];
-    for (v, name) in m.iter_mut().zip(names) {
-        let c = record.channel(name).ok_or_else(|| {
-            anyhow!(
-                "{}: no channel '{name}' (it has {})",
-                record.source,
-                record.names().join(", ")
-            )
-        })?;
-        *v = crate::analysis::neumaier_sum(c.values.iter().copied()) / c.values.len() as f64;
-    }
-    Ok(m)
+/// The mean of each of a sensor's three channels, naming a missing one.
+pub fn means(record: &Record, sensor: Sensor) -> Result<Vec3> {
+    let mean = |v: &[f64]| crate::analysis::neumaier_sum(v.iter().copied()) / v.len() as f64;
+    Ok(columns(record, sensor)?.map(mean))
 }
 
 /// The mean TEMP_OUT, degC; NaN when the record has no `temp` channel.
@@ -198,15 +188,16 @@ pub fn columns<'a>(record: &'a Record, sensor: Sensor) -> Result<[&'a [f64]; 3]>
         record
             .channel(name)
             .map(|c| c.values.as_slice())
-            .ok_or_else(|| anyhow!("{}: no channel '{name}'", record.source))
+            .ok_or_else(|| {
+                anyhow!(
+                    "{}: no channel '{name}' (it has {})",
+                    record.source,
+                    record.names().join(", ")
+                )
+            })
     };
     let [x, y, z] = sensor.channels();
     Ok([get(x)?, get(y)?, get(z)?])
-}
-
-/// The store, opened once for the procedure.
-pub fn open(store: Option<&Path>) -> Result<Store> {
-    open_store(store)
 }
 
 /// `--port` or the file inputs, exactly one of them.

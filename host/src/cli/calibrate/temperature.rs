@@ -6,6 +6,7 @@ use super::{BoardArgs, OutputArgs, Provenance, board_or_files, columns, finish};
 use crate::calibration::temperature::{BLOCK_S, QUADRATIC_P, fit};
 use crate::calibration::{Calibration, Kind, Sensor};
 use crate::cli::calibrations::describe_calibration;
+use crate::cli::stored::open_store;
 use crate::record::Record;
 use crate::sim::imu::{GravityAxis, TrueInput};
 use anyhow::{Context, Result, anyhow};
@@ -27,7 +28,7 @@ pub struct TemperatureArgs {
 
 pub fn run(args: &TemperatureArgs, store: Option<&Path>) -> Result<()> {
     let port = board_or_files(&args.board.port, args.from.is_some(), "--from INPUT")?;
-    let catalog = super::open(store)?;
+    let catalog = open_store(store)?;
     let mut provenance = Provenance::default();
     let record = match (port, &args.from) {
         (Some(port), _) => {
