@@ -251,6 +251,10 @@ fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_s
     let shown = ok(&store, &["calibrations", "show", "1"]);
     let text = String::from_utf8_lossy(&shown.stdout);
     assert!(text.contains("misalignment M (mrad"), "{text}");
+    let yaml = ok(&store, &["calibrations", "show", "1", "--yaml"]);
+    let yaml = String::from_utf8_lossy(&yaml.stdout);
+    assert!(yaml.contains("\n      matrix: [["), "{yaml}");
+    assert!(yaml.contains("\n      sensor: \"accel\""), "{yaml}");
 
     // A new 20 s session at rest (z up) from the same board: --calibrated removes bias,
     // scale and misalignment; without it the export is raw. The corrected means then differ

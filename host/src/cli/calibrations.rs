@@ -5,6 +5,7 @@ use crate::calibration::apply::{Applied, apply};
 use crate::calibration::{AXES, Calibration, Correction};
 use crate::cli::stored::{open_store, print_listing};
 use crate::record::Record;
+use crate::report;
 use crate::store::{CalibrationSettings, Session, Store, StoredCalibration};
 use anyhow::{Result, anyhow, bail};
 use std::fmt::Write as _;
@@ -20,6 +21,9 @@ pub struct CalibrationsArgs {
     /// Print as JSON
     #[arg(long, global = true)]
     pub json: bool,
+    /// `show`: print as YAML
+    #[arg(long, global = true, conflicts_with = "json")]
+    pub yaml: bool,
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -37,6 +41,16 @@ pub fn run(args: &CalibrationsArgs, store: Option<&Path>) -> Result<()> {
                 .ok_or_else(|| anyhow!("no calibration {id} in {}", store.dir().display()))?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&c)?);
+            } else if args.yaml {
+                let header = [
+                    format!("imunoise calibration {} ({}), board {}", c.id, c.calibration.kind.name(), c.board_id),
+                    "f_meas = matrix f_true + bias (+ temperature part); matrix = I + S + M (row: measured axis)".into(),
+                    "units: gyro rad/s, accel m/s^2, temperatures degC, c1 u/degC, c2 u/degC^2".into(),
+                ];
+                print!(
+                    "{}",
+                    report::yaml::document(&header, &serde_json::to_value(&c)?)
+                );
             } else {
                 print!("{}", describe(&c));
             }
