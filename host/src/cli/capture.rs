@@ -207,7 +207,7 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
     }
 }
 
-fn progress_bar() -> ProgressBar {
+pub(crate) fn progress_bar() -> ProgressBar {
     let bar = ProgressBar::new(0);
     if let Ok(style) =
         ProgressStyle::with_template("capturing [{bar:30}] {elapsed} (eta {eta}) {msg}")
@@ -218,7 +218,7 @@ fn progress_bar() -> ProgressBar {
 }
 
 /// Elapsed and remaining time, samples, losses and data rate.
-fn show(bar: &ProgressBar, p: &Progress) {
+pub(crate) fn show(bar: &ProgressBar, p: &Progress) {
     if let Some(wanted) = p.samples_wanted {
         bar.set_length(wanted);
     }

@@ -58,7 +58,9 @@ fn gravity(args: &AccelArgs) -> Result<f64> {
         _ => STANDARD,
     };
     if !(9.7..=9.9).contains(&g) {
-        bail!("--gravity {g}: local gravity on Earth is within 9.76..9.84 m/s^2");
+        bail!(
+            "--gravity {g}: outside 9.7..9.9 m/s^2 (gravity at Earth's surface is 9.76..9.84 m/s^2)"
+        );
     }
     Ok(g)
 }

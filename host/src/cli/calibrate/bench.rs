@@ -8,7 +8,9 @@ use super::BoardArgs;
 use crate::calibration::Sensor;
 use crate::calibration::still::find_motion;
 use crate::capture::StreamDecoder;
-use crate::cli::capture::{PortSpec, open_port, start_board, stop_board, virtual_board};
+use crate::cli::capture::{
+    PortSpec, open_port, progress_bar, show, start_board, stop_board, virtual_board,
+};
 use crate::cli::settings::{accel_range, gyro_range};
 use crate::link::Link;
 use crate::link::virtual_board::SharedSensor;
@@ -113,7 +115,11 @@ impl Bench {
             keep_samples: true,
         };
         let stop = AtomicBool::new(false);
-        let outcome = recorder::record(self.link.as_mut(), store, &options, &stop, &mut |_| {});
+        let bar = progress_bar();
+        let outcome = recorder::record(self.link.as_mut(), store, &options, &stop, &mut |p| {
+            show(&bar, p)
+        });
+        bar.finish_and_clear();
         stop_board(self.link.as_mut());
         let outcome = outcome?;
         let session = store
@@ -142,7 +148,11 @@ impl Bench {
     /// saying what moved while they are not.
     fn wait_until_still(&mut self, steady: &[Sensor]) -> Result<()> {
         for _ in 0..STILL_ROUNDS {
-            let record = self.peek(STILL_S)?;
+            let watching =
+                crate::report::progress::spinner("waiting until the board is still".into());
+            let record = self.peek(STILL_S);
+            watching.finish_and_clear();
+            let record = record?;
             match find_motion(&record, steady).map_err(anyhow::Error::msg)? {
                 None => return Ok(()),
                 Some(motion) => eprintln!("not still yet ({motion}); waiting"),
