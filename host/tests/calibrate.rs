@@ -434,3 +434,38 @@ fn bad_calibration_inputs_are_named() {
     let out = run(&store, &["calibrate", "gyro"]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("--port"));
 }
+
+#[test]
+fn local_gravity_from_latitude_and_height_is_used_as_the_reference() {
+    let store = dir("calibrate-gravity");
+    let args = [
+        &["calibrate", "accel"][..],
+        &SIM,
+        &[
+            "--latitude",
+            "45",
+            "--height",
+            "100",
+            "--seconds",
+            "3",
+            "--dry-run",
+            "--json",
+        ],
+    ]
+    .concat();
+    let doc = json(&ok(&store, &args));
+    // WGS84 normal gravity at 45 deg (9.806199 m/s^2) less the free-air 3.086e-6 s^-2 x 100 m.
+    let g = doc["calibration"]["details"]["gravity_m_s2"]
+        .as_f64()
+        .unwrap();
+    close("gravity", g, 9.806199 - 3.086e-4, 2e-6);
+    // The virtual board was turned under that gravity: the +x position's truth is +g.
+    let truth = &doc["calibration"]["details"]["observations"][0]["truth"];
+    assert_eq!(truth[0].as_f64().unwrap(), g);
+    let out = run(
+        &store,
+        &["calibrate", "accel", "--port", "sim", "--gravity", "1.0"],
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--gravity 1"));
+}
