@@ -5,6 +5,7 @@
 mod accel;
 mod bench;
 mod gyro;
+mod rate_table;
 mod temperature;
 
 use crate::calibration::{Calibration, Sensor, Vec3};
