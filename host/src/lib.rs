@@ -4,6 +4,7 @@
 //! [`cli`], and the pieces it calls are the modules below.
 
 pub mod analysis;
+pub mod calibration;
 pub mod capture;
 pub mod cli;
 pub mod input;

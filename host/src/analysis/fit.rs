@@ -491,7 +491,7 @@ fn lstsq_columns(g: &[Vec<f64>], b: &[f64], cols: &[usize], p: usize) -> Vec<f64
 /// both are overwritten). Columns that are numerically dependent get 0.
 // Dense small-matrix algebra reads best with explicit indices.
 #[allow(clippy::needless_range_loop)]
-fn householder_solve(a: &mut [Vec<f64>], rhs: &mut [f64]) -> Vec<f64> {
+pub(crate) fn householder_solve(a: &mut [Vec<f64>], rhs: &mut [f64]) -> Vec<f64> {
     let m = a.len();
     let k = a.first().map_or(0, Vec::len);
     for c in 0..k.min(m) {

@@ -20,6 +20,10 @@ pub struct AnalyzeArgs {
     /// A capture file, a text/CSV table (optional header, `#` comments, optional time column)
     /// or a NumPy .npy; or a stored session's id or name (an existing path wins)
     pub input: PathBuf,
+    /// Correct a stored session with its board's newest calibrations first (in memory; the
+    /// stored data are not altered)
+    #[arg(long)]
+    pub calibrated: bool,
     #[command(flatten)]
     pub analysis: AnalysisArgs,
 }
@@ -96,9 +100,20 @@ fn parse_scale(s: &str) -> Result<(String, f64), String> {
 }
 
 pub fn run(args: &AnalyzeArgs, store: Option<&Path>) -> Result<()> {
-    let stored::Input { loaded, session } =
-        stored::load(&args.input, &args.analysis.read.load_options()?, store)?;
+    let stored::Input {
+        mut loaded,
+        session,
+    } = stored::load(&args.input, &args.analysis.read.load_options()?, store)?;
     stored::print_notes(&loaded.notes);
+    if args.calibrated {
+        let Some((store, session)) = &session else {
+            anyhow::bail!(
+                "--calibrated: {} is a file; calibrations are kept per board and apply to stored sessions",
+                args.input.display()
+            );
+        };
+        crate::cli::calibrations::apply_latest(store, session, &mut loaded.record)?;
+    }
     let analysed = analyse(loaded.record, &args.analysis)?;
     stored::keep_analysis(session.as_ref(), &analysed)
 }

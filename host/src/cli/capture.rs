@@ -89,13 +89,17 @@ pub fn open_port(spec: &PortSpec) -> Result<Box<dyn Link>> {
     if spec.port != "sim" {
         return Ok(Box::new(SerialLink::open(spec.port)?));
     }
+    Ok(Box::new(virtual_board(spec)?))
+}
+
+/// The virtual board of `spec` (its model file, or the built-in example, and seed).
+pub fn virtual_board(spec: &PortSpec) -> Result<VirtualBoard> {
     let model = match spec.model {
         Some(path) => model_file::load(path)?,
         None => model_file::example(),
     };
-    let board = VirtualBoard::new(model, spec.seed, SIMULATED_BOARD_ID | spec.seed, spec.speed)
-        .map_err(|e| anyhow!("the virtual board did not start: {e}"))?;
-    Ok(Box::new(board))
+    VirtualBoard::new(model, spec.seed, SIMULATED_BOARD_ID | spec.seed, spec.speed)
+        .map_err(|e| anyhow!("the virtual board did not start: {e}"))
 }
 
 /// The link the arguments name.
@@ -210,7 +214,7 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
     }
 }
 
-fn progress_bar() -> ProgressBar {
+pub(crate) fn progress_bar() -> ProgressBar {
     let bar = ProgressBar::new(0);
     if let Ok(style) =
         ProgressStyle::with_template("capturing [{bar:30}] {elapsed} (eta {eta}) {msg}")
@@ -221,7 +225,7 @@ fn progress_bar() -> ProgressBar {
 }
 
 /// Elapsed and remaining time, samples, losses and data rate.
-fn show(bar: &ProgressBar, p: &Progress) {
+pub(crate) fn show(bar: &ProgressBar, p: &Progress) {
     for e in &p.new_board_errors {
         bar.println(format!("board: {e}"));
     }

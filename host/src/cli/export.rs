@@ -8,6 +8,7 @@
 //! the time column stays true to each sample's index.
 
 use crate::capture::Capture;
+use crate::cli::calibrations::apply_latest;
 use crate::cli::stored::{load_session, open_store};
 use crate::input::LoadOptions;
 use crate::record::Record;
@@ -27,6 +28,10 @@ pub struct ExportArgs {
     /// Output file (default: stdout)
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Correct the samples with the board's newest calibrations (in memory; the stored data
+    /// are not altered)
+    #[arg(long)]
+    pub calibrated: bool,
     /// Values in SI units (rad/s, m/s^2, degC) or the sensor's raw counts (captures only)
     #[arg(long, value_enum, default_value = "si")]
     pub units: Units,
@@ -56,26 +61,41 @@ pub fn run(args: &ExportArgs, store: Option<&Path>) -> Result<()> {
         None => (Box::new(std::io::stdout().lock()), "stdout".to_string()),
     };
     let mut out = BufWriter::with_capacity(1 << 20, out);
-    write(&session, args.units, &mut out)
+    if args.calibrated && args.units == Units::Counts {
+        bail!(
+            "--calibrated --units counts: raw counts are never corrected; export SI units to apply a calibration"
+        );
+    }
+    let correct = |record: &mut Record| -> Result<()> {
+        if args.calibrated {
+            apply_latest(&store, &session, record)?;
+        }
+        Ok(())
+    };
+    write(&session, args.units, &mut out, &correct)
         .and_then(|()| Ok(out.flush()?))
         .with_context(|| format!("exporting session {} to {what}", session.id))
 }
 
-fn write(session: &Session, units: Units, out: &mut impl Write) -> Result<()> {
+/// A correction of each record before it is written (`--calibrated`), or nothing.
+type Correct<'a> = &'a dyn Fn(&mut Record) -> Result<()>;
+
+fn write(session: &Session, units: Units, out: &mut impl Write, correct: Correct) -> Result<()> {
     match session.kind {
         Kind::Capture => {
             let bytes = std::fs::read(&session.file)
                 .with_context(|| format!("{}", session.file.display()))?;
             let capture =
                 Capture::decode(&bytes).with_context(|| format!("{}", session.file.display()))?;
-            write_capture(&capture, units, out)
+            write_capture(&capture, units, out, correct)
         }
         Kind::Imported if units == Units::Counts => bail!(
             "--units counts: session {} was imported from a file; raw counts exist only for captures",
             session.id
         ),
         Kind::Imported => {
-            let loaded = load_session(session, &LoadOptions::default())?;
+            let mut loaded = load_session(session, &LoadOptions::default())?;
+            correct(&mut loaded.record)?;
             header(&loaded.record, out)?;
             Ok(rows(&loaded.record, 0, out)?)
         }
@@ -83,10 +103,16 @@ fn write(session: &Session, units: Units, out: &mut impl Write) -> Result<()> {
 }
 
 /// Runs in order, a comment for each gap and restart between them.
-pub fn write_capture(capture: &Capture, units: Units, out: &mut impl Write) -> Result<()> {
+pub fn write_capture(
+    capture: &Capture,
+    units: Units,
+    out: &mut impl Write,
+    correct: Correct,
+) -> Result<()> {
     let mut next = 0u64;
     for (k, run) in capture.runs.iter().enumerate() {
-        let record = capture.run_record(run, "");
+        let mut record = capture.run_record(run, "");
+        correct(&mut record)?;
         if k == 0 {
             match units {
                 Units::Si => header(&record, out)?,

@@ -2,6 +2,8 @@
 
 mod analyze;
 mod bench;
+mod calibrate;
+mod calibrations;
 mod capture;
 mod compare;
 mod demo;
@@ -77,6 +79,10 @@ pub enum Command {
     Model(Box<model::ModelArgs>),
     /// Several sessions' noise terms side by side with intervals: which differ significantly
     Compare(Box<compare::CompareArgs>),
+    /// Deterministic calibration: accelerometer six positions, gyro bias or rate table, temperature
+    Calibrate(Box<calibrate::CalibrateArgs>),
+    /// The stored calibrations (per board), or one in full
+    Calibrations(calibrations::CalibrationsArgs),
 }
 
 /// Run the CLI: errors go to stderr with their causes, and the exit code is 1.
@@ -102,6 +108,8 @@ pub fn main() -> ExitCode {
         Command::Replay(args) => replay::run(&args, store),
         Command::Model(args) => model::run(&args, store),
         Command::Compare(args) => compare::run(&args, store),
+        Command::Calibrate(args) => calibrate::run(&args, store),
+        Command::Calibrations(args) => calibrations::run(&args, store),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

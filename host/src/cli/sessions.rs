@@ -1,6 +1,6 @@
 //! `imunoise sessions`: the sessions in the store, one line each (or JSON).
 
-use crate::cli::stored::open_store;
+use crate::cli::stored::{open_store, print_listing};
 use crate::store::Session;
 use anyhow::Result;
 use std::path::Path;
@@ -15,14 +15,7 @@ pub struct SessionsArgs {
 pub fn run(args: &SessionsArgs, store: Option<&Path>) -> Result<()> {
     let store = open_store(store)?;
     let sessions = store.list()?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&sessions)?);
-    } else if sessions.is_empty() {
-        println!("no sessions in {}", store.dir().display());
-    } else {
-        print!("{}", table(&sessions));
-    }
-    Ok(())
+    print_listing(&sessions, args.json, &store, "sessions", table)
 }
 
 fn table(sessions: &[Session]) -> String {
@@ -36,10 +29,10 @@ fn table(sessions: &[Session]) -> String {
         "lost",
         "state",
     ];
-    let rows: Vec<[String; 8]> = sessions
+    let rows: Vec<Vec<String>> = sessions
         .iter()
         .map(|s| {
-            [
+            vec![
                 s.id.to_string(),
                 s.name.clone(),
                 s.started_at
@@ -54,25 +47,7 @@ fn table(sessions: &[Session]) -> String {
             ]
         })
         .collect();
-    let mut widths = header.map(str::len);
-    for row in &rows {
-        for (w, cell) in widths.iter_mut().zip(row) {
-            *w = (*w).max(cell.chars().count());
-        }
-    }
-    let line = |cells: &[&str]| {
-        let padded: Vec<String> = cells
-            .iter()
-            .zip(widths)
-            .map(|(c, w)| format!("{c:<w$}"))
-            .collect();
-        format!("{}\n", padded.join("  ").trim_end())
-    };
-    let mut out = line(&header);
-    for row in &rows {
-        out += &line(&row.each_ref().map(String::as_str));
-    }
-    out
+    crate::report::table::aligned(&header, &rows)
 }
 
 /// `1h02m03s`, `4m05s`, `6.1s`.

@@ -14,6 +14,24 @@ pub fn open_store(flag: Option<&Path>) -> Result<Store> {
     Store::open(&dir).with_context(|| format!("store {}", dir.display()))
 }
 
+/// A catalog listing: as JSON, or as a table, or a line saying the store has no `what`.
+pub fn print_listing<T: serde::Serialize>(
+    items: &[T],
+    json: bool,
+    store: &Store,
+    what: &str,
+    table: impl Fn(&[T]) -> String,
+) -> Result<()> {
+    if json {
+        println!("{}", serde_json::to_string_pretty(items)?);
+    } else if items.is_empty() {
+        println!("no {what} in {}", store.dir().display());
+    } else {
+        print!("{}", table(items));
+    }
+    Ok(())
+}
+
 /// A record read from a file or from a stored session, and the session if it was one.
 pub struct Input {
     pub loaded: Loaded,

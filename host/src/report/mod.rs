@@ -10,6 +10,7 @@ pub mod kalibr;
 pub mod plot;
 pub mod progress;
 pub mod table;
+pub mod yaml;
 
 use crate::analysis::fit::{NoiseFit, Term};
 use crate::analysis::pipeline::Options;

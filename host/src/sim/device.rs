@@ -32,7 +32,7 @@
 //! Not modelled: the DMP, the auxiliary I2C master, self-test, interrupt pin configuration,
 //! FIFO_EN's SLV bits, clock source selection, low-power cycle mode.
 
-use super::imu::{Imu, ImuModel, RawSample};
+use super::imu::{Imu, ImuModel, RawSample, TrueInput};
 use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
 use protocol::mpu6050::{
     DEFAULT_ADDRESS, FIFO_SIZE, RegisterValues, SensorSettings, WHO_AM_I_VALUE, reg,
@@ -112,6 +112,8 @@ pub struct SimMpu6050 {
     time_us: u64,
     faults: Faults,
     resets: u32,
+    /// The scripted input ([`Imu::set_input`]), kept across runs.
+    input: Option<TrueInput>,
     /// Byte-level bus state: the next written byte is a register pointer.
     expect_pointer: bool,
     /// Byte-level bus state: a byte was written since the last (non-repeated) start.
@@ -168,6 +170,7 @@ impl SimMpu6050 {
             expect_pointer: true,
             written_since_start: false,
             journal: None,
+            input: None,
         };
         dev.device_reset();
         dev.resets = 0;
@@ -184,6 +187,15 @@ impl SimMpu6050 {
     pub fn with_duration_hint(mut self, seconds: f64) -> Self {
         self.duration_hint_s = seconds;
         self
+    }
+
+    /// Turn and rotate the sensor (scripted procedures such as calibration): what it senses
+    /// from now on, in this run and the next ones; `None` puts it back at rest.
+    pub fn set_input(&mut self, input: Option<TrueInput>) {
+        self.input = input;
+        if let Some(run) = &mut self.run {
+            run.imu.set_input(input);
+        }
     }
 
     pub fn faults_mut(&mut self) -> &mut Faults {
@@ -296,7 +308,8 @@ impl SimMpu6050 {
             let seed = self
                 .seed
                 .wrapping_add(self.runs_started.wrapping_mul(0x9E37_79B9_7F4A_7C15));
-            let imu = Imu::new(&self.model, self.settings(), seed, self.duration_hint_s);
+            let mut imu = Imu::new(&self.model, self.settings(), seed, self.duration_hint_s);
+            imu.set_input(self.input);
             Some(Run {
                 imu,
                 start_us: self.time_us,

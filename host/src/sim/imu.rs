@@ -19,6 +19,10 @@
 //! internal sample floor(n M 1000 / f_i): above 1 kHz output the accelerometer repeats
 //! samples, as the chip does. Time of sample n is n / f_s.
 //!
+//! Scripted procedures (calibration) replace the rest state by a [`TrueInput`]: the true
+//! specific force and angular rate along the sensor's axes, taken as u in the formula above
+//! (gravity along [`GravityAxis`] and zero rate otherwise).
+//!
 //! Seeding: every axis (and the temperature noise) draws from its own ChaCha8 stream of the
 //! one seed, so a run is reproducible and the axes are independent.
 
@@ -93,6 +97,26 @@ impl std::str::FromStr for GravityAxis {
     }
 }
 
+/// The true inputs of a scripted procedure, along the sensor's own axes: the specific force
+/// (m/s^2; at rest, +g on the axis pointing up) and the angular rate (rad/s).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TrueInput {
+    pub specific_force: [f64; 3],
+    pub angular_rate: [f64; 3],
+}
+
+impl TrueInput {
+    /// At rest with `axis` pointing up (`negative`: pointing down), gravity `g` m/s^2.
+    pub fn at_rest(up: GravityAxis, g: f64) -> TrueInput {
+        let mut specific_force = [0.0; 3];
+        specific_force[up.axis] = if up.negative { -g } else { g };
+        TrueInput {
+            specific_force,
+            angular_rate: [0.0; 3],
+        }
+    }
+}
+
 /// The whole simulated sensor's physics.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ImuModel {
@@ -138,6 +162,8 @@ pub struct Imu {
     accel: [AxisChain; 3],
     temp_noise: AxisNoise,
     temp_rng: ChaCha8Rng,
+    /// The scripted input, if any (else at rest, gravity along the model's axis).
+    input: Option<TrueInput>,
     /// Next output sample index.
     n: u64,
 }
@@ -170,8 +196,16 @@ impl Imu {
             accel: chains(&model.accel, &accel_design, 3),
             temp_noise,
             temp_rng,
+            input: None,
             n: 0,
         }
+    }
+
+    /// Turn and rotate the sensor: from the next sample on, `input` is what it senses
+    /// (`None`: back at rest in the model's orientation). The DLPF sees the step as it would
+    /// a real turn.
+    pub fn set_input(&mut self, input: Option<TrueInput>) {
+        self.input = input;
     }
 
     pub fn settings(&self) -> &SensorSettings {
@@ -198,14 +232,11 @@ impl Imu {
         let internal = s.dlpf.gyro_internal_rate_hz() as u64;
         let accel_index = gyro_index * ACCEL_INTERNAL_RATE_HZ as u64 / internal;
 
-        let mut gravity = [0.0; 3];
-        gravity[self.model.gravity.axis] = if self.model.gravity.negative {
-            -STANDARD_GRAVITY
-        } else {
-            STANDARD_GRAVITY
-        };
-        let gyro_signal = deterministic(&self.model.gyro, [0.0; 3], delta);
-        let accel_signal = deterministic(&self.model.accel, gravity, delta);
+        let input = self
+            .input
+            .unwrap_or_else(|| TrueInput::at_rest(self.model.gravity, STANDARD_GRAVITY));
+        let gyro_signal = deterministic(&self.model.gyro, input.angular_rate, delta);
+        let accel_signal = deterministic(&self.model.accel, input.specific_force, delta);
         let gyro_lsb = s.gyro_range.rad_s_per_lsb();
         let accel_lsb = s.accel_range.m_s2_per_lsb();
         let gyro = [0, 1, 2].map(|i| {
@@ -281,6 +312,25 @@ mod tests {
         let raw = imu.next_raw();
         assert_eq!(raw.accel[1], -16384);
         assert!("w".parse::<GravityAxis>().is_err());
+    }
+
+    #[test]
+    fn scripted_input_goes_through_scale_misalignment_and_bias() {
+        let mut model = ImuModel::default();
+        model.gyro.bias = [0.01, 0.0, 0.0];
+        model.gyro.scale_factor = [0.0, 0.0, 0.02];
+        model.gyro.misalignment[0][2] = 0.01;
+        let mut imu = Imu::new(&model, settings(), 1, 10.0);
+        imu.set_input(Some(TrueInput {
+            specific_force: [0.0, -STANDARD_GRAVITY, 0.0],
+            angular_rate: [0.0, 0.0, 1.0],
+        }));
+        let s = imu.next_si();
+        let lsb = settings().gyro_range.rad_s_per_lsb();
+        // x: bias + M_xz (1 + s_z) w_z; z: (1 + s_z) w_z.
+        assert!((s.gyro[0] - (0.01 + 0.01 * 1.02)).abs() <= lsb / 2.0 + 1e-12);
+        assert!((s.gyro[2] - 1.02).abs() <= lsb / 2.0 + 1e-12);
+        assert_eq!(imu.next_raw().accel, [0, -16384, 0]);
     }
 
     #[test]

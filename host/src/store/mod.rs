@@ -12,6 +12,7 @@
 //! <store>/sessions/<id>.<ext>   an imported file (csv, txt, npy, ...)
 //! ```
 
+mod calibrations;
 mod catalog;
 pub mod clock;
 pub mod location;
@@ -20,6 +21,7 @@ mod schema;
 mod session;
 mod writer;
 
+pub use calibrations::{CalibrationSettings, StoredCalibration};
 pub use location::{ENV, locate};
 pub use schema::VERSION as SCHEMA_VERSION;
 pub use session::{Analysis, Board, Counts, ImportSpec, Kind, Session, State};

@@ -55,6 +55,19 @@ CREATE TABLE IF NOT EXISTS analyses (
 );
 CREATE INDEX IF NOT EXISTS analyses_session ON analyses(session_id);
 "#,
+    // Version 2: deterministic calibrations, per board (store/calibrations.rs).
+    r#"
+CREATE TABLE IF NOT EXISTS calibrations (
+    id          INTEGER PRIMARY KEY AUTOINCREMENT,
+    board_id    TEXT NOT NULL,                  -- hex, as sessions.board_id
+    created_at  TEXT NOT NULL,                  -- UTC ISO 8601
+    kind        TEXT NOT NULL CHECK (kind IN ('accel', 'gyro', 'temperature')),
+    settings    TEXT NOT NULL,                  -- JSON: rate, DLPF, ranges in force
+    sources     TEXT NOT NULL,                  -- JSON: the sessions or files it was made from
+    document    TEXT NOT NULL                   -- JSON: the calibration (calibration::Calibration)
+);
+CREATE INDEX IF NOT EXISTS calibrations_board ON calibrations(board_id);
+"#,
 ];
 
 /// The schema version this build writes.
