@@ -81,12 +81,13 @@ pub struct Capture {
     /// Bytes of a last frame that never got its closing delimiter (a capture cut short).
     pub trailing_bytes: usize,
     /// What the board said went wrong: commands it refused and faults it reported.
-    pub board_errors: Vec<BoardError>,
+    pub board_errors: Vec<BoardReport>,
 }
 
-/// A refusal or fault the board sent, at the session index reached when it arrived.
+/// A refusal or fault the board sent, at the session index reached when it arrived (not to
+/// be confused with [`crate::link::board::BoardError`], the host failing to command a board).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-pub struct BoardError {
+pub struct BoardReport {
     /// Samples the session had accounted for (received or lost) when it came.
     pub at_index: u64,
     /// The refused command's `seq`, or `None` for a fault (streaming then stopped).
@@ -94,7 +95,7 @@ pub struct BoardError {
     pub error: ErrorCode,
 }
 
-impl std::fmt::Display for BoardError {
+impl std::fmt::Display for BoardReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self.refused_seq {
             Some(seq) => write!(f, "refused command #{seq}: {}", self.error),
@@ -154,7 +155,7 @@ pub struct StreamDecoder {
     segment_start_us: u64,
     new_run: bool,
     keep_samples: bool,
-    board_errors: Vec<BoardError>,
+    board_errors: Vec<BoardReport>,
 }
 
 impl Default for StreamDecoder {
@@ -213,7 +214,7 @@ impl StreamDecoder {
     }
 
     fn board_error(&mut self, refused_seq: Option<u16>, error: ErrorCode) {
-        self.board_errors.push(BoardError {
+        self.board_errors.push(BoardReport {
             at_index: self.accounting.expected(),
             refused_seq,
             error,
@@ -283,7 +284,7 @@ impl StreamDecoder {
         &self.restarts
     }
     /// Refusals and faults so far.
-    pub fn board_errors(&self) -> &[BoardError] {
+    pub fn board_errors(&self) -> &[BoardReport] {
         &self.board_errors
     }
     /// Bytes of a frame not yet closed by its delimiter.

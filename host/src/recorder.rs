@@ -3,7 +3,7 @@
 //! samples and losses live. It ends when the source ends, the duration is reached, the user
 //! stops it (Ctrl-C: `complete`), or the link fails (`incomplete`, with the reason).
 
-use crate::capture::{BoardError, Capture, StreamDecoder};
+use crate::capture::{BoardReport, Capture, StreamDecoder};
 use crate::link::Link;
 use crate::store::{Counts, End, SessionWriter, Store, StoreError};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -46,7 +46,7 @@ pub struct Progress {
     pub samples_wanted: Option<u64>,
     pub rate_hz: Option<f64>,
     /// Refusals and faults the board sent since the previous progress report.
-    pub new_board_errors: Vec<BoardError>,
+    pub new_board_errors: Vec<BoardReport>,
 }
 
 pub struct Outcome {

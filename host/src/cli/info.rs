@@ -2,6 +2,7 @@
 //! settings in force) and its counters, after the same handshake a capture does.
 
 use crate::cli::capture::{PortSpec, VirtualBoardArgs, open_port};
+use crate::cli::show::board_counters;
 use crate::link::board::Board;
 use crate::link::replay::Speed;
 use anyhow::Result;
@@ -57,19 +58,7 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         ("streaming", info.streaming.to_string()),
         ("samples per batch", info.max_samples_per_batch.to_string()),
         ("uptime", format!("{:.3} s", status.uptime_us as f64 / 1e6)),
-        (
-            "counters",
-            format!(
-                "{} acquired, {} lost ({} FIFO overflows), {} dropped in {} batches, {} I2C errors, {} host frames rejected",
-                status.samples_acquired,
-                status.samples_lost,
-                status.fifo_overflows,
-                status.samples_dropped,
-                status.batches_dropped,
-                status.i2c_errors,
-                status.frames_rejected
-            ),
-        ),
+        ("counters", board_counters(&status)),
     ];
     for (key, value) in rows {
         println!("{key:<18} {value}");

@@ -16,7 +16,7 @@ mod replay;
 mod rm;
 mod sessions;
 pub(crate) mod settings;
-mod show;
+pub(crate) mod show;
 mod sim_device;
 mod simulate;
 mod stored;

@@ -1,7 +1,7 @@
 //! `imunoise show ID`: everything the store knows about a session: metadata, counts, the
 //! losses with their gap list (from the raw file), the stored analyses.
 
-use crate::capture::{BoardError, Capture};
+use crate::capture::{BoardReport, Capture};
 use crate::cli::sessions::{duration, rate_bandwidth};
 use crate::cli::stored::open_store;
 use crate::store::{Analysis, Kind, Session, State};
@@ -51,7 +51,7 @@ struct Losses {
     /// Bytes of an unfinished last frame.
     trailing_bytes: usize,
     /// Commands the board refused and faults it reported.
-    board_errors: Vec<BoardError>,
+    board_errors: Vec<BoardReport>,
     error: Option<String>,
 }
 
@@ -135,19 +135,7 @@ fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
         );
     }
     if let Some(b) = &c.board_status {
-        kv(
-            "board counters",
-            format!(
-                "{} acquired, {} lost ({} FIFO overflows), {} dropped in {} batches, {} I2C errors, {} host frames rejected",
-                b.samples_acquired,
-                b.samples_lost,
-                b.fifo_overflows,
-                b.samples_dropped,
-                b.batches_dropped,
-                b.i2c_errors,
-                b.frames_rejected
-            ),
-        );
+        kv("board counters", board_counters(b));
     }
     if let Some(n) = &s.notes {
         kv("notes", n.clone());
@@ -201,4 +189,18 @@ fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
         );
     }
     o
+}
+
+/// A board's cumulative counters (its Status) in one line.
+pub fn board_counters(b: &protocol::Status) -> String {
+    format!(
+        "{} acquired, {} lost ({} FIFO overflows), {} dropped in {} batches, {} I2C errors, {} host frames rejected",
+        b.samples_acquired,
+        b.samples_lost,
+        b.fifo_overflows,
+        b.samples_dropped,
+        b.batches_dropped,
+        b.i2c_errors,
+        b.frames_rejected
+    )
 }

@@ -37,10 +37,11 @@ pub fn serve(
     let mut served = 0;
     for line in input.lines() {
         let line = line?;
-        let reply = handle(device, &line);
+        let request = parse(&line);
+        let reply = answer(device, request, &line);
         if let Some(journal) = journal.as_deref_mut() {
             write_journal(&device.take_journal(), journal)?;
-            if reply.is_some() && line.starts_with('f') {
+            if matches!(request, Ok((_, Request::FlushJournal))) {
                 journal.flush()?;
             }
         }
@@ -59,7 +60,16 @@ pub fn serve(
 
 /// One request; the reply, if the request has one.
 pub fn handle(device: &mut SimMpu6050, line: &str) -> Option<String> {
-    match parse(line) {
+    answer(device, parse(line), line)
+}
+
+/// The reply to a parsed request, or the refusal of one that did not parse.
+fn answer(
+    device: &mut SimMpu6050,
+    request: Result<(u64, Request), &'static str>,
+    line: &str,
+) -> Option<String> {
+    match request {
         Ok(request) => respond(device, request),
         Err(reason) => Some(format!("! {reason}: {line:?}")),
     }

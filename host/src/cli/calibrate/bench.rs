@@ -16,7 +16,7 @@ use crate::link::Link;
 use crate::link::virtual_board::SharedSensor;
 use crate::record::Record;
 use crate::recorder::{self, RecordOptions};
-use crate::sim::imu::TrueInput;
+use crate::sim::imu::{GravityAxis, TrueInput};
 use crate::store::{Board, Store};
 use anyhow::{Context, Result, anyhow, bail};
 use protocol::SensorSettings;
@@ -216,5 +216,27 @@ impl Bench {
             }
         }
         bail!("{instruction}: no still capture in the right orientation after {ATTEMPTS} attempts")
+    }
+
+    /// [`Bench::measure`] with the board at rest in any orientation (z up on the virtual
+    /// board), both sensors still, nothing else checked.
+    pub fn measure_at_rest(
+        &mut self,
+        store: &Store,
+        seconds: f64,
+        instruction: &str,
+    ) -> Result<Record> {
+        let rest = TrueInput::at_rest(
+            GravityAxis::default(),
+            crate::calibration::gravity::STANDARD,
+        );
+        self.measure(
+            store,
+            seconds,
+            rest,
+            instruction,
+            &[Sensor::Gyro, Sensor::Accel],
+            &|_| Ok(()),
+        )
     }
 }

@@ -8,7 +8,6 @@ use crate::calibration::static_bias::{StaticBias, static_bias};
 use crate::calibration::{AXES, Calibration, Correction, Kind, Sensor};
 use crate::cli::stored::open_store;
 use crate::record::Record;
-use crate::sim::imu::{GravityAxis, TrueInput};
 use anyhow::{Result, anyhow, bail};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -47,17 +46,10 @@ pub fn run(args: &GyroArgs, store: Option<&Path>) -> Result<()> {
     let (calibration, text) = match (port, args.table_rate) {
         (Some(port), None) => {
             let mut bench = Bench::open(port, &args.board)?;
-            let rest = TrueInput::at_rest(
-                GravityAxis::default(),
-                crate::calibration::gravity::STANDARD,
-            );
-            let record = bench.measure(
+            let record = bench.measure_at_rest(
                 &catalog,
                 args.seconds,
-                rest,
                 "put the board at rest (any orientation)",
-                &[Sensor::Gyro, Sensor::Accel],
-                &|_| Ok(()),
             )?;
             provenance = Provenance::of_bench(&bench, record.rate_hz);
             solve_static(&record)?

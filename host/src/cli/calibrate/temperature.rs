@@ -8,7 +8,6 @@ use crate::calibration::{Calibration, Kind, Sensor};
 use crate::cli::calibrations::describe_calibration;
 use crate::cli::stored::open_store;
 use crate::record::Record;
-use crate::sim::imu::{GravityAxis, TrueInput};
 use anyhow::{Context, Result, anyhow};
 use std::path::{Path, PathBuf};
 
@@ -33,17 +32,10 @@ pub fn run(args: &TemperatureArgs, store: Option<&Path>) -> Result<()> {
     let record = match (port, &args.from) {
         (Some(port), _) => {
             let mut bench = Bench::open(port, &args.board)?;
-            let rest = TrueInput::at_rest(
-                GravityAxis::default(),
-                crate::calibration::gravity::STANDARD,
-            );
-            let record = bench.measure(
+            let record = bench.measure_at_rest(
                 &catalog,
                 args.seconds,
-                rest,
                 "leave the board at rest while it warms up (start right after power-on)",
-                &[Sensor::Gyro, Sensor::Accel],
-                &|_| Ok(()),
             )?;
             provenance = Provenance::of_bench(&bench, record.rate_hz);
             record
