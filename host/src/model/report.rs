@@ -1,9 +1,13 @@
 //! The workflow's outcome as JSON, as the simulator's model file (TOML), as a table, and as
-//! an HTML page with the measured curve against the simulated band at every step.
+//! an HTML page with the measured curve against the simulated band at every step, each step
+//! with its evidence: every candidate's statistic, the simulated spread and z.
 
-use super::{Comparison, GAP_ACCEPT, MIN_SHRINK, Model, Outcome, PENALTY_PER_PARAMETER};
+use super::evidence::Evidence;
+use super::{Comparison, FAMILY_ALPHA, Model, Outcome, Step};
 use crate::record::Quantity;
-use crate::report::html::escape;
+use crate::report::html::{STYLE, escape};
+use crate::report::sig;
+use crate::report::table::aligned as aligned_table;
 use crate::report::plot::{self, Figure, Line, Panel};
 use serde_json::{Value, json};
 use std::fmt::Write;
@@ -48,6 +52,15 @@ pub fn model_keys(model: &Model) -> Value {
             json!({"bias_coeff": c, "scale_coeff": 0.0}),
         );
     }
+    if let Some(c) = model.temp_rate_coeff {
+        m.insert("temperature_rate_coeff".into(), json!(c));
+    }
+    if !model.lines.is_empty() {
+        m.insert("lines".into(), json!(model.lines));
+    }
+    if let Some(f) = model.low_pass_hz {
+        m.insert("low_pass_hz".into(), json!(f));
+    }
     Value::Object(m)
 }
 
@@ -90,9 +103,10 @@ pub fn document(o: &Outcome) -> Value {
             json!({
                 "effect": s.effect,
                 "description": s.description,
+                "view": s.view,
                 "gap_before": s.gap_before,
                 "gap_after": s.gap_after,
-                "candidates": s.candidates,
+                "evidence": s.evidence,
                 "disagreeing_after": s.comparison.disagreeing,
             })
         })
@@ -103,88 +117,186 @@ pub fn document(o: &Outcome) -> Value {
         "unit": o.unit,
         "rate_hz": o.rate_hz,
         "samples": o.n,
+        "realisations": o.realisations,
+        "temperature_channel": o.temperature,
+        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms"),
         "gap_definition": "gap = RMS over the measured oadev taus of z, z = (ln ADEV_measured - mean ln ADEV_simulated) / std ln ADEV_simulated; |z| > 2 marks a disagreeing tau",
-        "rules": {
-            "gap_accept": GAP_ACCEPT,
-            "penalty_per_parameter": PENALTY_PER_PARAMETER,
-            "min_shrink": MIN_SHRINK,
-        },
         "measured": {"tau": o.measured.tau, "adev": o.measured.dev},
         "baseline": model_keys(&o.baseline),
         "baseline_fit": o.baseline_fit,
         "gap_initial": o.initial.gap,
         "initial": comparison_json(&o.initial),
+        "initial_evidence": o.initial_evidence,
         "steps": steps,
         "gap_final": o.final_comparison().gap,
         "final": comparison_json(o.final_comparison()),
-        "stop": o.stop,
-        "model": model_keys(&fin),
-        "model_toml": model_toml(o.quantity, &fin),
+        "final_evidence": o.final_evidence,
+        "stop": o.stop.to_string(),
+        "stop_detail": o.stop,
+        "model": model_keys(fin),
+        "model_toml": model_toml(o.quantity, fin),
     })
 }
 
-/// A human summary.
+/// The evidence of one round as aligned rows: candidate, view, measured statistic, the
+/// simulated mean +- sd and maximum, z, and the verdict.
+fn evidence_rows(evidence: &[Evidence], named: Option<&Step>, u: &str) -> String {
+    let rows: Vec<Vec<String>> = evidence
+        .iter()
+        .map(|e| {
+            let verdict = match (named, e.passes) {
+                (Some(s), true) if Some(s.effect) == e.effect => "named",
+                (_, true) => "passes",
+                _ => "-",
+            };
+            vec![
+                e.effect
+                    .map_or_else(|| "(none found)".to_string(), |x| x.describe(u)),
+                e.view.describe().to_string(),
+                sig(e.statistic, 4),
+                format!("{} +- {}", sig(e.sim_mean, 3), sig(e.sim_sd, 3)),
+                sig(e.sim_max, 3),
+                format!("{:.2e}", e.p_value),
+                format!("{:.2}", e.z),
+                verdict.to_string(),
+            ]
+        })
+        .collect();
+    aligned_table(
+        &[
+            "  candidate",
+            "view",
+            "statistic",
+            "simulated mean +- sd",
+            "sim max",
+            "p",
+            "z",
+            "verdict",
+        ],
+        &rows
+            .into_iter()
+            .map(|mut r| {
+                r[0] = format!("  {}", r[0]);
+                r
+            })
+            .collect::<Vec<_>>(),
+    )
+}
+
+/// The model's terms in one line, 4 significant digits.
+fn model_line(m: &Model, u: &str) -> String {
+    let t = &m.terms;
+    let mut parts = vec![
+        format!("N = {} {u}/sqrt(Hz)", sig(t.n, 4)),
+        format!("B = {} {u}", sig(t.b, 4)),
+        format!("K = {} {u}*sqrt(Hz)", sig(t.k, 4)),
+        format!("Q = {} {u}*s", sig(t.q, 4)),
+    ];
+    if let Some(g) = t.gauss_markov {
+        parts.push(format!(
+            "Gauss-Markov sigma = {} {u}, tau_c = {} s",
+            sig(g.sigma, 4),
+            sig(g.tau_c, 4)
+        ));
+    }
+    if t.r != 0.0 {
+        parts.push(format!("R = {} {u}/s", sig(t.r, 4)));
+    }
+    for l in &m.lines {
+        parts.push(format!(
+            "line {} Hz, {} {u}, {} Hz wide",
+            sig(l.freq_hz, 5),
+            sig(l.amplitude, 4),
+            sig(l.width_hz, 3)
+        ));
+    }
+    if let Some(c) = m.temp_coeff {
+        parts.push(format!("temperature {} {u}/degC", sig(c, 4)));
+    }
+    if let Some(c) = m.temp_rate_coeff {
+        parts.push(format!("d(temperature)/dt {} {u}/(degC/s)", sig(c, 4)));
+    }
+    if let Some(f) = m.low_pass_hz {
+        parts.push(format!("low-pass -3 dB at {} Hz", sig(f, 4)));
+    }
+    parts.join(", ")
+}
+
+/// A human summary: the baseline, each step with the evidence that named it, the final model.
 pub fn table(o: &Outcome) -> String {
+    let u = o.unit;
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "channel {} ({} samples at {} Hz)",
-        o.channel, o.n, o.rate_hz
+        "channel {} ({} samples at {} Hz, {} s){}; {} simulated realisations per model",
+        o.channel,
+        o.n,
+        sig(o.rate_hz, 6),
+        sig(o.n as f64 / o.rate_hz, 4),
+        o.temperature
+            .as_ref()
+            .map_or(String::new(), |t| format!(", temperature channel {t}")),
+        o.realisations
     );
+    let _ = writeln!(s, "baseline: {}", model_line(&o.baseline, u));
     let _ = writeln!(
         s,
-        "baseline: {}",
-        model_toml(o.quantity, &o.baseline).replace('\n', "; ")
+        "Allan gap of the baseline (RMS z of ln ADEV against the simulations): {}",
+        sig(o.initial.gap, 3)
     );
+    disagreeing(&mut s, &o.initial);
     let _ = writeln!(
         s,
-        "gap (RMS z of ln ADEV vs the simulations): {:.2}",
-        o.initial.gap
+        "rule: name a candidate whose p-value against the simulations is below {FAMILY_ALPHA} / (candidates) and whose statistic exceeds every simulated one (lines, ramp, temperature first)"
     );
-    for r in &o.initial.disagreeing {
-        let _ = writeln!(
-            s,
-            "  disagrees {} tau {:.3}..{:.3} s",
-            if r.sign > 0 { "above" } else { "below" },
-            r.tau_lo,
-            r.tau_hi
-        );
-    }
     for (i, st) in o.steps.iter().enumerate() {
         let _ = writeln!(
             s,
-            "step {}: add {}: gap {:.2} -> {:.2}",
+            "\nstep {}: {} (by the {}); Allan gap {} -> {}",
             i + 1,
             st.description,
-            st.gap_before,
-            st.gap_after
+            st.view.describe(),
+            sig(st.gap_before, 3),
+            sig(st.gap_after, 3)
         );
+        s.push_str(&evidence_rows(&st.evidence, Some(st), u));
     }
+    let _ = writeln!(s, "\nagainst the final model:");
+    s.push_str(&evidence_rows(&o.final_evidence, None, u));
+    disagreeing(&mut s, o.final_comparison());
     let _ = writeln!(s, "stop: {}", o.stop);
+    let _ = writeln!(s, "final model: {}", model_line(o.final_model(), u));
     let _ = write!(
         s,
-        "final model:\n{}",
-        model_toml(o.quantity, &o.final_model())
+        "as a model file:\n{}",
+        model_toml(o.quantity, o.final_model())
     );
     s
 }
 
+fn disagreeing(s: &mut String, c: &Comparison) {
+    for r in &c.disagreeing {
+        let _ = writeln!(
+            s,
+            "  measured {} the simulations at tau {} .. {} s",
+            if r.sign > 0 { "above" } else { "below" },
+            sig(r.tau_lo, 3),
+            sig(r.tau_hi, 3)
+        );
+    }
+}
+
 fn panel(o: &Outcome, title: String, c: &Comparison) -> Panel {
     let band = &c.band;
-    let lo: Vec<f64> = band
-        .mean_log
-        .iter()
-        .zip(&band.std_log)
-        .map(|(m, s)| (m - 2.0 * s).exp())
-        .collect();
-    let hi: Vec<f64> = band
-        .mean_log
-        .iter()
-        .zip(&band.std_log)
-        .map(|(m, s)| (m + 2.0 * s).exp())
-        .collect();
+    let edge = |k: f64| -> Vec<f64> {
+        band.mean_log
+            .iter()
+            .zip(&band.std_log)
+            .map(|(m, s)| (m + k * s).exp())
+            .collect()
+    };
     Panel {
-        title: format!("{title} (gap {:.2})", c.gap),
+        title: format!("{title} (Allan gap {})", sig(c.gap, 3)),
         x_label: "tau (s)".into(),
         y_label: format!("Allan deviation ({})", o.unit),
         lines: vec![
@@ -192,7 +304,7 @@ fn panel(o: &Outcome, title: String, c: &Comparison) -> Panel {
                 label: "simulated (mean, +-2 sigma of ln)".into(),
                 x: band.tau.clone(),
                 y: band.mean_log.iter().map(|m| m.exp()).collect(),
-                band: Some((lo, hi)),
+                band: Some((edge(-2.0), edge(2.0))),
                 color: 0,
                 dashed: true,
             },
@@ -208,32 +320,94 @@ fn panel(o: &Outcome, title: String, c: &Comparison) -> Panel {
     }
 }
 
-/// A self-contained HTML page: one figure per stage.
+/// The evidence of one round as an HTML table.
+fn evidence_html(page: &mut String, evidence: &[Evidence], named: Option<&Step>, u: &str) {
+    page.push_str(
+        "<table><tr><th>candidate</th><th>view</th><th>statistic</th><th>simulated mean</th>\
+         <th>simulated sd</th><th>simulated max</th><th>p</th><th>z</th><th>verdict</th></tr>\n",
+    );
+    for e in evidence {
+        let verdict = match (named, e.passes) {
+            (Some(s), true) if Some(s.effect) == e.effect => "<b>named</b>",
+            (_, true) => "passes",
+            _ => "",
+        };
+        let _ = writeln!(
+            page,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.2e}</td><td>{:.2}</td><td>{verdict}</td></tr>",
+            escape(
+                &e.effect
+                    .map_or_else(|| "(none found)".to_string(), |x| x.describe(u))
+            ),
+            e.view.describe(),
+            sig(e.statistic, 4),
+            sig(e.sim_mean, 3),
+            sig(e.sim_sd, 3),
+            sig(e.sim_max, 3),
+            e.p_value,
+            e.z
+        );
+    }
+    page.push_str("</table>\n");
+}
+
+fn figure(page: &mut String, p: Panel) -> Result<(), plot::PlotError> {
+    let svg = plot::svg_string(&Figure {
+        title: p.title.clone(),
+        panels: vec![p],
+    })?;
+    let _ = write!(page, "<div class=\"svg\">{svg}</div>");
+    Ok(())
+}
+
+/// A self-contained HTML page: the baseline, then each step with its evidence table and the
+/// measured curve against the new model's simulated band.
 pub fn html(o: &Outcome) -> Result<String, plot::PlotError> {
-    let mut stages = vec![panel(o, "baseline".into(), &o.initial)];
-    for (i, s) in o.steps.iter().enumerate() {
-        stages.push(panel(
-            o,
-            format!("step {}: + {}", i + 1, s.effect.kind()),
-            &s.comparison,
-        ));
-    }
-    let mut page = String::from(
-        "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>imunoise model</title></head><body>",
+    let u = o.unit;
+    let title = format!("imunoise model — {}", escape(&o.channel));
+    let mut page = format!(
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>\
+         <style>{STYLE}</style></head><body><h1>{title}</h1>\n"
     );
-    let _ = write!(
+    let _ = writeln!(
         page,
-        "<h1>Noise model of {}</h1><pre>{}</pre>",
-        escape(&o.channel),
-        escape(&table(o))
+        "<p>{} samples at {} Hz ({} s); {} simulated realisations per model. A candidate is named when the p-value of its statistic against the simulations of the current model is below {FAMILY_ALPHA} / (candidates in the round) and the statistic exceeds every simulated one; lines, ramp and temperature are judged before stochastic terms.</p>",
+        o.n,
+        sig(o.rate_hz, 6),
+        sig(o.n as f64 / o.rate_hz, 4),
+        o.realisations
     );
-    for p in stages {
-        let svg = plot::svg_string(&Figure {
-            title: p.title.clone(),
-            panels: vec![p],
-        })?;
-        let _ = write!(page, "<div>{svg}</div>");
+    let _ = writeln!(
+        page,
+        "<h2>Baseline</h2><p>{}</p>",
+        escape(&model_line(&o.baseline, u))
+    );
+    figure(&mut page, panel(o, "baseline".into(), &o.initial))?;
+    for (i, st) in o.steps.iter().enumerate() {
+        let _ = writeln!(
+            page,
+            "<h2>Step {}: {}</h2><p>Named by the {}. Evidence against the model before this step:</p>",
+            i + 1,
+            escape(&st.description),
+            st.view.describe()
+        );
+        evidence_html(&mut page, &st.evidence, Some(st), u);
+        figure(
+            &mut page,
+            panel(o, format!("step {}: + {}", i + 1, st.effect.kind()), &st.comparison),
+        )?;
     }
-    page.push_str("</body></html>\n");
+    let _ = writeln!(
+        page,
+        "<h2>Final model</h2><p>{}</p><p>Stop: {}</p>",
+        escape(&model_line(o.final_model(), u)),
+        escape(&o.stop.to_string())
+    );
+    evidence_html(&mut page, &o.final_evidence, None, u);
+    let _ = writeln!(
+        page,
+        "<pre>{}</pre></body></html>",
+        escape(&model_toml(o.quantity, o.final_model()))
+    );
     Ok(page)
 }

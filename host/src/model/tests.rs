@@ -1,61 +1,60 @@
-//! Records generated with [`AxisNoise`]: a baseline (white N + small K) plus one hidden
-//! effect; the workflow names it and recovers its key parameter. Run with `--release`.
+//! The workflow on families of generated records ([`super::families`]): each kind of hidden
+//! effect over several seeds, every parameter drawn from a range. The default tests are
+//! sized for CI (1 h at 10 Hz, 3 seeds per kind); `study_families` is the full study (3 h at
+//! 50 Hz, 10 seeds per kind), run with
+//! `cargo test --release -p imunoise --lib model::tests::study -- --ignored --nocapture`.
 
+use super::families::{self, Kind, Shape};
 use super::*;
-use crate::record::Channel;
-use rand::Rng;
 
-const RATE: f64 = 20.0;
-const HOURS: f64 = 1.0;
-const N: f64 = 1e-4;
-const K: f64 = 1e-7;
-
-fn record(terms: NoiseTerms, seed: u64) -> Record {
-    let n = (HOURS * 3600.0 * RATE) as usize;
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut g = AxisNoise::new(terms, RATE, n as f64 / RATE, &mut rng);
-    Record {
-        source: "test".into(),
-        rate_hz: RATE,
-        channels: vec![Channel::named("gx", g.take(n, &mut rng))],
-    }
-}
-
-fn baseline() -> NoiseTerms {
-    NoiseTerms {
-        n: N,
-        k: K,
-        ..NoiseTerms::default()
-    }
-}
+const KINDS: [Kind; 8] = [
+    Kind::None,
+    Kind::GaussMarkov,
+    Kind::SlowSinusoid,
+    Kind::Tone,
+    Kind::Ramp,
+    Kind::Temperature,
+    Kind::ToneAndRamp,
+    Kind::SlowSinusoidAndTemperature,
+];
 
 fn settings() -> Settings {
     Settings {
-        realisations: 20,
+        realisations: 24,
         seed: 1000,
     }
 }
 
-fn outcome(terms: NoiseTerms, seed: u64) -> Outcome {
-    let o = run(&record(terms, seed), None, None, &settings()).unwrap();
-    eprintln!("{}", report::table(&o));
-    o
+/// The kinds named, sorted, and the outcome.
+fn named(kind: Kind, shape: Shape, seed: u64) -> (Vec<&'static str>, Outcome) {
+    let record = families::record(kind, shape, seed);
+    let o = run(&record, Some("gx"), None, &settings()).unwrap();
+    let mut kinds: Vec<&'static str> = o.steps.iter().map(|s| s.effect.kind()).collect();
+    kinds.sort_unstable();
+    (kinds, o)
 }
 
-fn assert_named(o: &Outcome, kind: &str) -> Effect {
-    let first = o.steps.first().expect("a step");
-    assert_eq!(first.effect.kind(), kind, "{:?}", o.steps);
-    assert!(
-        first.gap_after <= 0.5 * first.gap_before,
-        "gap {} -> {}",
-        first.gap_before,
-        first.gap_after
-    );
-    first.effect
-}
-
-fn within(value: f64, truth: f64, tol: f64) -> bool {
-    (value / truth - 1.0).abs() <= tol
+/// Seeds per kind whose named effects are exactly the hidden ones.
+fn study(shape: Shape, seeds: std::ops::Range<u64>, kinds: &[Kind]) -> Vec<(Kind, usize, usize)> {
+    kinds
+        .iter()
+        .map(|&kind| {
+            let mut right = 0;
+            for seed in seeds.clone() {
+                let (got, o) = named(kind, shape, seed);
+                if got == kind.expected() {
+                    right += 1;
+                } else {
+                    eprintln!(
+                        "{kind:?} seed {seed}: named {got:?}\n{}",
+                        report::table(&o)
+                    );
+                }
+            }
+            eprintln!("{kind:?}: {right}/{} right", seeds.end - seeds.start);
+            (kind, right, (seeds.end - seeds.start) as usize)
+        })
+        .collect()
 }
 
 #[test]
@@ -70,121 +69,100 @@ fn ranges_group_runs() {
 }
 
 #[test]
-fn ramp_slope_of_a_line() {
-    let rate: Vec<f64> = (0..100).map(|i| 2.0 + 0.5 * i as f64 * 0.1).collect();
-    assert!((ramp_slope(&rate, 0.1) - 0.5).abs() < 1e-12);
-}
-
-#[test]
 fn model_toml_parses_as_a_model_file() {
     let m = Model {
         terms: NoiseTerms {
             n: 1e-4,
             k: 1e-7,
-            gauss_markov: Some(GaussMarkov {
+            gauss_markov: Some(crate::sim::noise::GaussMarkov {
                 sigma: 3e-5,
                 tau_c: 50.0,
             }),
             ..NoiseTerms::default()
         },
-        temp_coeff: None,
+        ..Model::default()
     };
     let text = report::model_toml(Quantity::AngularRate, &m);
     let parsed = crate::sim::model_file::parse(&text, std::path::Path::new("model.toml"));
     assert!(parsed.is_ok(), "{text}: {:?}", parsed.err());
 }
 
-#[test]
-fn no_hidden_effect_no_step() {
-    let o = outcome(baseline(), 11);
-    assert!(o.steps.is_empty(), "{:?}", o.steps);
-    assert!(o.initial.gap < GAP_ACCEPT);
-}
+const CI_SHAPE: Shape = Shape {
+    rate_hz: 10.0,
+    duration_s: 3600.0,
+};
 
+/// Every kind on three seeds at CI size: at most one miss per kind (the full study's 9 of 10
+/// leaves a miss in three seeds about a 27 % chance per kind; two misses in three would be a
+/// failure rate far above the study's).
 #[test]
-fn names_gauss_markov() {
-    let mut t = baseline();
-    t.gauss_markov = Some(GaussMarkov {
-        sigma: 1e-4,
-        tau_c: 5.0,
-    });
-    let o = outcome(t, 12);
-    let Effect::GaussMarkov { tau_c, .. } = assert_named(&o, "gauss_markov") else {
-        unreachable!()
-    };
-    assert!(within(tau_c, 5.0, 0.25), "tau_c {tau_c}");
-}
-
-#[test]
-fn names_sinusoid() {
-    let mut t = baseline();
-    t.sinusoid = Some(Sinusoid {
-        amplitude: 1e-4,
-        freq_hz: 0.02,
-    });
-    let o = outcome(t, 13);
-    let Effect::Sinusoid { freq_hz, amplitude } = assert_named(&o, "sinusoid") else {
-        unreachable!()
-    };
-    assert!(within(freq_hz, 0.02, 0.25), "f {freq_hz}");
-    assert!(within(amplitude, 1e-4, 0.25), "A {amplitude}");
-}
-
-#[test]
-fn names_rate_ramp() {
-    let mut t = baseline();
-    t.r = 2e-8;
-    let o = outcome(t, 14);
-    let Effect::RateRamp { slope } = assert_named(&o, "rate_ramp") else {
-        unreachable!()
-    };
-    assert!(within(slope, 2e-8, 0.25), "slope {slope}");
-}
-
-#[test]
-fn no_false_discoveries_over_seeds() {
-    for seed in 20..26 {
-        let o = run(&record(baseline(), seed), None, None, &settings()).unwrap();
-        assert!(o.steps.is_empty(), "seed {seed}: {}", report::table(&o));
+fn families_at_ci_size() {
+    let results = study(CI_SHAPE, 1..4, &KINDS);
+    for (kind, right, total) in results {
+        assert!(right + 1 >= total, "{kind:?}: {right}/{total}");
     }
 }
 
 #[test]
-fn names_temperature() {
-    let coeff = 2e-5;
-    let mut r = record(baseline(), 15);
-    let n = r.len();
-    let mut rng = ChaCha8Rng::seed_from_u64(99);
-    let temp: Vec<f64> = (0..n)
-        .map(|i| {
-            let t = i as f64 / RATE;
-            25.0 + 10.0 * (1.0 - (-t / 900.0).exp())
-                + 0.01 * rng.sample::<f64, _>(rand_distr::StandardNormal)
-        })
-        .collect();
-    let gx = &mut r.channels[0].values;
-    gx.iter_mut()
-        .zip(&temp)
-        .for_each(|(v, t)| *v += coeff * (t - 25.0));
-    r.channels.push(Channel::named("temp", temp));
-    let o = run(&r, None, Some("temp"), &settings()).unwrap();
-    eprintln!("{}", report::table(&o));
-    let Effect::Temperature { coeff: found } = assert_named(&o, "temperature") else {
-        unreachable!()
+#[ignore = "the full study: 3 h at 50 Hz, 10 seeds per kind; run with --release"]
+fn study_families() {
+    let shape = Shape {
+        rate_hz: 50.0,
+        duration_s: 3.0 * 3600.0,
     };
-    assert!(within(found, coeff, 0.25), "coeff {found}");
+    let results = study(shape, 100..110, &KINDS);
+    for (kind, right, total) in &results {
+        eprintln!("{kind:?}: {right}/{total}");
+    }
+    for (kind, right, total) in results {
+        assert!(right * 10 >= 9 * total, "{kind:?}: {right}/{total}");
+    }
 }
 
 #[test]
-fn two_effects_two_steps() {
-    let mut t = baseline();
-    t.sinusoid = Some(Sinusoid {
-        amplitude: 1e-4,
-        freq_hz: 0.02,
-    });
-    t.r = 2e-8;
-    let o = outcome(t, 16);
-    let kinds: Vec<&str> = o.steps.iter().map(|s| s.effect.kind()).collect();
-    assert_eq!(kinds, ["sinusoid", "rate_ramp"], "{:?}", o.steps);
-    assert!(o.final_comparison().gap < GAP_ACCEPT);
+#[ignore]
+fn debug_study() {
+    let kinds: Vec<Kind> = std::env::var("KINDS").unwrap_or_default().split(',').filter_map(|k| KINDS.iter().copied().find(|x| format!("{x:?}") == k)).collect();
+    let hours: f64 = std::env::var("HOURS").ok().and_then(|s| s.parse().ok()).unwrap_or(3.0);
+    let rate: f64 = std::env::var("RATE").ok().and_then(|s| s.parse().ok()).unwrap_or(50.0);
+    let seeds: u64 = std::env::var("SEEDS").ok().and_then(|s| s.parse().ok()).unwrap_or(5);
+    let shape = Shape { rate_hz: rate, duration_s: hours * 3600.0 };
+    study(shape, 100..100 + seeds, &kinds);
+}
+
+#[test]
+#[ignore]
+fn debug_one() {
+    let kind = KINDS.iter().copied().find(|x| format!("{x:?}") == std::env::var("KIND").unwrap_or_default()).unwrap_or(Kind::None);
+    let seed: u64 = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+    let hours: f64 = std::env::var("HOURS").ok().and_then(|s| s.parse().ok()).unwrap_or(1.0);
+    let rate: f64 = std::env::var("RATE").ok().and_then(|s| s.parse().ok()).unwrap_or(10.0);
+    let shape = Shape { rate_hz: rate, duration_s: hours * 3600.0 };
+    let (_, o) = named(kind, shape, seed);
+    eprintln!("{}", report::table(&o));
+    eprintln!("{:?}", o.baseline_fit);
+    let last = o.final_comparison();
+    for s in &o.steps { eprintln!("{:?}", s.model); }
+    for (i, t) in o.measured.tau.iter().enumerate() {
+        eprintln!("{t:10.3} {:.4e} base {:.4e} {:.3} final {:.4e} {:.3} edf {:.1}", o.measured.dev[i], o.initial.band.mean_log[i].exp(), o.initial.band.std_log[i], last.band.mean_log[i].exp(), last.band.std_log[i], 0.0);
+    }
+}
+
+#[test]
+#[ignore]
+fn debug_flicker_shape() {
+    let rate = 50.0;
+    let n = (3.0 * 3600.0 * rate) as usize;
+    let terms = NoiseTerms { b: 1.0, ..NoiseTerms::default() };
+    let m: Vec<usize> = [1usize, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000, 50000].to_vec();
+    let mut acc = vec![0.0; m.len()];
+    let reps = 8;
+    for seed in 0..reps {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut g = AxisNoise::new(terms, rate, n as f64 / rate, &mut rng);
+        let y = g.take(n, &mut rng);
+        let a = evidence::allan_avar(y, rate, &m);
+        for (s, v) in acc.iter_mut().zip(a) { *s += v / reps as f64; }
+    }
+    for (mm, a) in m.iter().zip(acc) { eprintln!("tau {:8.2} avar/B^2 {:.4} (flat {:.4})", *mm as f64 / rate, a, 2.0 * 2f64.ln() / std::f64::consts::PI); }
 }

@@ -8,6 +8,12 @@ use crate::analysis::units::{self, SensorKind};
 use crate::record::Record;
 use std::fmt::Write;
 
+/// The stylesheet every report page shares.
+pub const STYLE: &str = "body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}\
+    table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .6em;text-align:right}\
+    th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}.svg svg{max-width:100%;height:auto}\
+    pre{background:#f7f7f7;padding:1em;overflow-x:auto}.warn{color:#a40}";
+
 pub fn page(
     record: &Record,
     options: &Options,
@@ -18,10 +24,7 @@ pub fn page(
     let _ = write!(
         h,
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>\
-         <style>body{{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}}\
-         table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:.3em .6em;text-align:right}}\
-         th{{background:#f3f3f3}}td:first-child,th:first-child{{text-align:left}}.svg svg{{max-width:100%;height:auto}}\
-         pre{{background:#f7f7f7;padding:1em;overflow-x:auto}}</style></head><body>\n<h1>{title}</h1>\n"
+         <style>{STYLE}</style></head><body>\n<h1>{title}</h1>\n"
     );
     let _ = writeln!(
         h,

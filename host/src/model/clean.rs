@@ -1,0 +1,269 @@
+//! Removing the deterministic effects already named — spectral lines, a rate ramp, a
+//! temperature coupling — from a series. The same [`Removal`] is applied to the measured
+//! record and to every simulated realisation, so a statistic computed after it has the same
+//! meaning on both (what the removal itself takes out of pure noise is part of the simulated
+//! spread).
+//!
+//! **Lines** are notched: the full-record real FFT's bins inside each line's band are set to
+//! zero and the series transformed back. A notch of total width W Hz removes the fraction
+//! `W / (rate / 2)` of white noise too; the simulated realisations lose the same.
+//!
+//! **Regressors** (a constant always; time for a ramp; the centred temperature and its
+//! derivative for a temperature coupling) are removed jointly by ordinary least squares, on
+//! the notched series, through the normal equations of the centred, unit-norm columns.
+
+use crate::analysis::fit::householder_solve;
+use realfft::RealFftPlanner;
+
+/// The temperature channel as regressors: centred, and its time derivative.
+#[derive(Debug, Clone)]
+pub struct Temperature {
+    /// Temperature minus its mean, degC.
+    pub centred: Vec<f64>,
+    /// d(temperature)/dt, degC/s, from a centred difference of the temperature smoothed over
+    /// [`DERIVATIVE_WINDOW_S`] (the channel's own quantisation would otherwise dominate).
+    pub derivative: Vec<f64>,
+}
+
+/// Smoothing window of the temperature derivative, s: couplings through the rate of change
+/// of temperature act on thermal time scales (minutes), far longer than this.
+pub const DERIVATIVE_WINDOW_S: f64 = 30.0;
+
+impl Temperature {
+    pub fn new(values: &[f64], rate_hz: f64) -> Temperature {
+        let n = values.len();
+        let mean = values.iter().sum::<f64>() / n.max(1) as f64;
+        let centred: Vec<f64> = values.iter().map(|v| v - mean).collect();
+        let half = ((DERIVATIVE_WINDOW_S * rate_hz / 2.0).round() as usize).max(1);
+        let smooth = moving_average(&centred, half);
+        let derivative = (0..n)
+            .map(|i| {
+                let lo = i.saturating_sub(half);
+                let hi = (i + half).min(n.saturating_sub(1));
+                if hi > lo {
+                    (smooth[hi] - smooth[lo]) * rate_hz / (hi - lo) as f64
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        Temperature {
+            centred,
+            derivative,
+        }
+    }
+}
+
+/// Centred moving average over `2 half + 1` samples (shorter at the ends).
+fn moving_average(x: &[f64], half: usize) -> Vec<f64> {
+    let mut prefix = Vec::with_capacity(x.len() + 1);
+    prefix.push(0.0);
+    for v in x {
+        prefix.push(prefix.last().copied().unwrap_or(0.0) + v);
+    }
+    (0..x.len())
+        .map(|i| {
+            let lo = i.saturating_sub(half);
+            let hi = (i + half + 1).min(x.len());
+            (prefix[hi] - prefix[lo]) / (hi - lo) as f64
+        })
+        .collect()
+}
+
+/// A frequency band to notch, Hz.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Notch {
+    pub lo_hz: f64,
+    pub hi_hz: f64,
+}
+
+/// What to remove from a series.
+#[derive(Debug, Clone, Default)]
+pub struct Removal {
+    pub ramp: bool,
+    pub temperature: bool,
+    pub notches: Vec<Notch>,
+}
+
+/// Least-squares coefficients of the regressors, in the series' unit u: `slope` u/s,
+/// `temp` u/degC, `temp_rate` u/(degC/s).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Coefficients {
+    pub slope: Option<f64>,
+    pub temp: Option<f64>,
+    pub temp_rate: Option<f64>,
+}
+
+impl Removal {
+    /// `x` with the notches and the regressors removed, and the regressors' coefficients.
+    pub fn apply(
+        &self,
+        x: &[f64],
+        rate_hz: f64,
+        temperature: Option<&Temperature>,
+    ) -> (Vec<f64>, Coefficients) {
+        let mut y = if self.notches.is_empty() {
+            x.to_vec()
+        } else {
+            notch(x, rate_hz, &self.notches)
+        };
+        let coefficients = self.regress_out(&mut y, rate_hz, temperature);
+        (y, coefficients)
+    }
+
+    /// Remove the constant and the chosen regressors from `y` in place.
+    fn regress_out(
+        &self,
+        y: &mut [f64],
+        rate_hz: f64,
+        temperature: Option<&Temperature>,
+    ) -> Coefficients {
+        let n = y.len();
+        let time: Vec<f64>;
+        let mut columns: Vec<&[f64]> = Vec::new();
+        if self.ramp {
+            time = (0..n).map(|i| i as f64 / rate_hz).collect();
+            columns.push(&time);
+        }
+        let temp = temperature.filter(|_| self.temperature);
+        if let Some(t) = temp {
+            columns.push(&t.centred);
+            columns.push(&t.derivative);
+        }
+        let mean_y = y.iter().sum::<f64>() / n.max(1) as f64;
+        y.iter_mut().for_each(|v| *v -= mean_y);
+        if columns.is_empty() {
+            return Coefficients::default();
+        }
+        // Centred columns scaled to unit norm: the normal equations stay well conditioned
+        // whatever the units (seconds against degrees).
+        let means: Vec<f64> = columns
+            .iter()
+            .map(|c| c.iter().sum::<f64>() / n as f64)
+            .collect();
+        let norms: Vec<f64> = columns
+            .iter()
+            .zip(&means)
+            .map(|(c, m)| {
+                c.iter()
+                    .map(|v| (v - m) * (v - m))
+                    .sum::<f64>()
+                    .sqrt()
+                    .max(f64::MIN_POSITIVE)
+            })
+            .collect();
+        let p = columns.len();
+        let scaled = |j: usize, i: usize| (columns[j][i] - means[j]) / norms[j];
+        let mut gram = vec![vec![0.0; p]; p];
+        let mut rhs = vec![0.0; p];
+        for i in 0..n {
+            for j in 0..p {
+                let a = scaled(j, i);
+                rhs[j] += a * y[i];
+                for (k, g) in gram[j].iter_mut().enumerate().take(j + 1) {
+                    *g += a * scaled(k, i);
+                }
+            }
+        }
+        for j in 0..p {
+            for k in j + 1..p {
+                gram[j][k] = gram[k][j];
+            }
+        }
+        let beta = householder_solve(&mut gram, &mut rhs);
+        for (i, v) in y.iter_mut().enumerate() {
+            *v -= (0..p).map(|j| beta[j] * scaled(j, i)).sum::<f64>();
+        }
+        let coeff = |j: usize| beta[j] / norms[j];
+        let mut out = Coefficients::default();
+        let mut j = 0;
+        if self.ramp {
+            out.slope = Some(coeff(j));
+            j += 1;
+        }
+        if temp.is_some() {
+            out.temp = Some(coeff(j));
+            out.temp_rate = Some(coeff(j + 1));
+        }
+        out
+    }
+}
+
+/// `x` with the real-FFT bins inside any notch set to zero (the record's own resolution,
+/// `rate / len` Hz per bin).
+pub fn notch(x: &[f64], rate_hz: f64, notches: &[Notch]) -> Vec<f64> {
+    let n = x.len();
+    if n < 4 {
+        return x.to_vec();
+    }
+    let mut planner = RealFftPlanner::<f64>::new();
+    let forward = planner.plan_fft_forward(n);
+    let inverse = planner.plan_fft_inverse(n);
+    let mut input = x.to_vec();
+    let mut spectrum = forward.make_output_vec();
+    if forward.process(&mut input, &mut spectrum).is_err() {
+        return x.to_vec();
+    }
+    let df = rate_hz / n as f64;
+    for (k, c) in spectrum.iter_mut().enumerate() {
+        let f = k as f64 * df;
+        if notches.iter().any(|b| f >= b.lo_hz && f <= b.hi_hz) {
+            *c = realfft::num_complex::Complex::new(0.0, 0.0);
+        }
+    }
+    // The inverse needs a real DC (and Nyquist, for even n) bin; zeroing kept them real.
+    let mut out = inverse.make_output_vec();
+    if inverse.process(&mut spectrum, &mut out).is_err() {
+        return x.to_vec();
+    }
+    out.iter_mut().for_each(|v| *v /= n as f64);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regression_recovers_slope_and_temperature() {
+        let rate = 10.0;
+        let n = 20_000;
+        let temps: Vec<f64> = (0..n)
+            .map(|i| 25.0 + 3.0 * (i as f64 / 5000.0).sin())
+            .collect();
+        let t = Temperature::new(&temps, rate);
+        let x: Vec<f64> = (0..n)
+            .map(|i| 1.0 + 2e-4 * i as f64 / rate + 5e-3 * t.centred[i])
+            .collect();
+        let removal = Removal {
+            ramp: true,
+            temperature: true,
+            notches: vec![],
+        };
+        let (y, c) = removal.apply(&x, rate, Some(&t));
+        assert!((c.slope.unwrap() - 2e-4).abs() < 1e-10, "{c:?}");
+        assert!((c.temp.unwrap() - 5e-3).abs() < 1e-9, "{c:?}");
+        assert!(c.temp_rate.unwrap().abs() < 1e-6, "{c:?}");
+        assert!(y.iter().all(|v| v.abs() < 1e-9));
+    }
+
+    #[test]
+    fn notch_removes_a_tone_and_keeps_the_rest() {
+        let rate = 100.0;
+        let n = 10_000;
+        let tone = |i: usize| (2.0 * std::f64::consts::PI * 12.5 * i as f64 / rate).sin();
+        let slow = |i: usize| (2.0 * std::f64::consts::PI * 0.3 * i as f64 / rate).cos();
+        let x: Vec<f64> = (0..n).map(|i| tone(i) + slow(i)).collect();
+        let y = notch(
+            &x,
+            rate,
+            &[Notch {
+                lo_hz: 12.0,
+                hi_hz: 13.0,
+            }],
+        );
+        for (i, v) in y.iter().enumerate() {
+            assert!((v - slow(i)).abs() < 1e-9, "{i}: {v}");
+        }
+    }
+}

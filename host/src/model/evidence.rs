@@ -1,0 +1,270 @@
+//! The views in which a missing effect shows, each computed by one function on the measured
+//! record and on every simulated realisation of the current model, and standardised against
+//! the simulated spread.
+//!
+//! | candidate | view | statistic on a series s |
+//! |---|---|---|
+//! | spectral line | line detector on the cleaned series | the strongest line's detection statistic |
+//! | rate ramp | regression on time | Allan drop: `sum_i ln(AVAR_i(clean s) / AVAR_i(clean s - fitted ramp))` |
+//! | temperature | regression on temperature and its derivative | Allan drop, as for the ramp |
+//! | Gauss-Markov, B, K, Q | nested fit of the Allan curve | misfit(model) - misfit(model + term), both refitted |
+//!
+//! "Clean s" is s with the effects already named removed ([`super::clean`]). The Allan drop
+//! measures how much of the curve a regressor explains: a regressor that the data follow
+//! removes most of the long-tau variance, while on pure noise (a random walk that happens to
+//! trend, a temperature that happens to correlate) it removes a fraction the simulations
+//! reproduce. Because the null spread comes from simulating the current model, a baseline
+//! that absorbed an effect into K, B or R does not hide it: the absorbed random walk's
+//! realisations do not follow the regressor, the record does.
+//!
+//! **Standardisation.** `z = (statistic_measured - mean_sim) / sd_sim` over the realisations.
+
+use super::clean::{Removal, Temperature};
+use super::refit::{self, Column, Curve, WhiteShape};
+use super::{Effect, Line};
+use crate::analysis::{Estimator, allan, into_phase};
+use crate::sim::noise::NoiseTerms;
+use serde::Serialize;
+use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
+
+/// Which view a candidate is judged in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum View {
+    /// The spectral-line detector.
+    Lines,
+    /// Allan drop when the series is regressed on time.
+    RegressionOnTime,
+    /// Allan drop when the series is regressed on temperature and its derivative.
+    RegressionOnTemperature,
+    /// Misfit drop of the Allan curve when the term joins the model.
+    NestedFit,
+}
+
+impl View {
+    pub fn describe(self) -> &'static str {
+        match self {
+            View::Lines => "line detector",
+            View::RegressionOnTime => "Allan drop, rate on time",
+            View::RegressionOnTemperature => "Allan drop, rate on temperature",
+            View::NestedFit => "Allan misfit drop",
+        }
+    }
+
+    /// Deterministic views are judged before the stochastic terms that could absorb them.
+    pub fn is_deterministic(self) -> bool {
+        !matches!(self, View::NestedFit)
+    }
+}
+
+/// A candidate slot: what is tested, in which view.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Probe {
+    Line,
+    Ramp,
+    Temperature,
+    GaussMarkov,
+    Term(Column),
+}
+
+impl Probe {
+    pub fn view(self) -> View {
+        match self {
+            Probe::Line => View::Lines,
+            Probe::Ramp => View::RegressionOnTime,
+            Probe::Temperature => View::RegressionOnTemperature,
+            Probe::GaussMarkov | Probe::Term(_) => View::NestedFit,
+        }
+    }
+}
+
+/// Everything a statistic needs besides the series.
+pub struct Context<'a> {
+    pub rate_hz: f64,
+    pub m: &'a [usize],
+    pub tau: &'a [f64],
+    /// Standard deviation of ln AVAR per tau over the realisations (the refits' weights).
+    pub sd_ln: &'a [f64],
+    pub temperature: Option<&'a Temperature>,
+    pub removal: &'a Removal,
+    /// The current model's stochastic terms (the columns refitted).
+    pub terms: &'a NoiseTerms,
+    pub white: WhiteShape<'a>,
+    /// Correlation times a Gauss-Markov candidate may take, s.
+    pub gauss_markov_range: (f64, f64),
+    pub lines: &'a (dyn Fn(&[f64], f64) -> Vec<Line> + Sync),
+}
+
+/// Overlapping AVAR of a rate series on the context's averaging factors.
+pub fn avar(rate: Vec<f64>, ctx: &Context) -> Vec<f64> {
+    allan_avar(rate, ctx.rate_hz, ctx.m)
+}
+
+/// Overlapping AVAR of a rate series at `rate_hz` on the averaging factors `m`.
+pub fn allan_avar(rate: Vec<f64>, rate_hz: f64, m: &[usize]) -> Vec<f64> {
+    let tau0 = 1.0 / rate_hz;
+    allan::deviation(Estimator::Oadev, &into_phase(rate, tau0), tau0, m)
+        .dev
+        .iter()
+        .map(|d| d * d)
+        .collect()
+}
+
+/// `sum_i ln(a_i / b_i)` over the points where both are positive.
+fn log_drop(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .filter(|(x, y)| **x > 0.0 && **y > 0.0)
+        .map(|(x, y)| (x / y).ln())
+        .sum()
+}
+
+/// Each probe's statistic on `series`, with the effect it estimates.
+pub fn statistics(series: &[f64], probes: &[Probe], ctx: &Context) -> Vec<(f64, Option<Effect>)> {
+    let (clean, _) = ctx.removal.apply(series, ctx.rate_hz, ctx.temperature);
+    let base_avar = avar(clean.clone(), ctx);
+    let curve = Curve {
+        tau: ctx.tau,
+        avar: &base_avar,
+        sd_ln: ctx.sd_ln,
+    };
+    let base_columns = refit::columns_of(ctx.terms);
+    let base_misfit = || {
+        let terms = refit::refit(curve, &base_columns, ctx.white);
+        refit::misfit(curve, &terms, ctx.white)
+    };
+    probes
+        .iter()
+        .map(|probe| match *probe {
+            Probe::Line => {
+                let found = (ctx.lines)(&clean, ctx.rate_hz);
+                let strongest = found
+                    .into_iter()
+                    .max_by(|a, b| a.statistic.total_cmp(&b.statistic));
+                match strongest {
+                    Some(l) => (l.statistic, Some(Effect::from_line(&l))),
+                    None => (0.0, None),
+                }
+            }
+            Probe::Ramp | Probe::Temperature => {
+                let mut more = ctx.removal.clone();
+                if *probe == Probe::Ramp {
+                    more.ramp = true;
+                } else {
+                    more.temperature = true;
+                }
+                let (cleaner, c) = more.apply(series, ctx.rate_hz, ctx.temperature);
+                let drop = log_drop(&base_avar, &avar(cleaner, ctx));
+                let effect = if *probe == Probe::Ramp {
+                    c.slope.map(|slope| Effect::RateRamp { slope })
+                } else {
+                    c.temp.map(|coeff| Effect::Temperature {
+                        coeff,
+                        rate_coeff: c.temp_rate.unwrap_or(0.0),
+                    })
+                };
+                (drop, effect)
+            }
+            Probe::GaussMarkov => {
+                let (lo, hi) = ctx.gauss_markov_range;
+                match refit::best_gauss_markov(curve, &base_columns, lo, hi, ctx.white) {
+                    Some((terms, m)) => (
+                        base_misfit() - m,
+                        terms.gauss_markov.map(|g| Effect::GaussMarkov {
+                            tau_c: g.tau_c,
+                            sigma: g.sigma,
+                        }),
+                    ),
+                    None => (0.0, None),
+                }
+            }
+            Probe::Term(column) => {
+                let mut with = base_columns.clone();
+                with.push(column);
+                let terms = refit::refit(curve, &with, ctx.white);
+                let effect = match column {
+                    Column::Q => (terms.q > 0.0).then_some(Effect::Quantization { q: terms.q }),
+                    Column::B => {
+                        (terms.b > 0.0).then_some(Effect::BiasInstability { b: terms.b })
+                    }
+                    Column::K => (terms.k > 0.0).then_some(Effect::RateRandomWalk { k: terms.k }),
+                    Column::N | Column::GaussMarkov(_) => None,
+                };
+                (base_misfit() - refit::misfit(curve, &terms, ctx.white), effect)
+            }
+        })
+        .collect()
+}
+
+/// A probe's measured statistic against its simulated spread.
+///
+/// **p-value.** Every statistic is a drop (of Allan variance or of misfit) that pure noise
+/// makes small and positive, with a long right tail: a nested-model improvement is
+/// chi-square distributed in the classical case. So the simulated values (clamped at 0) are
+/// matched by a scaled chi-square `s chi2_k` with the same mean and variance
+/// (Satterthwaite, 1946: `k = 2 mean^2 / var`, `s = var / (2 mean)`), and `p = P(s chi2_k >
+/// measured)`. `z` is the standard normal quantile of `1 - p`. When every simulated value
+/// is 0 (a line detector that found nothing in any realisation), the measured statistic
+/// stands on the detector's own false-alarm control: p is 0 if it found a line, else 1.
+#[derive(Debug, Clone, Serialize)]
+pub struct Evidence {
+    pub view: View,
+    /// The effect the measured record's statistic estimates (none when the view found none).
+    pub effect: Option<Effect>,
+    pub statistic: f64,
+    pub sim_mean: f64,
+    pub sim_sd: f64,
+    pub sim_max: f64,
+    pub p_value: f64,
+    pub z: f64,
+    /// The p-value a candidate must be below to be named in its round:
+    /// [`super::FAMILY_ALPHA`] over the candidates tried (Bonferroni).
+    pub p_needed: f64,
+    /// Whether it passes the naming rule ([`super::names`]).
+    pub passes: bool,
+}
+
+impl Evidence {
+    pub fn new(
+        view: View,
+        measured: (f64, Option<Effect>),
+        simulated: &[f64],
+        candidates: usize,
+    ) -> Evidence {
+        let clamped: Vec<f64> = simulated.iter().map(|v| v.max(0.0)).collect();
+        let r = clamped.len().max(1) as f64;
+        let mean = clamped.iter().sum::<f64>() / r;
+        let var = clamped.iter().map(|v| (v - mean).powi(2)).sum::<f64>()
+            / (clamped.len().max(2) - 1) as f64;
+        let max = simulated.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let (statistic, effect) = measured;
+        let p_value = if mean > 0.0 && var > 0.0 {
+            let k = 2.0 * mean * mean / var;
+            let scale = var / (2.0 * mean);
+            match ChiSquared::new(k) {
+                Ok(chi) => chi.sf(statistic.max(0.0) / scale),
+                Err(_) => 1.0,
+            }
+        } else if statistic > 0.0 {
+            0.0
+        } else {
+            1.0
+        };
+        let z = Normal::standard()
+            .inverse_cdf((1.0 - p_value).clamp(0.0, 1.0 - 1e-300))
+            .clamp(-40.0, 40.0);
+        let p_needed = super::FAMILY_ALPHA / candidates.max(1) as f64;
+        Evidence {
+            view,
+            effect,
+            statistic,
+            sim_mean: mean,
+            sim_sd: var.sqrt(),
+            sim_max: max,
+            p_value,
+            z,
+            p_needed,
+            passes: super::names(statistic, p_value, p_needed, max) && effect.is_some(),
+        }
+    }
+}

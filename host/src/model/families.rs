@@ -1,0 +1,229 @@
+//! Families of hidden-effect records for testing the workflow: a baseline of white noise,
+//! flicker (B) and rate random walk (K) with terms drawn from ranges, plus zero, one or two
+//! effects with parameters drawn from ranges. Every draw comes from the record's seed, so a
+//! family is many different records, not one case tuned to pass.
+//!
+//! Effect strengths are set relative to the baseline where the effect shows, by a factor f
+//! drawn from [`RAISE`]: the Allan deviation at the effect's own tau is raised f times over
+//! the baseline's (slow sinusoid, Gauss-Markov, ramp, temperature), or a line's excess
+//! one-sided PSD is `rho` times the white level (tones).
+
+use crate::record::{Channel, Record};
+use crate::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms, Sinusoid, gauss_markov_avar};
+use crate::sim::noise::sinusoid_avar;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use std::f64::consts::PI;
+
+/// Range of the factor by which an effect raises the Allan deviation where it shows.
+pub const RAISE: (f64, f64) = (1.7, 3.0);
+
+/// What is hidden in a record.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    None,
+    /// Gauss-Markov with tau_c 1-10 % of the record (minutes): the baseline's B can absorb it.
+    GaussMarkov,
+    /// A sinusoid with a period of 5-20 % of the record.
+    SlowSinusoid,
+    /// A line between 0.1 and 0.45 x the sample rate, 0 to 1 Hz wide.
+    Tone,
+    /// A ramp over the whole record.
+    Ramp,
+    /// A temperature coupling: a warm-up of a few degC plus slow cycles, channel given.
+    Temperature,
+    /// A tone and a ramp.
+    ToneAndRamp,
+    /// A slow sinusoid and a temperature coupling.
+    SlowSinusoidAndTemperature,
+}
+
+impl Kind {
+    /// The effect kinds the workflow should name, sorted.
+    pub fn expected(self) -> Vec<&'static str> {
+        let mut v = match self {
+            Kind::None => vec![],
+            Kind::GaussMarkov => vec!["gauss_markov"],
+            Kind::SlowSinusoid | Kind::Tone => vec!["sinusoid"],
+            Kind::Ramp => vec!["rate_ramp"],
+            Kind::Temperature => vec!["temperature"],
+            Kind::ToneAndRamp => vec!["rate_ramp", "sinusoid"],
+            Kind::SlowSinusoidAndTemperature => vec!["sinusoid", "temperature"],
+        };
+        v.sort_unstable();
+        v
+    }
+}
+
+/// Record shape: rate (Hz) and length (s).
+#[derive(Debug, Clone, Copy)]
+pub struct Shape {
+    pub rate_hz: f64,
+    pub duration_s: f64,
+}
+
+fn uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+    lo + (hi - lo) * rng.random::<f64>()
+}
+
+fn log_uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+    (uniform(rng, lo.ln(), hi.ln())).exp()
+}
+
+/// The baseline's AVAR at `tau` (IEEE 952 Table C.1).
+fn baseline_avar(t: &NoiseTerms, tau: f64) -> f64 {
+    t.n * t.n / tau + 2.0 * 2f64.ln() / PI * t.b * t.b + t.k * t.k * tau / 3.0
+}
+
+/// A record of `kind` with everything drawn from `seed`; the channel is `gx` (rad/s), plus
+/// `temp` (degC) for the temperature kinds.
+pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let n = (shape.rate_hz * shape.duration_s) as usize;
+    let tau0 = 1.0 / shape.rate_hz;
+    let t_rec = shape.duration_s;
+    let n_density = log_uniform(&mut rng, 5e-5, 5e-4);
+    // Flicker floor from 1 % to 4 % of N's Allan deviation at 1 s... crossing N around
+    // 30-600 s; the random walk crossing N at a tenth to a third of the record.
+    let b = n_density * log_uniform(&mut rng, 0.03, 0.12);
+    let tau_k = t_rec * uniform(&mut rng, 0.1, 0.3);
+    let k = 3f64.sqrt() * n_density / tau_k;
+    let mut terms = NoiseTerms {
+        n: n_density,
+        b,
+        k,
+        ..NoiseTerms::default()
+    };
+    let raise = |rng: &mut ChaCha8Rng| {
+        let f = uniform(rng, RAISE.0, RAISE.1);
+        f * f - 1.0
+    };
+    let mut extra: Vec<Box<dyn Fn(f64) -> f64>> = Vec::new();
+    let mut temp_channel: Option<Vec<f64>> = None;
+    let has = |k: Kind| kind == k;
+    if has(Kind::GaussMarkov) {
+        let tau_c = t_rec * log_uniform(&mut rng, 0.01, 0.1);
+        // The GM Allan variance peaks near tau = 1.89 tau_c.
+        let peak_tau = 1.89 * tau_c;
+        let unit = gauss_markov_avar(
+            GaussMarkov {
+                sigma: 1.0,
+                tau_c,
+            },
+            peak_tau,
+        );
+        let sigma = (raise(&mut rng) * baseline_avar(&terms, peak_tau) / unit).sqrt();
+        terms.gauss_markov = Some(GaussMarkov { sigma, tau_c });
+    }
+    if has(Kind::SlowSinusoid) || has(Kind::SlowSinusoidAndTemperature) {
+        let period = t_rec * uniform(&mut rng, 0.05, 0.2);
+        let freq_hz = 1.0 / period;
+        // A sinusoid's Allan variance peaks at tau = 0.371 / f.
+        let peak_tau = 0.371 * period;
+        let unit = sinusoid_avar(
+            Sinusoid {
+                amplitude: 1.0,
+                freq_hz,
+            },
+            peak_tau,
+        );
+        let amplitude = (raise(&mut rng) * baseline_avar(&terms, peak_tau) / unit).sqrt();
+        let phase = uniform(&mut rng, 0.0, 2.0 * PI);
+        extra.push(Box::new(move |t| {
+            amplitude * (2.0 * PI * freq_hz * t + phase).sin()
+        }));
+    }
+    let mut tone: Option<(f64, f64, f64)> = None;
+    if has(Kind::Tone) || has(Kind::ToneAndRamp) {
+        let freq_hz = shape.rate_hz * uniform(&mut rng, 0.1, 0.45);
+        let width_hz = if rng.random::<f64>() < 0.3 {
+            0.0
+        } else {
+            uniform(&mut rng, 0.05, 1.0)
+        };
+        let rho = log_uniform(&mut rng, 10.0, 50.0);
+        // Excess one-sided PSD rho x 2 N^2 over the line's width (at least one bin); a
+        // Lorentzian of FWHM w has peak 2 P / (pi w) for power P.
+        let effective = width_hz.max(1.0 / t_rec);
+        let power = rho * 2.0 * n_density * n_density * PI * effective / 2.0;
+        tone = Some((freq_hz, width_hz, power));
+    }
+    if has(Kind::Ramp) || has(Kind::ToneAndRamp) {
+        let tau = t_rec / 4.0;
+        let slope = (raise(&mut rng) * baseline_avar(&terms, tau) * 2.0 / (tau * tau)).sqrt()
+            * if rng.random::<bool>() { 1.0 } else { -1.0 };
+        extra.push(Box::new(move |t| slope * t));
+    }
+    if has(Kind::Temperature) || has(Kind::SlowSinusoidAndTemperature) {
+        let rise = uniform(&mut rng, 2.0, 6.0);
+        let warm = uniform(&mut rng, 600.0, 2400.0);
+        let swing = uniform(&mut rng, 0.5, 2.0);
+        let cycle = t_rec * uniform(&mut rng, 0.15, 0.4);
+        let start = uniform(&mut rng, 20.0, 30.0);
+        let temp = move |t: f64| {
+            start + rise * (1.0 - (-t / warm).exp()) + swing * (2.0 * PI * t / cycle).sin()
+        };
+        let tau = t_rec / 8.0;
+        // The coupling's Allan variance at tau is about coeff^2 times the temperature's.
+        let temp_avar = {
+            let m = (tau / tau0) as usize;
+            let means: Vec<f64> = (0..n / m)
+                .map(|j| (0..m).map(|i| temp((j * m + i) as f64 * tau0)).sum::<f64>() / m as f64)
+                .collect();
+            means.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>()
+                / (2.0 * (means.len() - 1).max(1) as f64)
+        };
+        let coeff = (raise(&mut rng) * baseline_avar(&terms, tau) / temp_avar).sqrt()
+            * if rng.random::<bool>() { 1.0 } else { -1.0 };
+        let mut noise = ChaCha8Rng::seed_from_u64(seed ^ 0x7e3);
+        temp_channel = Some(
+            (0..n)
+                .map(|i| {
+                    let v = temp(i as f64 * tau0) + 0.02 * noise.sample::<f64, _>(StandardNormal);
+                    (v * 340.0).round() / 340.0
+                })
+                .collect(),
+        );
+        extra.push(Box::new(move |t| coeff * (temp(t) - start)));
+    }
+    let mut generator = AxisNoise::new(terms, shape.rate_hz, t_rec, &mut rng);
+    let mut values = generator.take(n, &mut rng);
+    for (i, v) in values.iter_mut().enumerate() {
+        let t = i as f64 * tau0;
+        *v += extra.iter().map(|f| f(t)).sum::<f64>();
+    }
+    if let Some((freq_hz, width_hz, power)) = tone {
+        add_line(&mut values, shape.rate_hz, freq_hz, width_hz, power, &mut rng);
+    }
+    let mut channels = vec![Channel::named("gx", values)];
+    if let Some(t) = temp_channel {
+        channels.push(Channel::named("temp", t));
+    }
+    Record {
+        source: format!("{kind:?} seed {seed}"),
+        rate_hz: shape.rate_hz,
+        channels,
+    }
+}
+
+/// Add a line of `power` (u^2) at `freq_hz`: a pure tone of random phase when `width_hz` is
+/// 0, else a sinusoid whose phase diffuses (a Wiener phase of variance `2 pi w` per second
+/// gives a Lorentzian of FWHM w Hz).
+fn add_line(
+    values: &mut [f64],
+    rate_hz: f64,
+    freq_hz: f64,
+    width_hz: f64,
+    power: f64,
+    rng: &mut ChaCha8Rng,
+) {
+    let amplitude = (2.0 * power).sqrt();
+    let tau0 = 1.0 / rate_hz;
+    let step = (2.0 * PI * width_hz * tau0).sqrt();
+    let mut phase = uniform(rng, 0.0, 2.0 * PI);
+    for v in values.iter_mut() {
+        *v += amplitude * phase.sin();
+        phase += 2.0 * PI * freq_hz * tau0 + step * rng.sample::<f64, _>(StandardNormal);
+    }
+}
