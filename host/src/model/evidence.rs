@@ -5,17 +5,14 @@
 //! | candidate | view | statistic on a series s |
 //! |---|---|---|
 //! | spectral line | line detector on the cleaned series | the strongest line's detection statistic |
-//! | rate ramp | regression on time | Allan drop: `sum_i ln(AVAR_i(clean s) / AVAR_i(clean s - fitted ramp))` |
-//! | temperature | regression on temperature and its derivative | Allan drop, as for the ramp |
+//! | rate ramp | regression on time | Wald statistic of the slope ([`super::regression`]) |
+//! | temperature | regression on temperature and its derivative | Wald statistic of both coefficients |
 //! | Gauss-Markov, B, K, Q | nested fit of the Allan curve | misfit(model) - misfit(model + term), both refitted |
 //!
-//! "Clean s" is s with the effects already named removed ([`super::clean`]). The Allan drop
-//! measures how much of the curve a regressor explains: a regressor that the data follow
-//! removes most of the long-tau variance, while on pure noise (a random walk that happens to
-//! trend, a temperature that happens to correlate) it removes a fraction the simulations
-//! reproduce. Because the null spread comes from simulating the current model, a baseline
-//! that absorbed an effect into K, B or R does not hide it: the absorbed random walk's
-//! realisations do not follow the regressor, the record does.
+//! "Clean s" is s with the effects already named removed ([`super::clean`]). The regressors
+//! are judged by their own test ([`super::regression`]), whose noise model is refitted with
+//! the regressor removed, so a baseline that absorbed an effect into K, B or R does not hide
+//! it.
 //!
 //! **Standardisation.** `z = (statistic_measured - mean_sim) / sd_sim` over the realisations.
 
@@ -33,9 +30,9 @@ use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
 pub enum View {
     /// The spectral-line detector.
     Lines,
-    /// Allan drop when the series is regressed on time.
+    /// Wald test of the regression of the rate on time.
     RegressionOnTime,
-    /// Allan drop when the series is regressed on temperature and its derivative.
+    /// Wald test of the regression of the rate on temperature and its derivative.
     RegressionOnTemperature,
     /// Misfit drop of the Allan curve when the term joins the model.
     NestedFit,
@@ -45,8 +42,8 @@ impl View {
     pub fn describe(self) -> &'static str {
         match self {
             View::Lines => "line detector",
-            View::RegressionOnTime => "Allan drop, rate on time",
-            View::RegressionOnTemperature => "Allan drop, rate on temperature",
+            View::RegressionOnTime => "regression on time",
+            View::RegressionOnTemperature => "regression on temperature",
             View::NestedFit => "Allan misfit drop",
         }
     }
@@ -110,15 +107,6 @@ pub fn allan_avar(rate: Vec<f64>, rate_hz: f64, m: &[usize]) -> Vec<f64> {
         .collect()
 }
 
-/// `sum_i ln(a_i / b_i)` over the points where both are positive.
-fn log_drop(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .filter(|(x, y)| **x > 0.0 && **y > 0.0)
-        .map(|(x, y)| (x / y).ln())
-        .sum()
-}
-
 /// Each probe's statistic on `series`, with the effect it estimates.
 pub fn statistics(series: &[f64], probes: &[Probe], ctx: &Context) -> Vec<(f64, Option<Effect>)> {
     let (clean, _) = ctx.removal.apply(series, ctx.rate_hz, ctx.temperature);
@@ -147,23 +135,7 @@ pub fn statistics(series: &[f64], probes: &[Probe], ctx: &Context) -> Vec<(f64, 
                 }
             }
             Probe::Ramp | Probe::Temperature => {
-                let mut more = ctx.removal.clone();
-                if *probe == Probe::Ramp {
-                    more.ramp = true;
-                } else {
-                    more.temperature = true;
-                }
-                let (cleaner, c) = more.apply(series, ctx.rate_hz, ctx.temperature);
-                let drop = log_drop(&base_avar, &avar(cleaner, ctx));
-                let effect = if *probe == Probe::Ramp {
-                    c.slope.map(|slope| Effect::RateRamp { slope })
-                } else {
-                    c.temp.map(|coeff| Effect::Temperature {
-                        coeff,
-                        rate_coeff: c.temp_rate.unwrap_or(0.0),
-                    })
-                };
-                (drop, effect)
+                unreachable!("regressors are tested by super::regression")
             }
             Probe::GaussMarkov => {
                 let (lo, hi) = ctx.gauss_markov_range;
@@ -184,13 +156,14 @@ pub fn statistics(series: &[f64], probes: &[Probe], ctx: &Context) -> Vec<(f64, 
                 let terms = refit::refit(curve, &with, ctx.white);
                 let effect = match column {
                     Column::Q => (terms.q > 0.0).then_some(Effect::Quantization { q: terms.q }),
-                    Column::B => {
-                        (terms.b > 0.0).then_some(Effect::BiasInstability { b: terms.b })
-                    }
+                    Column::B => (terms.b > 0.0).then_some(Effect::BiasInstability { b: terms.b }),
                     Column::K => (terms.k > 0.0).then_some(Effect::RateRandomWalk { k: terms.k }),
                     Column::N | Column::GaussMarkov(_) => None,
                 };
-                (base_misfit() - refit::misfit(curve, &terms, ctx.white), effect)
+                (
+                    base_misfit() - refit::misfit(curve, &terms, ctx.white),
+                    effect,
+                )
             }
         })
         .collect()
@@ -236,8 +209,7 @@ impl Evidence {
         let mean = clamped.iter().sum::<f64>() / r;
         let var = clamped.iter().map(|v| (v - mean).powi(2)).sum::<f64>()
             / (clamped.len().max(2) - 1) as f64;
-        let max = simulated.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let (statistic, effect) = measured;
+        let statistic = measured.0;
         let p_value = if mean > 0.0 && var > 0.0 {
             let k = 2.0 * mean * mean / var;
             let scale = var / (2.0 * mean);
@@ -250,6 +222,23 @@ impl Evidence {
         } else {
             1.0
         };
+        Evidence::with_p(view, measured, simulated, p_value, candidates)
+    }
+
+    /// Evidence with a p-value computed by the view itself.
+    pub fn with_p(
+        view: View,
+        measured: (f64, Option<Effect>),
+        simulated: &[f64],
+        p_value: f64,
+        candidates: usize,
+    ) -> Evidence {
+        let r = simulated.len().max(1) as f64;
+        let mean = simulated.iter().sum::<f64>() / r;
+        let var = simulated.iter().map(|v| (v - mean).powi(2)).sum::<f64>()
+            / (simulated.len().max(2) - 1) as f64;
+        let max = simulated.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let (statistic, effect) = measured;
         let z = Normal::standard()
             .inverse_cdf((1.0 - p_value).clamp(0.0, 1.0 - 1e-300))
             .clamp(-40.0, 40.0);

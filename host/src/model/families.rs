@@ -9,21 +9,23 @@
 //! one-sided PSD is `rho` times the white level (tones).
 
 use crate::record::{Channel, Record};
-use crate::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms, Sinusoid, gauss_markov_avar};
 use crate::sim::noise::sinusoid_avar;
+use crate::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms, Sinusoid, gauss_markov_avar};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use std::f64::consts::PI;
 
 /// Range of the factor by which an effect raises the Allan deviation where it shows.
-pub const RAISE: (f64, f64) = (1.7, 3.0);
+pub const RAISE: (f64, f64) = (2.0, 3.5);
 
 /// What is hidden in a record.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
     None,
-    /// Gauss-Markov with tau_c 1-10 % of the record (minutes): the baseline's B can absorb it.
+    /// No effect, but a temperature channel (warm-up and cycles) the rate does not follow.
+    NoneWithTemperature,
+    /// Gauss-Markov with tau_c 1-3 % of the record (minutes): the baseline's B can absorb it.
     GaussMarkov,
     /// A sinusoid with a period of 5-20 % of the record.
     SlowSinusoid,
@@ -43,7 +45,7 @@ impl Kind {
     /// The effect kinds the workflow should name, sorted.
     pub fn expected(self) -> Vec<&'static str> {
         let mut v = match self {
-            Kind::None => vec![],
+            Kind::None | Kind::NoneWithTemperature => vec![],
             Kind::GaussMarkov => vec!["gauss_markov"],
             Kind::SlowSinusoid | Kind::Tone => vec!["sinusoid"],
             Kind::Ramp => vec!["rate_ramp"],
@@ -103,16 +105,10 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
     let mut temp_channel: Option<Vec<f64>> = None;
     let has = |k: Kind| kind == k;
     if has(Kind::GaussMarkov) {
-        let tau_c = t_rec * log_uniform(&mut rng, 0.01, 0.1);
+        let tau_c = t_rec * log_uniform(&mut rng, 0.01, 0.03);
         // The GM Allan variance peaks near tau = 1.89 tau_c.
         let peak_tau = 1.89 * tau_c;
-        let unit = gauss_markov_avar(
-            GaussMarkov {
-                sigma: 1.0,
-                tau_c,
-            },
-            peak_tau,
-        );
+        let unit = gauss_markov_avar(GaussMarkov { sigma: 1.0, tau_c }, peak_tau);
         let sigma = (raise(&mut rng) * baseline_avar(&terms, peak_tau) / unit).sqrt();
         terms.gauss_markov = Some(GaussMarkov { sigma, tau_c });
     }
@@ -150,12 +146,18 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
         tone = Some((freq_hz, width_hz, power));
     }
     if has(Kind::Ramp) || has(Kind::ToneAndRamp) {
+        // A ramp competes with the random walk's own trend (slope sd about K sqrt(1.2 / T)),
+        // so it is drawn stronger: raising the deviation at T/4 3 to 5 times.
         let tau = t_rec / 4.0;
-        let slope = (raise(&mut rng) * baseline_avar(&terms, tau) * 2.0 / (tau * tau)).sqrt()
+        let f = uniform(&mut rng, 3.0, 5.0);
+        let slope = ((f * f - 1.0) * baseline_avar(&terms, tau) * 2.0 / (tau * tau)).sqrt()
             * if rng.random::<bool>() { 1.0 } else { -1.0 };
         extra.push(Box::new(move |t| slope * t));
     }
-    if has(Kind::Temperature) || has(Kind::SlowSinusoidAndTemperature) {
+    if has(Kind::Temperature)
+        || has(Kind::SlowSinusoidAndTemperature)
+        || has(Kind::NoneWithTemperature)
+    {
         let rise = uniform(&mut rng, 2.0, 6.0);
         let warm = uniform(&mut rng, 600.0, 2400.0);
         let swing = uniform(&mut rng, 0.5, 2.0);
@@ -175,7 +177,12 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
                 / (2.0 * (means.len() - 1).max(1) as f64)
         };
         let coeff = (raise(&mut rng) * baseline_avar(&terms, tau) / temp_avar).sqrt()
-            * if rng.random::<bool>() { 1.0 } else { -1.0 };
+            * if rng.random::<bool>() { 1.0 } else { -1.0 }
+            * if has(Kind::NoneWithTemperature) {
+                0.0
+            } else {
+                1.0
+            };
         let mut noise = ChaCha8Rng::seed_from_u64(seed ^ 0x7e3);
         temp_channel = Some(
             (0..n)
@@ -194,7 +201,14 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
         *v += extra.iter().map(|f| f(t)).sum::<f64>();
     }
     if let Some((freq_hz, width_hz, power)) = tone {
-        add_line(&mut values, shape.rate_hz, freq_hz, width_hz, power, &mut rng);
+        add_line(
+            &mut values,
+            shape.rate_hz,
+            freq_hz,
+            width_hz,
+            power,
+            &mut rng,
+        );
     }
     let mut channels = vec![Channel::named("gx", values)];
     if let Some(t) = temp_channel {

@@ -1,9 +1,9 @@
 //! The model's stochastic terms fitted to one Allan variance curve — the measured one or a
 //! simulated realisation's, by the same code.
 //!
-//! **Fit.** AVAR(tau) = sum_c theta_c basis_c(tau), theta >= 0, by non-negative least squares
-//! (Lawson-Hanson, [`fit::nnls`]) on rows weighted by `1 / (s_i avar_i)`, least squares in
-//! relative error (≈ in ln AVAR), `s_i` the standard deviation of ln AVAR at tau_i over the
+//! **Fit.** AVAR(tau) = sum_c theta_c basis_c(tau), theta >= 0, by reweighted non-negative
+//! least squares (Lawson-Hanson, [`fit::nnls`]) approximating least squares in ln AVAR
+//! ([`refit`]), each point scaled by `1 / s_i`, `s_i` the standard deviation of ln AVAR at tau_i over the
 //! simulated realisations of the current model. The simulated spread is used rather than
 //! an EDF formula because it is what the record is compared with: it holds the estimator's
 //! scatter at every tau whatever the mix of noise types, and whatever the analytic bases
@@ -93,15 +93,49 @@ pub fn avar(terms: &NoiseTerms, tau: f64, white: WhiteShape) -> f64 {
     v
 }
 
-/// Fit `columns` to `curve`; terms outside the columns are 0.
+/// Reweighting rounds of [`refit`].
+const REWEIGHTS: usize = 6;
+
+/// Fit `columns` to `curve`; terms outside the columns are 0. Each round solves the NNLS
+/// with rows weighted by `1 / (s_i sqrt(a_i m_i))`, `m_i` the previous round's model (the
+/// measured value at first): the residual `(a - m) / sqrt(a m) = 2 sinh(ln(a / m) / 2)` is
+/// symmetric in ln(a / m), so a model far below the curve costs as much as one far above
+/// (plain relative error, `(a - m) / a`, caps the cost of a model that is too low at 1).
 pub fn refit(curve: Curve, columns: &[Column], white: WhiteShape) -> NoiseTerms {
+    let mut terms = NoiseTerms::default();
+    for round in 0..REWEIGHTS {
+        let reference: Vec<f64> = curve
+            .tau
+            .iter()
+            .zip(curve.avar)
+            .map(|(&tau, &a)| {
+                if round == 0 {
+                    a
+                } else {
+                    (a * avar(&terms, tau, white)).sqrt().max(a * 1e-6)
+                }
+            })
+            .collect();
+        terms = solve(curve, columns, white, &reference);
+    }
+    terms
+}
+
+/// One weighted NNLS solve with rows scaled by `1 / (s_i reference_i)`.
+fn solve(curve: Curve, columns: &[Column], white: WhiteShape, reference: &[f64]) -> NoiseTerms {
     let mut g = Vec::with_capacity(curve.tau.len());
     let mut b = Vec::with_capacity(curve.tau.len());
-    for ((&tau, &avar), &sd) in curve.tau.iter().zip(curve.avar).zip(curve.sd_ln) {
-        if !(avar > 0.0) {
+    for (((&tau, &avar), &sd), &r) in curve
+        .tau
+        .iter()
+        .zip(curve.avar)
+        .zip(curve.sd_ln)
+        .zip(reference)
+    {
+        if !(avar > 0.0 && r > 0.0) {
             continue;
         }
-        let w = 1.0 / (sd.max(SD_FLOOR) * avar);
+        let w = 1.0 / (sd.max(SD_FLOOR) * r);
         g.push(
             columns
                 .iter()

@@ -6,9 +6,9 @@ use super::evidence::Evidence;
 use super::{Comparison, FAMILY_ALPHA, Model, Outcome, Step};
 use crate::record::Quantity;
 use crate::report::html::{STYLE, escape};
+use crate::report::plot::{self, Figure, Line, Panel};
 use crate::report::sig;
 use crate::report::table::aligned as aligned_table;
-use crate::report::plot::{self, Figure, Line, Panel};
 use serde_json::{Value, json};
 use std::fmt::Write;
 
@@ -394,7 +394,11 @@ pub fn html(o: &Outcome) -> Result<String, plot::PlotError> {
         evidence_html(&mut page, &st.evidence, Some(st), u);
         figure(
             &mut page,
-            panel(o, format!("step {}: + {}", i + 1, st.effect.kind()), &st.comparison),
+            panel(
+                o,
+                format!("step {}: + {}", i + 1, st.effect.kind()),
+                &st.comparison,
+            ),
         )?;
     }
     let _ = writeln!(

@@ -7,8 +7,9 @@
 use super::families::{self, Kind, Shape};
 use super::*;
 
-const KINDS: [Kind; 8] = [
+const KINDS: [Kind; 9] = [
     Kind::None,
+    Kind::NoneWithTemperature,
     Kind::GaussMarkov,
     Kind::SlowSinusoid,
     Kind::Tone,
@@ -45,10 +46,7 @@ fn study(shape: Shape, seeds: std::ops::Range<u64>, kinds: &[Kind]) -> Vec<(Kind
                 if got == kind.expected() {
                     right += 1;
                 } else {
-                    eprintln!(
-                        "{kind:?} seed {seed}: named {got:?}\n{}",
-                        report::table(&o)
-                    );
+                    eprintln!("{kind:?} seed {seed}: named {got:?}\n{}", report::table(&o));
                 }
             }
             eprintln!("{kind:?}: {right}/{} right", seeds.end - seeds.start);
@@ -122,29 +120,71 @@ fn study_families() {
 #[test]
 #[ignore]
 fn debug_study() {
-    let kinds: Vec<Kind> = std::env::var("KINDS").unwrap_or_default().split(',').filter_map(|k| KINDS.iter().copied().find(|x| format!("{x:?}") == k)).collect();
-    let hours: f64 = std::env::var("HOURS").ok().and_then(|s| s.parse().ok()).unwrap_or(3.0);
-    let rate: f64 = std::env::var("RATE").ok().and_then(|s| s.parse().ok()).unwrap_or(50.0);
-    let seeds: u64 = std::env::var("SEEDS").ok().and_then(|s| s.parse().ok()).unwrap_or(5);
-    let shape = Shape { rate_hz: rate, duration_s: hours * 3600.0 };
+    let kinds: Vec<Kind> = std::env::var("KINDS")
+        .unwrap_or_default()
+        .split(',')
+        .filter_map(|k| KINDS.iter().copied().find(|x| format!("{x:?}") == k))
+        .collect();
+    let hours: f64 = std::env::var("HOURS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(3.0);
+    let rate: f64 = std::env::var("RATE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(50.0);
+    let seeds: u64 = std::env::var("SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5);
+    let shape = Shape {
+        rate_hz: rate,
+        duration_s: hours * 3600.0,
+    };
     study(shape, 100..100 + seeds, &kinds);
 }
 
 #[test]
 #[ignore]
 fn debug_one() {
-    let kind = KINDS.iter().copied().find(|x| format!("{x:?}") == std::env::var("KIND").unwrap_or_default()).unwrap_or(Kind::None);
-    let seed: u64 = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
-    let hours: f64 = std::env::var("HOURS").ok().and_then(|s| s.parse().ok()).unwrap_or(1.0);
-    let rate: f64 = std::env::var("RATE").ok().and_then(|s| s.parse().ok()).unwrap_or(10.0);
-    let shape = Shape { rate_hz: rate, duration_s: hours * 3600.0 };
+    let kind = KINDS
+        .iter()
+        .copied()
+        .find(|x| format!("{x:?}") == std::env::var("KIND").unwrap_or_default())
+        .unwrap_or(Kind::None);
+    let seed: u64 = std::env::var("SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
+    let hours: f64 = std::env::var("HOURS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1.0);
+    let rate: f64 = std::env::var("RATE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(10.0);
+    let shape = Shape {
+        rate_hz: rate,
+        duration_s: hours * 3600.0,
+    };
     let (_, o) = named(kind, shape, seed);
     eprintln!("{}", report::table(&o));
     eprintln!("{:?}", o.baseline_fit);
     let last = o.final_comparison();
-    for s in &o.steps { eprintln!("{:?}", s.model); }
+    for s in &o.steps {
+        eprintln!("{:?}", s.model);
+    }
     for (i, t) in o.measured.tau.iter().enumerate() {
-        eprintln!("{t:10.3} {:.4e} base {:.4e} {:.3} final {:.4e} {:.3} edf {:.1}", o.measured.dev[i], o.initial.band.mean_log[i].exp(), o.initial.band.std_log[i], last.band.mean_log[i].exp(), last.band.std_log[i], 0.0);
+        eprintln!(
+            "{t:10.3} {:.4e} base {:.4e} {:.3} final {:.4e} {:.3} edf {:.1}",
+            o.measured.dev[i],
+            o.initial.band.mean_log[i].exp(),
+            o.initial.band.std_log[i],
+            last.band.mean_log[i].exp(),
+            last.band.std_log[i],
+            0.0
+        );
     }
 }
 
@@ -153,8 +193,14 @@ fn debug_one() {
 fn debug_flicker_shape() {
     let rate = 50.0;
     let n = (3.0 * 3600.0 * rate) as usize;
-    let terms = NoiseTerms { b: 1.0, ..NoiseTerms::default() };
-    let m: Vec<usize> = [1usize, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000, 50000].to_vec();
+    let terms = NoiseTerms {
+        b: 1.0,
+        ..NoiseTerms::default()
+    };
+    let m: Vec<usize> = [
+        1usize, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000, 50000,
+    ]
+    .to_vec();
     let mut acc = vec![0.0; m.len()];
     let reps = 8;
     for seed in 0..reps {
@@ -162,7 +208,16 @@ fn debug_flicker_shape() {
         let mut g = AxisNoise::new(terms, rate, n as f64 / rate, &mut rng);
         let y = g.take(n, &mut rng);
         let a = evidence::allan_avar(y, rate, &m);
-        for (s, v) in acc.iter_mut().zip(a) { *s += v / reps as f64; }
+        for (s, v) in acc.iter_mut().zip(a) {
+            *s += v / reps as f64;
+        }
     }
-    for (mm, a) in m.iter().zip(acc) { eprintln!("tau {:8.2} avar/B^2 {:.4} (flat {:.4})", *mm as f64 / rate, a, 2.0 * 2f64.ln() / std::f64::consts::PI); }
+    for (mm, a) in m.iter().zip(acc) {
+        eprintln!(
+            "tau {:8.2} avar/B^2 {:.4} (flat {:.4})",
+            *mm as f64 / rate,
+            a,
+            2.0 * 2f64.ln() / std::f64::consts::PI
+        );
+    }
 }
