@@ -184,6 +184,7 @@ fn filter_numbers(n: f64, k: f64, gm: GaussMarkov, dt: f64) -> FilterNoise {
         reduced_chi2: 1.0,
         iterations: 3,
         tau_min: dt,
+        low_pass: None,
     };
     let gm_fit = GaussMarkovFit {
         sigma: gm.sigma,

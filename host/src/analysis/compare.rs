@@ -176,6 +176,10 @@ pub fn align_fit_start(sessions: &mut [Vec<ChannelResult>], confidence: f64) -> 
             .as_ref()
             .is_ok_and(|f| f.tau_min < start * (1.0 - 1e-9));
         if behind {
+            let options = FitOptions {
+                low_pass: channel.fit.as_ref().ok().and_then(|f| f.low_pass.clone()),
+                ..options.clone()
+            };
             channel.fit = fit::fit_deviation(&channel.fit_curve.deviation, channel.n + 1, &options)
                 .map_err(|e| e.to_string());
         }

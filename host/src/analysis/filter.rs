@@ -210,6 +210,7 @@ mod tests {
             reduced_chi2: 1.0,
             iterations: 1,
             tau_min: 0.01,
+            low_pass: None,
         };
         let gm = GaussMarkovFit {
             sigma: 1e-3,

@@ -23,6 +23,7 @@
 //!   and the flat minimum);
 //! - [`fit_psd`]: levels of the 0, -1 and -2 slope regions of the PSD.
 
+use crate::analysis::low_pass::LowPass;
 use crate::analysis::psd::log_binned_arrays;
 use crate::analysis::{Deviation, ci};
 use serde::Serialize;
@@ -51,6 +52,17 @@ pub fn basis(tau: f64) -> [f64; TERMS] {
         tau / 3.0,
         tau * tau / 2.0,
     ]
+}
+
+/// [`basis`] with the N column replaced, when the sensor's low-pass filter is known, by the
+/// Allan variance of white noise through that filter ([`LowPass::white_avar`]), which tends
+/// to `1 / tau` at long tau: N stays the long-tau white level and every tau can be fitted.
+pub fn basis_with(tau: f64, low_pass: Option<&LowPass>) -> [f64; TERMS] {
+    let mut row = basis(tau);
+    if let Some(lp) = low_pass {
+        row[N] = lp.white_avar(tau);
+    }
+    row
 }
 
 /// One fitted coefficient with its interval (`lo <= value <= hi`), in SI units (see
@@ -89,16 +101,21 @@ pub struct NoiseFit {
     pub reduced_chi2: f64,
     /// Reweighting iterations used.
     pub iterations: usize,
-    /// The shortest tau fitted, s (see [`fit_deviation`]: taus shortened by the sensor's
-    /// low-pass filter are left out).
+    /// The shortest tau fitted, s.
     pub tau_min: f64,
+    /// The sensor's low-pass filter the N column was shaped by ([`FitOptions::low_pass`]).
+    pub low_pass: Option<LowPass>,
 }
 
 impl NoiseFit {
     /// The fitted model's Allan variance at `tau`.
     pub fn avar(&self, tau: f64) -> f64 {
         let theta = self.squared();
-        basis(tau).iter().zip(theta).map(|(a, t)| a * t).sum()
+        basis_with(tau, self.low_pass.as_ref())
+            .iter()
+            .zip(theta)
+            .map(|(a, t)| a * t)
+            .sum()
     }
 
     fn squared(&self) -> [f64; TERMS] {
@@ -113,9 +130,11 @@ pub struct FitOptions {
     pub confidence: f64,
     /// Cap on the reweighting iterations. Default 50.
     pub max_iterations: usize,
-    /// Shortest tau [`fit_deviation`] fits, s; `None` finds where the sensor's low-pass
-    /// filter stops shaping the curve ([`low_pass_onset`]).
+    /// Shortest tau [`fit_deviation`] fits, s; `None` fits every tau.
     pub tau_min: Option<f64>,
+    /// The sensor's low-pass filter: white noise is fitted with its shape ([`basis_with`]).
+    /// `None`: white noise is `N^2 / tau` down to the shortest tau.
+    pub low_pass: Option<LowPass>,
 }
 
 impl Default for FitOptions {
@@ -124,6 +143,7 @@ impl Default for FitOptions {
             confidence: 0.683,
             max_iterations: 50,
             tau_min: None,
+            low_pass: None,
         }
     }
 }
@@ -193,7 +213,10 @@ pub fn fit_allan_with(
     opts: &FitOptions,
 ) -> Result<NoiseFit, FitError> {
     validate(tau, avar, edf, opts)?;
-    let rows: Vec<[f64; TERMS]> = tau.iter().map(|&t| basis(t)).collect();
+    let rows: Vec<[f64; TERMS]> = tau
+        .iter()
+        .map(|&t| basis_with(t, opts.low_pass.as_ref()))
+        .collect();
     let (theta, sigma, iterations) = irls(&rows, avar, edf, opts.max_iterations);
     let corr = correlation(tau, &rows, &theta);
     let free: Vec<usize> = (0..TERMS).filter(|&j| theta[j] > 0.0).collect();
@@ -227,6 +250,7 @@ pub fn fit_allan_with(
         reduced_chi2: residual / dof,
         iterations,
         tau_min: tau.first().copied().unwrap_or(f64::NAN),
+        low_pass: opts.low_pass.clone(),
     })
 }
 
@@ -247,14 +271,16 @@ pub fn fit_deviation(
     n_phase: usize,
     opts: &FitOptions,
 ) -> Result<NoiseFit, FitError> {
-    let first = match opts.tau_min {
-        Some(t) => dev
-            .tau
+    // A fitted low-pass's shape is reliable only from its `first_tau` on (see there).
+    let start = opts
+        .tau_min
+        .or_else(|| opts.low_pass.as_ref().map(LowPass::first_tau));
+    let first = start.map_or(0, |t| {
+        dev.tau
             .iter()
             .position(|&x| x >= t * (1.0 - 1e-9))
-            .unwrap_or(dev.tau.len()),
-        None => low_pass_onset(&dev.tau, &dev.dev),
-    };
+            .unwrap_or(dev.tau.len())
+    });
     let (tau, m) = (&dev.tau[first..], &dev.m[first..]);
     let avar: Vec<f64> = dev.dev[first..].iter().map(|s| s * s).collect();
     let edf_for = |alpha: &[i32]| -> Vec<f64> {
@@ -274,27 +300,6 @@ pub fn fit_deviation(
         fit = fit_allan_with(tau, &avar, &edf_for(&alpha), opts)?;
     }
     Ok(fit)
-}
-
-/// Steepest log-log slope of the Allan deviation that still counts as "flatter than white
-/// noise" at the short end.
-const LOW_PASS_SLOPE: f64 = -0.48;
-
-/// Index of the first tau not shaped by the sensor's low-pass filter. A digital low-pass
-/// (the MPU-6050's DLPF at a bandwidth below half the output rate) removes white noise
-/// between its bandwidth and the Nyquist frequency, so at the shortest taus the Allan
-/// deviation lies below N/sqrt(tau) and approaches it only slowly (about as 1 - c/(tau BW)):
-/// its log-log slope is flatter than -1/2. No IEEE-952 term has that shape at short taus
-/// (quantization is steeper, -1), so fitting it would drag N down — by 28 % at 200 Hz with a
-/// 42 Hz bandwidth. The fit therefore starts at the first tau from which the slope over the
-/// next two steps is -0.48 or steeper. If the curve never gets that steep within its first
-/// half (no white noise to speak of: flicker or random walk dominate), every tau is kept.
-pub fn low_pass_onset(tau: &[f64], adev: &[f64]) -> usize {
-    let slope = |i: usize, j: usize| (adev[j] / adev[i]).ln() / (tau[j] / tau[i]).ln();
-    let search = tau.len() / 2;
-    (0..search)
-        .find(|&i| i + 2 < tau.len() && slope(i, i + 2) <= LOW_PASS_SLOPE)
-        .unwrap_or(0)
 }
 
 /// The power-law exponent alpha of the term that dominates the model's AVAR at `tau`.

@@ -3,11 +3,13 @@
 //! overlapping Allan variance, the classic slope read-outs, and the Welch PSD with the terms
 //! read from it.
 
+use super::low_pass::{self, LowPass};
 use super::psd::{self, BinnedPsd, Psd, WelchOptions, Window};
 use super::taus::TauGrid;
 use super::units::SensorKind;
 use super::{DataType, Deviation, Estimator, allan, ci, fit, phase_from_rate, taus};
 use crate::record::{Channel, Quantity, Record};
+use protocol::mpu6050::SensorSettings;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::borrow::Cow;
@@ -27,9 +29,27 @@ pub struct Options {
     pub psd_window: Window,
     /// Points per decade of the log-binned PSD used for plots, JSON and the PSD fit.
     pub psd_bins_per_decade: usize,
-    /// Shortest tau of the noise fit, s; `None` leaves out the taus the sensor's low-pass
-    /// filter shaped ([`fit::low_pass_onset`]).
+    /// Shortest tau of the noise fit, s; `None` fits every tau.
     pub fit_tau_min: Option<f64>,
+    /// The sensor's low-pass filter, which the fit models ([`fit::FitOptions::low_pass`]).
+    pub low_pass: LowPassChoice,
+}
+
+/// Where the noise fit's low-pass filter comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum LowPassChoice {
+    /// Detected per channel from its spectrum ([`low_pass::detect`]); none when the record
+    /// shows no roll-off below Nyquist.
+    #[default]
+    Detect,
+    /// The MPU-6050's chain at these settings (a capture's Info): the gyro filter for rates
+    /// and channels of unknown quantity, the accel filter for accelerations, none for the
+    /// temperature.
+    Sensor(SensorSettings),
+    /// A stated -3 dB bandwidth, Hz, at the record's rate ([`LowPass::for_bandwidth`]).
+    Bandwidth(f64),
+    /// No low-pass in the model.
+    Off,
 }
 
 impl Default for Options {
@@ -43,6 +63,7 @@ impl Default for Options {
             psd_window: Window::Hann,
             psd_bins_per_decade: 20,
             fit_tau_min: None,
+            low_pass: LowPassChoice::Detect,
         }
     }
 }
@@ -126,6 +147,10 @@ pub fn analyze(
         )));
     }
     record.channels.iter().try_for_each(validate)?;
+    if let LowPassChoice::Bandwidth(hz) = options.low_pass {
+        LowPass::for_bandwidth(hz, record.rate_hz, crate::sim::dlpf::Sensor::Gyro)
+            .map_err(|e| AnalysisError::Options(format!("--bandwidth {hz}: {e}")))?;
+    }
     record
         .channels
         .par_iter()
@@ -209,7 +234,8 @@ fn analyze_channel(
         .unwrap_or_else(|| curve(Estimator::Oadev));
     let n_phase = phase.len();
     drop(phase);
-    let (fit, readouts) = fit_noise(&fit_curve, n_phase, options);
+    let low_pass = channel_low_pass(channel.quantity, &rate, rate_hz, options);
+    let (fit, readouts) = fit_noise(&fit_curve, n_phase, low_pass, options);
     tick();
     let psd = spectrum(&rate, rate_hz, options);
     let psd_terms = psd
@@ -242,15 +268,37 @@ pub fn sensor_kind(quantity: Quantity) -> SensorKind {
     }
 }
 
+/// The low-pass filter `options` give for a channel of `quantity` (module documentation of
+/// [`low_pass`]); the settings route has no filter for channels the DLPF does not filter.
+fn channel_low_pass(
+    quantity: Quantity,
+    rate: &[f64],
+    rate_hz: f64,
+    options: &Options,
+) -> Option<LowPass> {
+    let sensor = low_pass::sensor_for(quantity);
+    match options.low_pass {
+        LowPassChoice::Off => None,
+        LowPassChoice::Sensor(settings) => LowPass::mpu6050(&settings, sensor?),
+        // Validated in `analyze`, so the error branch is not reached.
+        LowPassChoice::Bandwidth(hz) => LowPass::for_bandwidth(hz, rate_hz, sensor?).ok().flatten(),
+        LowPassChoice::Detect => low_pass::detect(rate, rate_hz, options.confidence)
+            .ok()
+            .and_then(|d| d.low_pass),
+    }
+}
+
 fn fit_noise(
     curve: &DeviationResult,
     n_phase: usize,
+    low_pass: Option<LowPass>,
     options: &Options,
 ) -> (Result<fit::NoiseFit, String>, fit::SlopeReadouts) {
     let d = &curve.deviation;
     let fit_options = fit::FitOptions {
         confidence: options.confidence,
         tau_min: options.fit_tau_min,
+        low_pass,
         ..fit::FitOptions::default()
     };
     let fitted = fit::fit_deviation(d, n_phase, &fit_options).map_err(|e| e.to_string());

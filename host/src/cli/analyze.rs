@@ -3,7 +3,7 @@
 //! Kalibr's IMU YAML and a self-contained HTML report.
 
 use crate::analysis::filter;
-use crate::analysis::pipeline::{self, Options};
+use crate::analysis::pipeline::{self, LowPassChoice, Options};
 use crate::analysis::psd::Window;
 use crate::analysis::taus::TauGrid;
 use crate::analysis::{DataType, Estimator};
@@ -13,6 +13,7 @@ use crate::input::{CountScale, LoadOptions};
 use crate::record::Record;
 use crate::report;
 use anyhow::{Context, Result};
+use protocol::mpu6050::SensorSettings;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
@@ -49,10 +50,16 @@ pub struct AnalysisArgs {
     /// Confidence of the intervals (two-sided)
     #[arg(long, default_value_t = 0.683)]
     pub confidence: f64,
-    /// Shortest tau of the noise fit in seconds (default: where the sensor's low-pass filter
-    /// stops shaping the Allan curve)
+    /// Shortest tau of the noise fit in seconds (default: every tau; with a low-pass fitted
+    /// to the spectrum, from where its shape is reliable)
     #[arg(long, value_name = "SECONDS")]
     pub fit_tau_min: Option<f64>,
+    /// The sensor's low-pass -3 dB bandwidth in Hz, modelled in the noise fit: an MPU-6050
+    /// DLPF bandwidth at a rate the chip makes is its exact chain, any other a generic
+    /// two-pole; `off` for none. Default: a capture's own settings, else fitted to the
+    /// spectrum
+    #[arg(long, value_name = "HZ|off", value_parser = parse_bandwidth)]
+    pub bandwidth: Option<Bandwidth>,
     /// Welch segment length in samples (default: chosen from the record length)
     #[arg(long)]
     pub psd_segment: Option<usize>,
@@ -78,6 +85,23 @@ pub struct AnalysisArgs {
     /// Write the filter noise parameters to PATH.json or PATH.yaml (repeatable)
     #[arg(long = "filter", value_name = "PATH")]
     pub filter: Vec<PathBuf>,
+}
+
+/// `--bandwidth`: a -3 dB bandwidth, or no low-pass at all.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Bandwidth {
+    Hz(f64),
+    Off,
+}
+
+fn parse_bandwidth(s: &str) -> Result<Bandwidth, String> {
+    if s.eq_ignore_ascii_case("off") {
+        return Ok(Bandwidth::Off);
+    }
+    match s.parse::<f64>() {
+        Ok(hz) if hz.is_finite() && hz > 0.0 => Ok(Bandwidth::Hz(hz)),
+        _ => Err(format!("'{s}': a bandwidth in Hz (e.g. 42) or 'off'")),
+    }
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -114,7 +138,7 @@ pub fn run(args: &AnalyzeArgs, store: Option<&Path>) -> Result<()> {
         };
         crate::cli::calibrations::apply_latest(store, session, &mut loaded.record)?;
     }
-    let analysed = analyse(loaded.record, &args.analysis)?;
+    let analysed = analyse(loaded.record, loaded.settings, &args.analysis)?;
     stored::keep_analysis(session.as_ref(), &analysed)
 }
 
@@ -172,10 +196,22 @@ pub struct Analysed {
 }
 
 /// Analyse a record as `args` ask and write every requested output; returns the JSON
-/// document (whether or not it was written).
-pub fn analyse(record: Record, args: &AnalysisArgs) -> Result<Analysed> {
+/// document (whether or not it was written). `settings`: the sensor settings the input
+/// states (a capture's), whose low-pass filter the fit models unless `--bandwidth` says
+/// otherwise.
+pub fn analyse(
+    record: Record,
+    settings: Option<SensorSettings>,
+    args: &AnalysisArgs,
+) -> Result<Analysed> {
     let record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
-    let options = options(args)?;
+    let mut options = options(args)?;
+    options.low_pass = match (args.bandwidth, settings) {
+        (Some(Bandwidth::Off), _) => LowPassChoice::Off,
+        (Some(Bandwidth::Hz(hz)), _) => LowPassChoice::Bandwidth(hz),
+        (None, Some(s)) => LowPassChoice::Sensor(s),
+        (None, None) => LowPassChoice::Detect,
+    };
     let steps = record.channels.len() * pipeline::steps_per_channel(&options);
     let bar = report::progress::bar(steps as u64, "analysing");
     let results = pipeline::analyze(&record, &options, &|| bar.inc(1))

@@ -10,6 +10,7 @@ pub use npy::write_f64 as write_npy;
 
 use crate::capture::{self, Capture};
 use crate::record::{Channel, Quantity, Record};
+use protocol::mpu6050::SensorSettings;
 use std::path::{Path, PathBuf};
 
 /// How to turn a file into a record.
@@ -36,6 +37,9 @@ pub struct LoadOptions {
 pub struct Loaded {
     pub record: Record,
     pub notes: Vec<String>,
+    /// The sensor settings the samples were taken with, when the input states them (a
+    /// capture's Info for the run read).
+    pub settings: Option<SensorSettings>,
 }
 
 /// Sensitivities for raw counts; see `protocol::mpu6050` for where they come from.
@@ -105,24 +109,32 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Loaded, InputError> {
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
     let mut notes = Vec::new();
+    let mut settings = None;
     let table = if capture::looks_like_capture(&bytes) {
-        capture_table(path, &bytes, options, &mut notes)?
+        let (table, s) = capture_table(path, &bytes, options, &mut notes)?;
+        settings = Some(s);
+        table
     } else if is_npy {
         npy::parse(path, &bytes)?
     } else {
         text::parse(path, &bytes)?
     };
     let record = build_record(path, table, options)?;
-    Ok(Loaded { record, notes })
+    Ok(Loaded {
+        record,
+        notes,
+        settings,
+    })
 }
 
-/// A capture's samples in SI (with the board's own settings), and notes on every loss.
+/// A capture's samples in SI (with the board's own settings), and notes on every loss; with
+/// the settings of the run read.
 fn capture_table(
     path: &Path,
     bytes: &[u8],
     options: &LoadOptions,
     notes: &mut Vec<String>,
-) -> Result<Table, InputError> {
+) -> Result<(Table, SensorSettings), InputError> {
     if options.counts.is_some() {
         return Err(InputError::file(
             path,
@@ -134,7 +146,14 @@ fn capture_table(
         .to_record(&path.display().to_string(), options.longest_run)
         .map_err(|e| InputError::file(path, e.to_string()))?;
     notes.extend(capture_notes(&capture, record.len()));
-    Ok(Table {
+    // The run `to_record` read: the longest.
+    let settings = capture
+        .runs
+        .iter()
+        .max_by_key(|r| r.samples.len())
+        .and_then(|r| r.settings)
+        .unwrap_or(capture.info.settings);
+    let table = Table {
         rate_hz: Some(RateSource {
             hz: record.rate_hz,
             from: format!("board's settings ({})", capture.info.settings),
@@ -144,7 +163,8 @@ fn capture_table(
             .into_iter()
             .map(|c| (c.name, c.values))
             .collect(),
-    })
+    };
+    Ok((table, settings))
 }
 
 /// What a capture lost, in words: gaps, damaged frames, the board's own loss counters.

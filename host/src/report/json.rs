@@ -82,6 +82,7 @@ fn channel(r: &ChannelResult) -> Value {
         "slope_readouts": readouts(r),
         "psd": psd,
         "psd_noise": psd_noise(r),
+        "low_pass": r.fit.as_ref().ok().and_then(|f| f.low_pass.as_ref()),
     })
 }
 

@@ -4,6 +4,7 @@
 
 use super::{NOISE_TERMS, sig, term_of};
 use crate::analysis::fit::NoiseFit;
+use crate::analysis::low_pass::LowPassSource;
 use crate::analysis::pipeline::{ChannelResult, Options};
 use crate::analysis::units::{self, NoiseTerm, SensorKind};
 use crate::record::Record;
@@ -84,6 +85,27 @@ fn fit_rows(out: &mut String, r: &ChannelResult) {
         let _ = writeln!(out, "{line:<52} {conventional}");
     }
     let _ = writeln!(out, "  {}", fit_note(fit));
+    if let Some(line) = low_pass_note(fit) {
+        let _ = writeln!(out, "  {line}");
+    }
+}
+
+/// The low-pass filter the fit modelled, and where it came from.
+fn low_pass_note(fit: &NoiseFit) -> Option<String> {
+    let lp = fit.low_pass.as_ref()?;
+    Some(match lp.source {
+        LowPassSource::Settings => format!(
+            "low-pass {} Hz from the settings: {}",
+            sig(lp.cutoff_hz, 4),
+            lp.filter
+        ),
+        LowPassSource::Fitted => format!(
+            "low-pass fitted to the spectrum: cutoff {} Hz [{} .. {}] (generic two-pole)",
+            sig(lp.cutoff_hz, 3),
+            sig(lp.cutoff_lo_hz, 3),
+            sig(lp.cutoff_hi_hz, 3)
+        ),
+    })
 }
 
 fn fit_note(fit: &NoiseFit) -> String {

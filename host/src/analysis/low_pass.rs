@@ -1,0 +1,866 @@
+//! The sensor's low-pass filter as a known part of the noise model: how it shapes white rate
+//! noise at the output rate, exactly, so that the Allan fit can use every tau.
+//!
+//! **The chain.** A filter `h` (impulse response at an internal rate f_i) runs on white noise
+//! of per-sample variance sigma^2, and every D-th sample is kept (output rate f_s = f_i / D,
+//! tau0 = 1 / f_s; no anti-alias filter): the MPU-6050's chain of [`crate::sim::chain`]. The
+//! output is stationary with autocovariance
+//!
+//! ```text
+//!   R(l) = sigma^2 sum_j h[j] h[j + l D]            (l in output samples)
+//! ```
+//!
+//! truncated where `h` has decayed (below 1e-13 of its peak). Its two-sided density at f -> 0
+//! is `tau0 sum_l R(l)`; that is the N^2 the Allan deviation reads at long tau (the folding
+//! prediction of [`crate::sim::chain::white_noise_inflation`]). Everything here is normalised
+//! to that level: `r(l) = R(l) / (tau0 sum_k R(k))`, so unit N.
+//!
+//! **Allan variance from the autocovariance.** For a stationary rate series with
+//! autocovariance r(l), the Allan variance at tau = m tau0 is half the variance of the
+//! difference of two adjacent m-sample means (Barnes et al., "Characterization of frequency
+//! stability", IEEE Trans. Instrum. Meas. IM-20(2), 1971, eq. 8 with the expectation taken
+//! term by term; the same sum is the Haar-wavelet variance of Percival & Walden, "Wavelet
+//! Methods for Time Series Analysis", 2000, section 8.6):
+//!
+//! ```text
+//!   AVAR(m) = (1 / m^2) [ m (r(0) - r(m)) + sum_{k=1}^{m-1} (m - k) (2 r(k) - r(m - k) - r(m + k)) ]
+//! ```
+//!
+//! White noise (r(0) = 1 / tau0, else 0) gives `1 / tau`. When r vanishes beyond lag L and
+//! m > 2L, the sum closes: `AVAR(m) = 1 / tau - 3 tau0^2 M1 / tau^2`, `M1 = sum_{k>=1} k r(k)`,
+//! so the filtered curve converges to N^2 / tau, with a 1/tau^2 correction that looks like a
+//! negative quantization term.
+//!
+//! **Filters.** [`LowPass::mpu6050`]: the chip's DLPF ([`crate::sim::dlpf`]) at its internal
+//! rate and SMPLRT_DIV decimation, from the capture's settings or a `--bandwidth`.
+//! [`LowPass::two_pole`]: a generic low-pass for sensors we do not know, the critically
+//! damped two-pole `1 / (1 + s T)^2` (the DLPF's prototype without its lead zero), -3 dB at
+//! the cutoff, realised by the bilinear transform at [`OVERSAMPLE`] times the output rate, so
+//! that it folds like a continuous-time filter sampled without anti-aliasing; its cutoff may
+//! lie above the output Nyquist frequency. [`detect`] fits that cutoff to a record's PSD.
+//!
+//! LSB rounding after the filter adds white noise of variance `lsb^2 / 12` per sample that
+//! the filter does not shape; for the MPU-6050 at its finest range it is below 0.1 % of N^2
+//! at realistic noise levels (gyro: `(1.33e-4 rad/s)^2 / 12 / f_s` against N ~ 1.5e-4
+//! rad/s/sqrt(Hz)), so the model leaves it out.
+
+use crate::analysis::fit;
+use crate::analysis::psd::{self, WelchOptions, Window};
+use crate::sim::dlpf::{DlpfDesign, Sensor};
+use protocol::mpu6050::SensorSettings;
+use rand::Rng;
+use rand_distr::StandardNormal;
+use serde::Serialize;
+use statrs::distribution::{ContinuousCDF, Normal};
+use std::f64::consts::PI;
+
+/// Internal rate of the generic two-pole filter, in multiples of the output rate.
+pub const OVERSAMPLE: usize = 16;
+/// Highest cutoff of the generic family, in multiples of the output rate (the bilinear
+/// transform needs it well below the internal Nyquist frequency, `OVERSAMPLE / 2` times f_s).
+pub const MAX_CUTOFF_PER_RATE: f64 = 2.0;
+/// Lowest cutoff [`detect`] searches, in multiples of the output rate.
+pub const MIN_CUTOFF_PER_RATE: f64 = 1.0 / 64.0;
+/// The evidence [`detect`] requires, in units of chi-squared with one degree of freedom: the
+/// low-pass must lower the PSD misfit by this much more than one free parameter would by
+/// chance (25: a 5-sigma likelihood-ratio test).
+pub const DETECTION_THRESHOLD: f64 = 25.0;
+/// For a fitted low-pass, the largest share by which the filter may lower the white Allan
+/// variance at the first tau fitted ([`LowPass::first_tau`]).
+pub const FITTED_SHAPE_SHARE: f64 = 0.05;
+/// Impulse responses are cut where they have decayed to this fraction of their peak.
+const DECAYED: f64 = 1e-13;
+/// Longest impulse response followed, internal samples (a filter slower than this is refused).
+const MAX_IMPULSE: usize = 1 << 20;
+
+/// Where a low-pass came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LowPassSource {
+    /// The sensor's settings (a capture's Info, a session, `--bandwidth`).
+    Settings,
+    /// Fitted to the record's spectrum ([`detect`]).
+    Fitted,
+}
+
+/// A low-pass filter between the sensor's white noise and its output samples, with what it
+/// does to white noise (module documentation).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LowPass {
+    /// -3 dB cutoff of the filter, Hz.
+    pub cutoff_hz: f64,
+    /// For a fitted cutoff, its interval at the confidence [`detect`] was given, Hz (the upper
+    /// end at most [`MAX_CUTOFF_PER_RATE`] times the rate); equal to `cutoff_hz` otherwise.
+    pub cutoff_lo_hz: f64,
+    pub cutoff_hi_hz: f64,
+    pub source: LowPassSource,
+    /// The output sample rate, Hz.
+    pub rate_hz: f64,
+    /// What the filter is, in words.
+    pub filter: String,
+    #[serde(skip)]
+    design: DlpfDesign,
+    #[serde(skip)]
+    decimation: usize,
+    /// r(l), l = 0..=L: the output autocovariance normalised to unit long-tau N.
+    #[serde(skip)]
+    autocov: Vec<f64>,
+    /// N of the output per unit per-sample sigma at the internal rate (the chain's gain).
+    #[serde(skip)]
+    gain: f64,
+}
+
+/// Why a low-pass cannot be built or detected.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LowPassError {
+    #[error("rate {0} Hz is not a positive finite number")]
+    BadRate(f64),
+    #[error(
+        "cutoff {cutoff_hz} Hz at {rate_hz} Hz: the generic low-pass takes cutoffs between {min} and {max} Hz"
+    )]
+    CutoffOutOfRange {
+        cutoff_hz: f64,
+        rate_hz: f64,
+        min: f64,
+        max: f64,
+    },
+    #[error("the filter's impulse response does not decay within {0} samples")]
+    TooSlow(usize),
+    #[error("a low-pass needs a confidence in (0, 1), not {0}")]
+    BadConfidence(f64),
+}
+
+impl LowPass {
+    /// The MPU-6050's chain for `sensor` at `settings`: its DLPF at the internal rate, then
+    /// every (1 + SMPLRT_DIV)-th sample. `None` where the chain does not shape white noise
+    /// (the reserved DLPF_CFG 7 passes the gyro through) or is not a plain decimation (the
+    /// accelerometer above 1 kHz output repeats samples; internal rates that are not a whole
+    /// multiple of the output rate).
+    pub fn mpu6050(settings: &SensorSettings, sensor: Sensor) -> Option<LowPass> {
+        let design = DlpfDesign::for_setting(settings.dlpf, sensor);
+        let bandwidth = design.bandwidth_hz?;
+        let rate_hz = settings.output_rate_hz();
+        let ratio = design.rate_hz / rate_hz;
+        let decimation = ratio.round();
+        if decimation < 1.0 || (ratio - decimation).abs() > 1e-9 * ratio {
+            return None;
+        }
+        let sensor_name = match sensor {
+            Sensor::Gyro => "gyro",
+            Sensor::Accel => "accel",
+        };
+        let filter = format!(
+            "MPU-6050 {sensor_name} DLPF (DLPF_CFG {}, {bandwidth} Hz) at {} Hz, every {}th sample",
+            settings.dlpf.bits(),
+            design.rate_hz,
+            decimation
+        );
+        Self::from_design(design, decimation as usize, rate_hz, filter).ok()
+    }
+
+    /// The generic low-pass (module documentation) with -3 dB cutoff `cutoff_hz`, sampled at
+    /// `rate_hz`, taken as known ([`LowPassSource::Settings`]).
+    pub fn two_pole(cutoff_hz: f64, rate_hz: f64) -> Result<LowPass, LowPassError> {
+        if !(rate_hz.is_finite() && rate_hz > 0.0) {
+            return Err(LowPassError::BadRate(rate_hz));
+        }
+        let (min, max) = (
+            rate_hz * MIN_CUTOFF_PER_RATE / 4.0,
+            rate_hz * MAX_CUTOFF_PER_RATE,
+        );
+        if !(cutoff_hz >= min && cutoff_hz <= max) {
+            return Err(LowPassError::CutoffOutOfRange {
+                cutoff_hz,
+                rate_hz,
+                min,
+                max,
+            });
+        }
+        let design = two_pole_design(cutoff_hz, rate_hz);
+        let filter = format!(
+            "two-pole low-pass 1/(1 + sT)^2, -3 dB at {} Hz, sampled at {} Hz",
+            crate::report::sig(cutoff_hz, 4),
+            rate_hz
+        );
+        Self::from_design(design, OVERSAMPLE, rate_hz, filter)
+    }
+
+    /// A low-pass for a stated bandwidth at a known rate: the MPU-6050's chain when the pair
+    /// is one of its settings (a DLPF table bandwidth and a reachable rate), else the generic
+    /// two-pole with that cutoff. `sensor` picks the DLPF row's gyro or accel filter.
+    pub fn for_bandwidth(
+        bandwidth_hz: f64,
+        rate_hz: f64,
+        sensor: Sensor,
+    ) -> Result<Option<LowPass>, LowPassError> {
+        match SensorSettings::for_rate_and_bandwidth(rate_hz, bandwidth_hz) {
+            Ok(settings) => Ok(Self::mpu6050(&settings, sensor)),
+            Err(_) => Self::two_pole(bandwidth_hz, rate_hz).map(Some),
+        }
+    }
+
+    fn from_design(
+        design: DlpfDesign,
+        decimation: usize,
+        rate_hz: f64,
+        filter: String,
+    ) -> Result<LowPass, LowPassError> {
+        let h = impulse_response(&design)?;
+        let lags = h.len() / decimation + 1;
+        let raw: Vec<f64> = (0..lags)
+            .map(|l| {
+                let shift = l * decimation;
+                h.iter()
+                    .zip(&h[shift.min(h.len())..])
+                    .map(|(a, b)| a * b)
+                    .sum()
+            })
+            .collect();
+        let tau0 = 1.0 / rate_hz;
+        let level = tau0 * (raw[0] + 2.0 * raw[1..].iter().sum::<f64>());
+        let cutoff_hz = design.bandwidth_hz.unwrap_or(f64::INFINITY);
+        Ok(LowPass {
+            cutoff_hz,
+            cutoff_lo_hz: cutoff_hz,
+            cutoff_hi_hz: cutoff_hz,
+            source: LowPassSource::Settings,
+            rate_hz,
+            filter,
+            design,
+            decimation,
+            autocov: raw.iter().map(|r| r / level).collect(),
+            gain: level.sqrt(),
+        })
+    }
+
+    /// The Allan variance, at `tau` (s), of white rate noise with unit long-tau N (1
+    /// u/sqrt(Hz)) passed through this filter: the formula of the module documentation at
+    /// m = tau f_s rounded to a whole number of samples (at least 1). Tends to `1 / tau`.
+    pub fn white_avar(&self, tau: f64) -> f64 {
+        let tau0 = 1.0 / self.rate_hz;
+        let m = (tau / tau0).round().max(1.0) as usize;
+        let r = |l: usize| self.autocov.get(l).copied().unwrap_or(0.0);
+        let lags = self.autocov.len();
+        let mf = m as f64;
+        if m > 2 * lags {
+            let m1: f64 = (1..lags).map(|k| k as f64 * r(k)).sum();
+            return (mf / tau0 - 3.0 * m1) / (mf * mf);
+        }
+        let mut sum = mf * (r(0) - r(m));
+        for k in 1..m {
+            sum += (mf - k as f64) * (2.0 * r(k) - r(m - k) - r(m + k));
+        }
+        sum / (mf * mf)
+    }
+
+    /// The shortest tau (s) at which the fit can rely on [`LowPass::white_avar`]: the first
+    /// tau0 for a filter from the settings, whose shape is exact. A fitted filter's shape is
+    /// the generic family's, which differs from a real filter's by a few percent of the
+    /// filter's own effect (3 % for the MPU-6050's 42 Hz DLPF at 200 Hz: the generic
+    /// two-pole of the best cutoff is off by 1 % in AVAR at m = 2, where the filter lowers it
+    /// by 45 %, and by 0.3 % at m = 10, where it lowers it by 9 %); so for a fitted filter
+    /// the fit starts where the filter lowers the white AVAR by at most
+    /// [`FITTED_SHAPE_SHARE`], and the shape error there is a fraction of a per mille.
+    pub fn first_tau(&self) -> f64 {
+        let tau0 = 1.0 / self.rate_hz;
+        if self.source == LowPassSource::Settings {
+            return tau0;
+        }
+        let share = |m: usize| (1.0 - self.white_avar(m as f64 * tau0) * m as f64 * tau0).abs();
+        // Beyond 2L lags the share falls as 3 tau0 M1 / tau (module documentation).
+        let last = 2 * self.autocov.len() + 2;
+        let mut first = last;
+        while first > 1 && share(first - 1) <= FITTED_SHAPE_SHARE {
+            first -= 1;
+        }
+        first as f64 * tau0
+    }
+
+    /// The power gain of the sampled chain at `freq_hz` (0 ..= f_s / 2), relative to DC: the
+    /// output PSD of white input is N^2 times this (two-sided), the aliases of the internal
+    /// rate folded in.
+    pub fn power_gain(&self, freq_hz: f64) -> f64 {
+        folded_gain(&self.design, self.decimation, freq_hz)
+    }
+
+    /// `samples` output samples of white rate noise whose long-tau Allan coefficient is
+    /// `n_density` (u/sqrt(Hz)), through this filter: white noise at the internal rate, the
+    /// filter, every D-th sample, as [`crate::sim::chain`] does it. The filter runs for one
+    /// impulse-response length before the first sample, so the series starts stationary.
+    pub fn white_through(&self, n_density: f64, samples: usize, rng: &mut impl Rng) -> Vec<f64> {
+        let sigma = n_density / self.gain;
+        let mut filter = self.design.filter();
+        let warmup = self.autocov.len() * self.decimation;
+        let mut next = || filter.process(sigma * rng.sample::<f64, _>(StandardNormal));
+        for _ in 0..warmup {
+            next();
+        }
+        let mut out = Vec::with_capacity(samples);
+        for _ in 0..samples {
+            for _ in 1..self.decimation {
+                next();
+            }
+            out.push(next());
+        }
+        out
+    }
+
+    /// The same filter with a fitted cutoff and its interval.
+    fn fitted(mut self, lo: f64, hi: f64) -> LowPass {
+        self.source = LowPassSource::Fitted;
+        self.cutoff_lo_hz = lo;
+        self.cutoff_hi_hz = hi;
+        self
+    }
+}
+
+/// The generic two-pole at `OVERSAMPLE` times `rate_hz`: the DLPF design with the DC group
+/// delay of the two poles alone, `2 T = 2 sqrt(sqrt 2 - 1) / w_c`, which leaves no lead zero.
+fn two_pole_design(cutoff_hz: f64, rate_hz: f64) -> DlpfDesign {
+    let internal = rate_hz * OVERSAMPLE as f64;
+    let ts = 1.0 / internal;
+    let wc = 2.0 / ts * (PI * cutoff_hz * ts).tan();
+    let delay = 2.0 * (2f64.sqrt() - 1.0).sqrt() / wc;
+    DlpfDesign::design(cutoff_hz, delay, internal)
+}
+
+/// The design's impulse response at its own rate, up to where it has decayed.
+fn impulse_response(design: &DlpfDesign) -> Result<Vec<f64>, LowPassError> {
+    let mut filter = design.filter();
+    let mut h = Vec::new();
+    let mut peak: f64 = 0.0;
+    let mut quiet = 0;
+    while h.len() < MAX_IMPULSE {
+        let v = filter.process(if h.is_empty() { 1.0 } else { 0.0 });
+        peak = peak.max(v.abs());
+        quiet = if v.abs() < DECAYED * peak {
+            quiet + 1
+        } else {
+            0
+        };
+        h.push(v);
+        // A double pole's response crosses zero at most once; 8 quiet samples past the pure
+        // delay mean the tail has decayed.
+        if quiet >= 8 && h.len() > design.pure_delay + 8 {
+            h.truncate(h.len() - quiet);
+            return Ok(h);
+        }
+    }
+    Err(LowPassError::TooSlow(MAX_IMPULSE))
+}
+
+/// `sum_j |H(f + j f_s)|^2 / sum_j |H(j f_s)|^2`, j = 0..D-1: the folded power gain.
+fn folded_gain(design: &DlpfDesign, decimation: usize, freq_hz: f64) -> f64 {
+    let fs = design.rate_hz / decimation as f64;
+    let sum = |f: f64| -> f64 {
+        (0..decimation)
+            .map(|j| design.response(f + j as f64 * fs).norm_sqr())
+            .sum()
+    };
+    sum(freq_hz) / sum(0.0)
+}
+
+/// The low-pass channels of a sensor with these settings: `None` for channels no DLPF
+/// filters (the die temperature). Gyro rows for angular rates and for channels of unknown
+/// quantity, accel rows for accelerations.
+pub fn sensor_for(quantity: crate::record::Quantity) -> Option<Sensor> {
+    use crate::record::Quantity;
+    match quantity {
+        Quantity::AngularRate | Quantity::Other => Some(Sensor::Gyro),
+        Quantity::Acceleration => Some(Sensor::Accel),
+        Quantity::Temperature => None,
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Detection.
+
+/// Welch segment of the detection PSD (shorter for short records).
+const DETECT_SEGMENT: usize = 1024;
+/// Fewest Welch segments worth a detection.
+const MIN_SEGMENTS: usize = 8;
+/// Points per decade of the cutoff grid before refinement.
+const GRID_PER_DECADE: f64 = 24.0;
+/// `1 + 2 sum_k rho_k^2` for the Hann window's adjacent-bin correlations rho_1 = -2/3 and
+/// rho_2 = 1/6 (the window's DFT is [-1/4, 1/2, -1/4]; Percival & Walden, "Spectral Analysis
+/// for Physical Applications", 1993, section 6.18): the variance of a sum over bins is this
+/// many times the independent-bin value.
+const HANN_BIN_CORRELATION: f64 = 1.0 + 2.0 * (4.0 / 9.0 + 1.0 / 36.0);
+/// Equivalent degrees of freedom per Hann segment at 50 % overlap, `2 / (1 + 2 c^2)` with the
+/// overlap correlation c = 1/6 (Percival & Walden 1993, eq. 292b).
+const HANN_DOF_PER_SEGMENT: f64 = 2.0 / (1.0 + 2.0 / 36.0);
+
+/// A detection and the evidence behind it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Detection {
+    /// The low-pass, when the evidence passes [`DETECTION_THRESHOLD`] and the cutoff lies
+    /// below the output Nyquist frequency.
+    pub low_pass: Option<LowPass>,
+    /// Best cutoff of the generic family, Hz (`None`: no filter fits better than none).
+    pub best_cutoff_hz: Option<f64>,
+    /// The likelihood-ratio statistic of the low-pass against none, in chi-squared(1) units
+    /// after the bin correlation and the Birge ratio.
+    pub statistic: f64,
+    /// Reduced chi-square of the PSD model at the best cutoff (the Birge ratio's square).
+    pub reduced_chi2: f64,
+}
+
+/// Detect a low-pass roll-off in a rate record `y` sampled at `rate_hz`, and fit its cutoff
+/// (the generic two-pole family) with an interval at `confidence`.
+///
+/// **Model.** The Welch PSD (Hann, 50 % overlap, segments of [`DETECT_SEGMENT`] samples) from
+/// f_s / 256 to just below Nyquist is fitted by
+///
+/// ```text
+///   S(f) = G(f; f_c) (w + b / f + k / f^2) + q 4 sin^2(pi f / f_s)
+/// ```
+///
+/// G the folded power gain of the filter ([`LowPass::power_gain`]), w, b, k the white,
+/// flicker and random-walk levels (IEEE 952 Table C.1 shapes), q white phase noise
+/// (quantization, the first difference of white phase); w, b, k, q >= 0 by NNLS, each bin
+/// weighted by its variance `S^2 2 / nu` (nu the Welch EDF) with S the model
+/// (reweighted three times). chi2(f_c) is profiled over a log grid from f_s / 64 to 2 f_s and
+/// refined by golden section; no filter is G = 1.
+///
+/// **Decision.** `Delta = (chi2(none) - chi2(f_c)) / (c B^2)`, c = [`HANN_BIN_CORRELATION`]
+/// for the correlated bins and `B^2 = max(1, chi2 / dof)` the Birge ratio, which widens
+/// everything when the model does not describe the spectrum (lines, unmodelled processes).
+/// A low-pass is claimed when `Delta >= DETECTION_THRESHOLD` and the cutoff is below f_s / 2;
+/// a cutoff above Nyquist folds back almost flat, so it is reported as no roll-off. The
+/// interval is where the profile rises by at most z^2 in those units (z the normal quantile).
+pub fn detect(y: &[f64], rate_hz: f64, confidence: f64) -> Result<Detection, LowPassError> {
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        return Err(LowPassError::BadRate(rate_hz));
+    }
+    if !(confidence > 0.0 && confidence < 1.0) {
+        return Err(LowPassError::BadConfidence(confidence));
+    }
+    let none = Detection {
+        low_pass: None,
+        best_cutoff_hz: None,
+        statistic: 0.0,
+        reduced_chi2: f64::NAN,
+    };
+    let Some(spectrum) = DetectionPsd::new(y, rate_hz) else {
+        return Ok(none);
+    };
+    let white = spectrum.chi2(None);
+    let (lo, hi) = (rate_hz * MIN_CUTOFF_PER_RATE, rate_hz * MAX_CUTOFF_PER_RATE);
+    let steps = ((hi / lo).log10() * GRID_PER_DECADE).ceil() as usize;
+    let grid: Vec<f64> = (0..=steps)
+        .map(|i| lo * (hi / lo).powf(i as f64 / steps as f64))
+        .collect();
+    let profile: Vec<f64> = grid.iter().map(|&f| spectrum.chi2(Some(f))).collect();
+    let best = (0..grid.len())
+        .min_by(|&a, &b| profile[a].total_cmp(&profile[b]))
+        .unwrap_or(0);
+    let (a, b) = (
+        grid[best.saturating_sub(1)],
+        grid[(best + 1).min(grid.len() - 1)],
+    );
+    let cutoff = golden_min(|f| spectrum.chi2(Some(f)), a, b);
+    let chi2_best = spectrum.chi2(Some(cutoff)).min(profile[best]);
+    let dof = spectrum.bins().saturating_sub(5).max(1) as f64;
+    let reduced = chi2_best / dof;
+    let scale = HANN_BIN_CORRELATION * reduced.max(1.0);
+    let statistic = (white - chi2_best).max(0.0) / scale;
+    let mut detection = Detection {
+        low_pass: None,
+        best_cutoff_hz: (chi2_best < white).then_some(cutoff),
+        statistic,
+        reduced_chi2: reduced,
+    };
+    if statistic < DETECTION_THRESHOLD || cutoff >= rate_hz / 2.0 {
+        return Ok(detection);
+    }
+    let z = Normal::standard().inverse_cdf(0.5 + confidence / 2.0);
+    let rise = |f: f64| (spectrum.chi2(Some(f)) - chi2_best) / scale - z * z;
+    let lo_end = crossing(&rise, cutoff, lo);
+    let hi_end = crossing(&rise, cutoff, hi);
+    detection.low_pass = Some(LowPass::two_pole(cutoff, rate_hz)?.fitted(lo_end, hi_end));
+    Ok(detection)
+}
+
+/// The record's Welch PSD over the bins the detection fits, with their EDF.
+struct DetectionPsd {
+    rate_hz: f64,
+    freq: Vec<f64>,
+    density: Vec<f64>,
+    dof: f64,
+}
+
+impl DetectionPsd {
+    fn new(y: &[f64], rate_hz: f64) -> Option<DetectionPsd> {
+        let mut segment = DETECT_SEGMENT;
+        while segment > 64 && y.len() < segment * MIN_SEGMENTS / 2 {
+            segment /= 2;
+        }
+        if y.len() < segment * MIN_SEGMENTS / 2 {
+            return None;
+        }
+        let options = WelchOptions {
+            segment_len: segment,
+            overlap: 0.5,
+            window: Window::Hann,
+            detrend_mean: true,
+        };
+        let p = psd::welch(y, rate_hz, &options).ok()?;
+        let first = (segment / 256).max(2);
+        let last = segment / 2 - 1;
+        let keep = |v: &[f64]| v[first..last].to_vec();
+        Some(DetectionPsd {
+            rate_hz,
+            freq: keep(&p.freq),
+            density: keep(&p.density),
+            dof: HANN_DOF_PER_SEGMENT * p.segments as f64,
+        })
+    }
+
+    fn bins(&self) -> usize {
+        self.freq.len()
+    }
+
+    /// The weighted misfit of the best non-negative (w, b, k, q) with the filter of cutoff
+    /// `cutoff_hz` (`None`: no filter).
+    fn chi2(&self, cutoff_hz: Option<f64>) -> f64 {
+        let design = cutoff_hz.map(|f| two_pole_design(f, self.rate_hz));
+        let rows: Vec<[f64; 4]> = self
+            .freq
+            .iter()
+            .map(|&f| {
+                let g = design
+                    .as_ref()
+                    .map_or(1.0, |d| folded_gain(d, OVERSAMPLE, f));
+                let s = (PI * f / self.rate_hz).sin();
+                [g, g / f, g / (f * f), 4.0 * s * s]
+            })
+            .collect();
+        let spread = (2.0 / self.dof).sqrt();
+        let mut sigma: Vec<f64> = self.density.iter().map(|s| s * spread).collect();
+        let mut chi2 = f64::INFINITY;
+        for _ in 0..3 {
+            let coef = weighted_nnls4(&rows, &self.density, &sigma);
+            let model: Vec<f64> = rows
+                .iter()
+                .map(|r| r.iter().zip(&coef).map(|(a, c)| a * c).sum::<f64>())
+                .collect();
+            chi2 = model
+                .iter()
+                .zip(&self.density)
+                .zip(&sigma)
+                .map(|((m, s), sd)| ((s - m) / sd).powi(2))
+                .sum();
+            sigma = model
+                .iter()
+                .zip(&self.density)
+                .map(|(m, s)| m.max(1e-3 * s) * spread)
+                .collect();
+        }
+        chi2
+    }
+}
+
+/// Non-negative least squares of four columns with per-row standard deviations, on unit-norm
+/// columns ([`fit::nnls`]).
+fn weighted_nnls4(rows: &[[f64; 4]], y: &[f64], sigma: &[f64]) -> [f64; 4] {
+    let mut norms = [0.0f64; 4];
+    for (r, s) in rows.iter().zip(sigma) {
+        for j in 0..4 {
+            norms[j] += (r[j] / s).powi(2);
+        }
+    }
+    let norms = norms.map(|n| n.sqrt().max(f64::MIN_POSITIVE));
+    let g: Vec<Vec<f64>> = rows
+        .iter()
+        .zip(sigma)
+        .map(|(r, s)| (0..4).map(|j| r[j] / s / norms[j]).collect())
+        .collect();
+    let b: Vec<f64> = y.iter().zip(sigma).map(|(y, s)| y / s).collect();
+    let x = fit::nnls(&g, &b);
+    std::array::from_fn(|j| x[j] / norms[j])
+}
+
+/// Minimum of a unimodal `f` on `[a, b]` by golden-section search in log frequency.
+fn golden_min(f: impl Fn(f64) -> f64, a: f64, b: f64) -> f64 {
+    let ratio = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut lo, mut hi) = (a.ln(), b.ln());
+    let mut x1 = hi - ratio * (hi - lo);
+    let mut x2 = lo + ratio * (hi - lo);
+    let (mut f1, mut f2) = (f(x1.exp()), f(x2.exp()));
+    for _ in 0..40 {
+        if f1 < f2 {
+            hi = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = hi - ratio * (hi - lo);
+            f1 = f(x1.exp());
+        } else {
+            lo = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = lo + ratio * (hi - lo);
+            f2 = f(x2.exp());
+        }
+    }
+    (0.5 * (lo + hi)).exp()
+}
+
+/// Where `g` (negative at `from`) first turns non-negative on the way to `to`, by a log-spaced
+/// scan and bisection; `to` if it never does.
+fn crossing(g: &impl Fn(f64) -> f64, from: f64, to: f64) -> f64 {
+    let steps = 64;
+    let mut prev = from;
+    for i in 1..=steps {
+        let x = from * (to / from).powf(i as f64 / steps as f64);
+        if g(x) >= 0.0 {
+            let (mut a, mut b) = (prev, x);
+            for _ in 0..30 {
+                let m = (a * b).sqrt();
+                if g(m) >= 0.0 { b = m } else { a = m }
+            }
+            return (a * b).sqrt();
+        }
+        prev = x;
+    }
+    to
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::{Estimator, allan, phase_from_rate};
+    use crate::sim::chain::{AxisChain, white_noise_inflation};
+    use crate::sim::noise::NoiseTerms;
+    use protocol::mpu6050::DlpfCfg;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    /// The time-domain level (sum of the output autocovariance) equals the frequency-domain
+    /// folding prediction of `sim::chain` for every DLPF row, both sensors, three decimations.
+    #[test]
+    fn level_matches_the_folding_prediction() {
+        for cfg in DlpfCfg::ALL {
+            for div in [0u8, 4, 19] {
+                for sensor in [Sensor::Gyro, Sensor::Accel] {
+                    let settings = SensorSettings {
+                        dlpf: cfg,
+                        smplrt_div: div,
+                        ..SensorSettings::default()
+                    };
+                    let Some(lp) = LowPass::mpu6050(&settings, sensor) else {
+                        continue;
+                    };
+                    let design = DlpfDesign::for_setting(cfg, sensor);
+                    let predicted = white_noise_inflation(&design, lp.decimation);
+                    let got = lp.gain * design.rate_hz.sqrt();
+                    assert!(
+                        (got / predicted - 1.0).abs() < 1e-9,
+                        "{cfg:?} {div} {sensor:?}: {got} vs {predicted}"
+                    );
+                }
+            }
+        }
+        // The reserved setting passes the gyro through: nothing to model.
+        let seven = SensorSettings {
+            dlpf: DlpfCfg::Cfg7,
+            ..SensorSettings::default()
+        };
+        assert!(LowPass::mpu6050(&seven, Sensor::Gyro).is_none());
+    }
+
+    /// The direct sum of the module documentation at any m (test reference).
+    fn direct_avar(lp: &LowPass, m: usize) -> f64 {
+        let r = |l: usize| lp.autocov.get(l).copied().unwrap_or(0.0);
+        let mf = m as f64;
+        let mut sum = mf * (r(0) - r(m));
+        for k in 1..m {
+            sum += (mf - k as f64) * (2.0 * r(k) - r(m - k) - r(m + k));
+        }
+        sum / (mf * mf)
+    }
+
+    /// The closed form beyond 2L lags equals the direct sum, and tau AVAR tends to 1 (unit N)
+    /// from below as 1 - 3 tau0 M1 / tau.
+    #[test]
+    fn white_avar_tends_to_one_over_tau() {
+        let s = SensorSettings::for_rate_and_bandwidth(100.0, 20.0).unwrap();
+        for lp in [
+            LowPass::mpu6050(&s, Sensor::Gyro).unwrap(),
+            LowPass::two_pole(30.0, 200.0).unwrap(),
+        ] {
+            let tau0 = 1.0 / lp.rate_hz;
+            let lags = lp.autocov.len();
+            for m in [2 * lags + 1, 2 * lags + 7, 10 * lags] {
+                let closed = lp.white_avar(m as f64 * tau0);
+                assert!((closed / direct_avar(&lp, m) - 1.0).abs() < 1e-9, "m {m}");
+            }
+            let mut last = 0.0;
+            for m in [1, 2, 5, 20, 100, 1000, 100_000] {
+                let x = lp.white_avar(m as f64 * tau0) * m as f64 * tau0;
+                assert!(x > last && x < 1.0 + 1e-12, "m {m}: {x}");
+                last = x;
+            }
+            assert!(last > 0.9999, "{last}");
+        }
+        // No filter to speak of: a cutoff at twice the rate leaves white noise white to 1 %.
+        let wide = LowPass::two_pole(400.0, 200.0).unwrap();
+        let x = wide.white_avar(0.005) * 0.005;
+        assert!((x - 1.0).abs() < 0.01, "{x}");
+    }
+
+    /// Mean overlapping AVAR over `records` simulated records at factors `ms`, and its
+    /// standard error from the spread between records.
+    fn measured(
+        mut record: impl FnMut(u64) -> Vec<f64>,
+        rate: f64,
+        ms: &[usize],
+        records: u64,
+    ) -> Vec<(f64, f64)> {
+        let per: Vec<Vec<f64>> = (0..records)
+            .map(|seed| {
+                let y = record(seed);
+                let x = phase_from_rate(&y, 1.0 / rate);
+                let d = allan::deviation(Estimator::Oadev, &x, 1.0 / rate, ms);
+                d.dev.iter().map(|v| v * v).collect()
+            })
+            .collect();
+        let k = records as f64;
+        (0..ms.len())
+            .map(|i| {
+                let mean = per.iter().map(|p| p[i]).sum::<f64>() / k;
+                let var = per.iter().map(|p| (p[i] - mean).powi(2)).sum::<f64>() / (k - 1.0);
+                (mean, (var / k).sqrt())
+            })
+            .collect()
+    }
+
+    /// Simulate and measure: white noise through the simulator's chain (`sim::chain`, the
+    /// same DLPF and decimation the simulated sensor uses) at five settings; the mean
+    /// overlapping AVAR of 8 records at m = 1, 2, 3, 5, 10 lies within 4 standard errors
+    /// (measured over the records) of N^2 white_avar — and at m = 1 the filter's effect is
+    /// many standard errors, so the check has teeth.
+    #[test]
+    fn white_avar_matches_the_simulated_chain() {
+        let n0 = 0.01;
+        let ms = [1usize, 2, 3, 5, 10];
+        for (rate, bw, sensor) in [
+            (200.0, 42.0, Sensor::Gyro),
+            (50.0, 42.0, Sensor::Gyro),
+            (200.0, 256.0, Sensor::Gyro),
+            (100.0, 20.0, Sensor::Gyro),
+            (1000.0, 94.0, Sensor::Accel),
+        ] {
+            let settings = SensorSettings::for_rate_and_bandwidth(rate, bw).unwrap();
+            let lp = LowPass::mpu6050(&settings, sensor).unwrap();
+            let design = DlpfDesign::for_setting(settings.dlpf, sensor);
+            let n_out = n0 * white_noise_inflation(&design, lp.decimation);
+            let terms = NoiseTerms {
+                n: n0,
+                ..Default::default()
+            };
+            let samples = 20_000u64;
+            let got = measured(
+                |seed| {
+                    let mut chain = AxisChain::new(
+                        terms,
+                        &design,
+                        samples as f64 / rate,
+                        ChaCha8Rng::seed_from_u64(seed),
+                    );
+                    let d = lp.decimation as u64;
+                    (0..samples).map(|k| chain.advance_to(k * d, 0.0)).collect()
+                },
+                rate,
+                &ms,
+                8,
+            );
+            for (&m, (mean, se)) in ms.iter().zip(got) {
+                let predicted = n_out * n_out * lp.white_avar(m as f64 / rate);
+                assert!(
+                    (mean - predicted).abs() <= 4.0 * se,
+                    "{rate}/{bw} m {m}: measured {mean:e} +- {se:e}, predicted {predicted:e}"
+                );
+            }
+            let white = n_out * n_out * rate;
+            let at_one = n_out * n_out * lp.white_avar(1.0 / rate);
+            println!("{rate}/{bw}: AVAR(tau0) is {:.3} of white", at_one / white);
+        }
+    }
+
+    /// `white_through` has the density asked for and the modelled shape: the same check as
+    /// above on its output, for a DLPF chain and the generic two-pole.
+    #[test]
+    fn white_through_has_the_modelled_avar() {
+        let n = 2e-3;
+        let ms = [1usize, 2, 5, 50];
+        let settings = SensorSettings::for_rate_and_bandwidth(100.0, 42.0).unwrap();
+        for lp in [
+            LowPass::mpu6050(&settings, Sensor::Gyro).unwrap(),
+            LowPass::two_pole(12.0, 100.0).unwrap(),
+        ] {
+            let got = measured(
+                |seed| lp.white_through(n, 20_000, &mut ChaCha8Rng::seed_from_u64(seed)),
+                100.0,
+                &ms,
+                8,
+            );
+            for (&m, (mean, se)) in ms.iter().zip(got) {
+                let predicted = n * n * lp.white_avar(m as f64 / 100.0);
+                assert!(
+                    (mean - predicted).abs() <= 4.0 * se,
+                    "{} m {m}: {mean:e} +- {se:e} vs {predicted:e}",
+                    lp.filter
+                );
+            }
+        }
+    }
+
+    /// The generic family finds its own cutoff: white noise through the two-pole at 20 Hz
+    /// (200 Hz, 10 records of 100 s) is detected every time, and the 68.3 % interval of the
+    /// cutoff contains 20 Hz in at least 4 of 10 (binomial(10, 0.683): P(<= 3) = 1 %).
+    #[test]
+    fn detect_recovers_the_generic_cutoff() {
+        let lp = LowPass::two_pole(20.0, 200.0).unwrap();
+        let mut covered = 0;
+        for seed in 0..10 {
+            let y = lp.white_through(1e-3, 20_000, &mut ChaCha8Rng::seed_from_u64(seed));
+            let d = detect(&y, 200.0, 0.683).unwrap();
+            let found = d.low_pass.expect("a roll-off");
+            assert_eq!(found.source, LowPassSource::Fitted);
+            assert!(found.cutoff_lo_hz <= found.cutoff_hz && found.cutoff_hz <= found.cutoff_hi_hz);
+            assert!((found.cutoff_hz / 20.0 - 1.0).abs() < 0.1, "{found:?}");
+            covered += usize::from(found.cutoff_lo_hz <= 20.0 && 20.0 <= found.cutoff_hi_hz);
+        }
+        assert!(covered >= 4, "covered {covered} of 10");
+    }
+
+    #[test]
+    fn bad_inputs_are_errors() {
+        assert!(matches!(
+            LowPass::two_pole(500.0, 200.0),
+            Err(LowPassError::CutoffOutOfRange { .. })
+        ));
+        assert!(matches!(
+            LowPass::two_pole(f64::NAN, 200.0),
+            Err(LowPassError::CutoffOutOfRange { .. })
+        ));
+        assert!(LowPass::two_pole(10.0, 0.0).is_err());
+        assert!(detect(&[1.0; 100], 100.0, 1.5).is_err());
+        // Too short for a spectrum: no detection, no error.
+        assert!(
+            detect(&[1.0, 2.0, 3.0], 100.0, 0.683)
+                .unwrap()
+                .low_pass
+                .is_none()
+        );
+        // A bandwidth that is not the MPU-6050's becomes the generic filter.
+        let lp = LowPass::for_bandwidth(30.0, 200.0, Sensor::Gyro)
+            .unwrap()
+            .unwrap();
+        assert!(lp.filter.starts_with("two-pole"), "{}", lp.filter);
+        let lp = LowPass::for_bandwidth(42.0, 200.0, Sensor::Gyro)
+            .unwrap()
+            .unwrap();
+        assert!(lp.filter.starts_with("MPU-6050"), "{}", lp.filter);
+    }
+}
