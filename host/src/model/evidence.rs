@@ -36,6 +36,8 @@ pub enum View {
     RegressionOnTemperature,
     /// Misfit drop of the Allan curve when the term joins the model.
     NestedFit,
+    /// The spectrum's roll-off against a low-pass-free model ([`crate::analysis::low_pass::detect`]).
+    RollOff,
 }
 
 impl View {
@@ -45,6 +47,7 @@ impl View {
             View::RegressionOnTime => "regression on time",
             View::RegressionOnTemperature => "regression on temperature",
             View::NestedFit => "Allan misfit drop",
+            View::RollOff => "spectrum roll-off",
         }
     }
 

@@ -47,6 +47,7 @@ pub mod regression;
 pub mod report;
 
 use crate::analysis::pipeline::{self, ChannelResult, Options};
+use crate::analysis::low_pass::{self, LowPass, LowPassSource};
 use crate::analysis::{Deviation, fit};
 use crate::record::{Channel, Quantity, Record};
 use crate::sim::noise::{AxisNoise, NoiseTerms, Sinusoid};
@@ -57,6 +58,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use refit::Column;
 use serde::Serialize;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// Chance, per round, that pure noise gets some candidate named: split evenly over the
 /// candidates of the round (Bonferroni).
@@ -175,7 +177,7 @@ impl Effect {
                 format!("rate random walk, K = {k:.4e} {u} sqrt(Hz)")
             }
             Effect::LowPass { cutoff_hz } => {
-                format!("low-pass filter, -3 dB at {cutoff_hz:.4} Hz")
+                format!("low-pass filter (the sensor's own), -3 dB at {cutoff_hz:.4} Hz")
             }
         }
     }
@@ -193,10 +195,21 @@ pub struct Model {
     /// u/(degC/s), on the temperature's derivative.
     pub temp_rate_coeff: Option<f64>,
     pub lines: Vec<Line>,
-    pub low_pass_hz: Option<f64>,
+    /// The sensor's low-pass filter: from its settings (part of the baseline) or named from
+    /// the record's roll-off. The white noise N is simulated and fitted through it.
+    pub low_pass: Option<LowPass>,
 }
 
 impl Model {
+    /// The Allan variance of unit-density white rate noise at `tau` through the model's
+    /// low-pass (`1 / tau` without one).
+    fn white_shape(&self, tau: f64) -> f64 {
+        match &self.low_pass {
+            Some(lp) => lp.white_avar(tau),
+            None => refit::unfiltered(tau),
+        }
+    }
+
     /// Only the stochastic terms, as the simulator synthesises them.
     fn stochastic(&self) -> NoiseTerms {
         NoiseTerms {
@@ -415,6 +428,25 @@ pub fn run(
         settings: settings.clone(),
         lines: &detect_lines,
     };
+    // A filter known from the sensor's settings is part of the baseline; one fitted to the
+    // record's roll-off is named as the first step, with the detection's evidence.
+    let known = fitted
+        .low_pass
+        .clone()
+        .filter(|lp| lp.source == LowPassSource::Settings);
+    let mut pending = fitted
+        .low_pass
+        .clone()
+        .filter(|lp| lp.source == LowPassSource::Fitted)
+        .map(|lp| {
+            let statistic = low_pass::detect(data.rate, data.rate_hz, 0.683)
+                .map_or(0.0, |d| d.statistic);
+            let p_value = ChiSquared::new(1.0).map_or(0.0, |c| c.sf(statistic));
+            let effect = Effect::LowPass {
+                cutoff_hz: lp.cutoff_hz,
+            };
+            (lp, Evidence::with_p(View::RollOff, (statistic, Some(effect)), &[], p_value, 1))
+        });
     let baseline = Model {
         terms: NoiseTerms {
             q: fitted.q.value,
@@ -423,6 +455,7 @@ pub fn run(
             k: fitted.k.value,
             ..NoiseTerms::default()
         },
+        low_pass: known,
         ..Model::default()
     };
     let mut model = baseline.clone();
@@ -451,6 +484,25 @@ pub fn run(
                 s.comparison = round.comparison.clone();
             }
             None => initial = Some((round.comparison.clone(), round.evidence.clone())),
+        }
+        if let Some((lp, evidence)) = pending.take() {
+            let effect = evidence.effect.unwrap_or(Effect::LowPass {
+                cutoff_hz: lp.cutoff_hz,
+            });
+            model.low_pass = Some(lp);
+            let mut shown = vec![evidence.clone()];
+            shown.extend(round.evidence.iter().cloned());
+            steps.push(Step {
+                description: effect.describe(channel.unit()),
+                effect,
+                view: View::RollOff,
+                gap_before: round.comparison.gap,
+                gap_after: f64::NAN,
+                evidence: shown,
+                model: model.clone(),
+                comparison: round.comparison.clone(),
+            });
+            continue;
         }
         let Some(chosen) = choose(&round.evidence) else {
             let best = round
@@ -594,7 +646,8 @@ fn add(
         avar: &avar,
         sd_ln,
     };
-    let terms = refit::refit(curve, &columns, &refit::unfiltered);
+    let white = |tau: f64| model.white_shape(tau);
+    let terms = refit::refit(curve, &columns, &white);
     out.terms = NoiseTerms {
         r: out.terms.r,
         sinusoid: out.terms.sinusoid,
@@ -613,18 +666,25 @@ struct Round {
     evidence: Vec<Evidence>,
 }
 
-/// `n` samples of the stochastic `terms`, realisation `i`.
-fn realise(data: &Data, terms: &NoiseTerms, i: usize) -> Vec<f64> {
+/// `n` samples of the stochastic `terms`, realisation `i`; the white noise through
+/// `low_pass` when there is one.
+fn realise(data: &Data, terms: &NoiseTerms, low_pass: Option<&LowPass>, i: usize) -> Vec<f64> {
     let n = data.rate.len();
     let mut rng = ChaCha8Rng::seed_from_u64(data.settings.seed.wrapping_add(i as u64));
     let duration = n as f64 / data.rate_hz;
     let stochastic = NoiseTerms {
         r: 0.0,
         sinusoid: None,
+        n: if low_pass.is_some() { 0.0 } else { terms.n },
         ..*terms
     };
     let mut generator = AxisNoise::new(stochastic, data.rate_hz, duration, &mut rng);
-    generator.take(n, &mut rng)
+    let mut y = generator.take(n, &mut rng);
+    if let Some(lp) = low_pass {
+        let white = lp.white_through(terms.n, n, &mut rng);
+        y.iter_mut().zip(white).for_each(|(a, b)| *a += b);
+    }
+    y
 }
 
 /// Simulate the model twice over the same seeds: first its Allan band (each realisation
@@ -642,7 +702,7 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
     let logs: Vec<Vec<f64>> = (0..r)
         .into_par_iter()
         .map(|i| {
-            let s = realise(data, &model.terms, i);
+            let s = realise(data, &model.terms, model.low_pass.as_ref(), i);
             let with: Vec<f64> = s.iter().zip(&deterministic).map(|(a, b)| a + b).collect();
             evidence::allan_avar(with, data.rate_hz, m)
                 .iter()
@@ -653,6 +713,7 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
     let comparison = compare(&data.measured, &logs);
     let sd_ln: Vec<f64> = comparison.band.std_log.iter().map(|s| 2.0 * s).collect();
     let stochastic = model.stochastic();
+    let white = |tau: f64| model.white_shape(tau);
     let ctx = Context {
         rate_hz: data.rate_hz,
         m,
@@ -661,7 +722,7 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         temperature: data.temperature.as_ref(),
         removal,
         terms: &stochastic,
-        white: &refit::unfiltered,
+        white: &white,
         gauss_markov_range: (GAUSS_MARKOV_MIN_SAMPLES * tau0, longest / 2.0),
         lines: data.lines,
     };
@@ -674,7 +735,11 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
     let sims: Vec<Vec<f64>> = (0..r)
         .into_par_iter()
         .map(|i| {
-            evidence::statistics(&realise(data, &model.terms, i), &on_sims, &ctx)
+            evidence::statistics(
+                &realise(data, &model.terms, model.low_pass.as_ref(), i),
+                &on_sims,
+                &ctx,
+            )
                 .into_iter()
                 .map(|(v, _)| v)
                 .collect()
@@ -696,9 +761,11 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         temperature: data.temperature.as_ref(),
         removal,
         columns: &columns,
-        white: &refit::unfiltered,
+        white: &white,
         realisations: r,
-        realise: &|terms: &NoiseTerms, i: usize| realise(data, terms, i),
+        realise: &|terms: &NoiseTerms, i: usize| {
+            realise(data, terms, model.low_pass.as_ref(), i)
+        },
         candidates: probes.len(),
     };
     let evidence = probes

@@ -4,6 +4,7 @@
 
 use super::evidence::Evidence;
 use super::{Comparison, FAMILY_ALPHA, Model, Outcome, Step};
+use crate::analysis::low_pass::LowPassSource;
 use crate::record::Quantity;
 use crate::report::html::{STYLE, escape};
 use crate::report::plot::{self, Figure, Line, Panel};
@@ -58,8 +59,11 @@ pub fn model_keys(model: &Model) -> Value {
     if !model.lines.is_empty() {
         m.insert("lines".into(), json!(model.lines));
     }
-    if let Some(f) = model.low_pass_hz {
-        m.insert("low_pass_hz".into(), json!(f));
+    if let Some(lp) = &model.low_pass {
+        m.insert(
+            "low_pass".into(),
+            json!({"cutoff_hz": lp.cutoff_hz, "source": lp.source}),
+        );
     }
     Value::Object(m)
 }
@@ -216,8 +220,15 @@ fn model_line(m: &Model, u: &str) -> String {
     if let Some(c) = m.temp_rate_coeff {
         parts.push(format!("d(temperature)/dt {} {u}/(degC/s)", sig(c, 4)));
     }
-    if let Some(f) = m.low_pass_hz {
-        parts.push(format!("low-pass -3 dB at {} Hz", sig(f, 4)));
+    if let Some(lp) = &m.low_pass {
+        parts.push(format!(
+            "low-pass -3 dB at {} Hz ({})",
+            sig(lp.cutoff_hz, 4),
+            match lp.source {
+                LowPassSource::Settings => "from the sensor's settings",
+                LowPassSource::Fitted => "fitted to the record",
+            }
+        ));
     }
     parts.join(", ")
 }
