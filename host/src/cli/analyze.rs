@@ -94,7 +94,21 @@ pub enum Bandwidth {
     Off,
 }
 
-fn parse_bandwidth(s: &str) -> Result<Bandwidth, String> {
+/// The low-pass the fit models: `--bandwidth` if given, else the input's own settings, else
+/// one fitted to the spectrum.
+pub fn low_pass_choice(
+    bandwidth: Option<Bandwidth>,
+    settings: Option<SensorSettings>,
+) -> LowPassChoice {
+    match (bandwidth, settings) {
+        (Some(Bandwidth::Off), _) => LowPassChoice::Off,
+        (Some(Bandwidth::Hz(hz)), _) => LowPassChoice::Bandwidth(hz),
+        (None, Some(s)) => LowPassChoice::Sensor(s),
+        (None, None) => LowPassChoice::Detect,
+    }
+}
+
+pub fn parse_bandwidth(s: &str) -> Result<Bandwidth, String> {
     if s.eq_ignore_ascii_case("off") {
         return Ok(Bandwidth::Off);
     }
@@ -206,12 +220,7 @@ pub fn analyse(
 ) -> Result<Analysed> {
     let record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
     let mut options = options(args)?;
-    options.low_pass = match (args.bandwidth, settings) {
-        (Some(Bandwidth::Off), _) => LowPassChoice::Off,
-        (Some(Bandwidth::Hz(hz)), _) => LowPassChoice::Bandwidth(hz),
-        (None, Some(s)) => LowPassChoice::Sensor(s),
-        (None, None) => LowPassChoice::Detect,
-    };
+    options.low_pass = low_pass_choice(args.bandwidth, settings);
     let steps = record.channels.len() * pipeline::steps_per_channel(&options);
     let bar = report::progress::bar(steps as u64, "analysing");
     let results = pipeline::analyze(&record, &options, &|| bar.inc(1))

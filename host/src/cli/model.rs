@@ -1,7 +1,7 @@
 //! `imunoise model INPUT`: fit -> simulate -> compare -> name the missing effect -> refit, on
 //! one channel (see `model`).
 
-use crate::cli::analyze::ReadArgs;
+use crate::cli::analyze::{Bandwidth, ReadArgs, low_pass_choice, parse_bandwidth};
 use crate::cli::stored;
 use crate::model::{self, Settings, report};
 use anyhow::{Context, Result};
@@ -16,9 +16,15 @@ pub struct ModelArgs {
     /// The channel to model (default: the first gyro channel)
     #[arg(long)]
     pub column: Option<String>,
-    /// A temperature channel: enables the temperature-sensitivity candidate
+    /// The temperature channel (default: the record's temperature channel, if it has one):
+    /// enables the temperature-coupling candidate
     #[arg(long)]
     pub temp_column: Option<String>,
+    /// The sensor's low-pass -3 dB bandwidth in Hz, part of the model (`off` for none).
+    /// Default: a capture's own settings, else a roll-off fitted to the spectrum, named as
+    /// a step
+    #[arg(long, value_name = "HZ|off", value_parser = parse_bandwidth)]
+    pub bandwidth: Option<Bandwidth>,
     /// Write the outcome as JSON to PATH (`-` for stdout, which then carries only the JSON)
     #[arg(long, value_name = "PATH")]
     pub json: Option<PathBuf>,
@@ -29,7 +35,7 @@ pub struct ModelArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Simulated realisations per model
-    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(2..))]
+    #[arg(long, default_value_t = 24, value_parser = clap::value_parser!(u64).range(2..))]
     pub realisations: u64,
 }
 
@@ -41,6 +47,7 @@ pub fn run(args: &ModelArgs, store: Option<&Path>) -> Result<()> {
     let settings = Settings {
         realisations: args.realisations as usize,
         seed: args.seed,
+        low_pass: low_pass_choice(args.bandwidth, loaded.settings),
     };
     let outcome = model::run(
         &record,

@@ -8,6 +8,7 @@
 //! the baseline's (slow sinusoid, Gauss-Markov, ramp, temperature), or a line's excess
 //! one-sided PSD is `rho` times the white level (tones).
 
+use crate::analysis::low_pass::LowPass;
 use crate::record::{Channel, Record};
 use crate::sim::noise::sinusoid_avar;
 use crate::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms, Sinusoid, gauss_markov_avar};
@@ -39,6 +40,8 @@ pub enum Kind {
     ToneAndRamp,
     /// A slow sinusoid and a temperature coupling.
     SlowSinusoidAndTemperature,
+    /// The white noise through a low-pass filter of unknown cutoff (10-30 % of the rate).
+    LowPass,
 }
 
 impl Kind {
@@ -52,6 +55,7 @@ impl Kind {
             Kind::Temperature => vec!["temperature"],
             Kind::ToneAndRamp => vec!["rate_ramp", "sinusoid"],
             Kind::SlowSinusoidAndTemperature => vec!["sinusoid", "temperature"],
+            Kind::LowPass => vec!["low_pass"],
         };
         v.sort_unstable();
         v
@@ -194,8 +198,20 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
         );
         extra.push(Box::new(move |t| coeff * (temp(t) - start)));
     }
+    let low_pass = has(Kind::LowPass).then(|| {
+        let cutoff = shape.rate_hz * uniform(&mut rng, 0.1, 0.3);
+        LowPass::two_pole(cutoff, shape.rate_hz).expect("a cutoff below Nyquist")
+    });
+    let white_n = terms.n;
+    if low_pass.is_some() {
+        terms.n = 0.0;
+    }
     let mut generator = AxisNoise::new(terms, shape.rate_hz, t_rec, &mut rng);
     let mut values = generator.take(n, &mut rng);
+    if let Some(lp) = low_pass {
+        let white = lp.white_through(white_n, n, &mut rng);
+        values.iter_mut().zip(white).for_each(|(v, w)| *v += w);
+    }
     for (i, v) in values.iter_mut().enumerate() {
         let t = i as f64 * tau0;
         *v += extra.iter().map(|f| f(t)).sum::<f64>();

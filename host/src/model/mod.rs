@@ -46,7 +46,7 @@ pub mod refit;
 pub mod regression;
 pub mod report;
 
-use crate::analysis::pipeline::{self, ChannelResult, Options};
+use crate::analysis::pipeline::{self, ChannelResult, LowPassChoice, Options};
 use crate::analysis::low_pass::{self, LowPass, LowPassSource};
 use crate::analysis::{Deviation, fit};
 use crate::record::{Channel, Quantity, Record};
@@ -82,6 +82,8 @@ pub fn names(statistic: f64, p_value: f64, p_needed: f64, sim_max: f64) -> bool 
 pub struct Settings {
     pub realisations: usize,
     pub seed: u64,
+    /// Where the sensor's low-pass filter comes from (default: fitted to the record).
+    pub low_pass: LowPassChoice,
 }
 
 impl Default for Settings {
@@ -89,6 +91,7 @@ impl Default for Settings {
         Settings {
             realisations: 24,
             seed: 1,
+            low_pass: LowPassChoice::Detect,
         }
     }
 }
@@ -408,7 +411,11 @@ pub fn run(
         rate_hz: record.rate_hz,
         channels: vec![channel.clone()],
     };
-    let result: ChannelResult = pipeline::analyze(&single, &Options::default(), &|| {})?
+    let options = Options {
+        low_pass: settings.low_pass,
+        ..Options::default()
+    };
+    let result: ChannelResult = pipeline::analyze(&single, &options, &|| {})?
         .into_iter()
         .next()
         .expect("one channel in, one result out");
@@ -634,6 +641,15 @@ fn add(
         }
         (Probe::Term(c), _) => columns.push(c),
         _ => {}
+    }
+    if probe.view().is_deterministic() {
+        // With a deterministic effect gone, the random terms are refitted from scratch: the
+        // baseline may have put K at 0 or raised B to absorb it.
+        for c in [Column::B, Column::K] {
+            if !columns.contains(&c) {
+                columns.push(c);
+            }
+        }
     }
     // The deterministic coefficients, jointly estimated on the record.
     let (clean, c) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());

@@ -1,13 +1,14 @@
 //! The workflow on families of generated records ([`super::families`]): each kind of hidden
 //! effect over several seeds, every parameter drawn from a range. The default tests are
-//! sized for CI (1 h at 10 Hz, 3 seeds per kind); `study_families` is the full study (3 h at
+//! sized for CI (1 h at 20 Hz, 3 seeds per kind); `study_families` is the full study (3 h at
 //! 50 Hz, 10 seeds per kind), run with
 //! `cargo test --release -p imunoise --lib model::tests::study -- --ignored --nocapture`.
 
 use super::families::{self, Kind, Shape};
 use super::*;
 
-const KINDS: [Kind; 9] = [
+const KINDS: [Kind; 10] = [
+    Kind::LowPass,
     Kind::None,
     Kind::NoneWithTemperature,
     Kind::GaussMarkov,
@@ -21,8 +22,8 @@ const KINDS: [Kind; 9] = [
 
 fn settings() -> Settings {
     Settings {
-        realisations: 24,
         seed: 1000,
+        ..Settings::default()
     }
 }
 
@@ -86,7 +87,7 @@ fn model_toml_parses_as_a_model_file() {
 }
 
 const CI_SHAPE: Shape = Shape {
-    rate_hz: 10.0,
+    rate_hz: 20.0,
     duration_s: 3600.0,
 };
 
