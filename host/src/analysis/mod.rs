@@ -15,6 +15,7 @@ pub mod compare;
 pub mod filter;
 pub mod fit;
 pub mod gauss_markov;
+pub mod lines;
 pub mod low_pass;
 pub mod noise_id;
 pub mod pipeline;

@@ -3,6 +3,7 @@
 //! overlapping Allan variance, the classic slope read-outs, and the Welch PSD with the terms
 //! read from it.
 
+use super::lines;
 use super::low_pass::{self, LowPass};
 use super::psd::{self, BinnedPsd, Psd, WelchOptions, Window};
 use super::taus::TauGrid;
@@ -282,10 +283,19 @@ fn channel_low_pass(
         LowPassChoice::Sensor(settings) => LowPass::mpu6050(&settings, sensor?),
         // Validated in `analyze`, so the error branch is not reached.
         LowPassChoice::Bandwidth(hz) => LowPass::for_bandwidth(hz, rate_hz, sensor?).ok().flatten(),
-        LowPassChoice::Detect => low_pass::detect(rate, rate_hz, options.confidence)
-            .ok()
-            .and_then(|d| d.low_pass),
+        LowPassChoice::Detect => {
+            low_pass::detect(&without_lines(rate, rate_hz), rate_hz, options.confidence)
+                .ok()
+                .and_then(|d| d.low_pass)
+        }
     }
+}
+
+/// `rate` with its spectral lines removed ([`lines::remove`]): a tone or a resonance near
+/// Nyquist would otherwise read as a roll-off's shape.
+pub fn without_lines(rate: &[f64], rate_hz: f64) -> Vec<f64> {
+    lines::remove(rate, rate_hz, &lines::LineOptions::default())
+        .map_or_else(|_| rate.to_vec(), |r| r.rate)
 }
 
 fn fit_noise(

@@ -129,8 +129,16 @@ pub fn statistics(series: &[f64], probes: &[Probe], ctx: &Context) -> Vec<(f64, 
         .map(|probe| match *probe {
             Probe::Line => {
                 let found = (ctx.lines)(&clean, ctx.rate_hz);
+                // What a notch leaves of a named line's wings is that line, not a new one.
+                let named = |l: &Line| {
+                    ctx.removal.notches.iter().any(|n| {
+                        let half = n.hi_hz - n.lo_hz;
+                        l.freq_hz > n.lo_hz - half && l.freq_hz < n.hi_hz + half
+                    })
+                };
                 let strongest = found
                     .into_iter()
+                    .filter(|l| !named(l))
                     .max_by(|a, b| a.statistic.total_cmp(&b.statistic));
                 match strongest {
                     Some(l) => (l.statistic, Some(Effect::from_line(&l))),

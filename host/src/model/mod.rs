@@ -46,8 +46,9 @@ pub mod refit;
 pub mod regression;
 pub mod report;
 
-use crate::analysis::pipeline::{self, ChannelResult, LowPassChoice, Options};
+use crate::analysis::lines::{self, LineOptions};
 use crate::analysis::low_pass::{self, LowPass, LowPassSource};
+use crate::analysis::pipeline::{self, ChannelResult, LowPassChoice, Options};
 use crate::analysis::{Deviation, fit};
 use crate::record::{Channel, Quantity, Record};
 use crate::sim::noise::{AxisNoise, NoiseTerms, Sinusoid};
@@ -360,9 +361,22 @@ struct Data<'a> {
     lines: &'a (dyn Fn(&[f64], f64) -> Vec<Line> + Sync),
 }
 
-/// The spectral lines of a cleaned series, as the workflow's line view sees them.
-fn detect_lines(_series: &[f64], _rate_hz: f64) -> Vec<Line> {
-    Vec::new()
+/// The spectral lines of a cleaned series, as the workflow's line view sees them
+/// ([`lines::detect`] with its default family-wise false-alarm probability).
+fn detect_lines(series: &[f64], rate_hz: f64) -> Vec<Line> {
+    lines::detect(series, rate_hz, &LineOptions::default())
+        .map(|found| {
+            found
+                .into_iter()
+                .map(|l| Line {
+                    freq_hz: l.freq_hz,
+                    amplitude: l.amplitude,
+                    width_hz: l.width_hz,
+                    statistic: l.statistic,
+                })
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 /// The channel to model: `column`, or the first gyro channel.
@@ -446,13 +460,17 @@ pub fn run(
         .clone()
         .filter(|lp| lp.source == LowPassSource::Fitted)
         .map(|lp| {
-            let statistic = low_pass::detect(data.rate, data.rate_hz, 0.683)
-                .map_or(0.0, |d| d.statistic);
+            let cleaned = pipeline::without_lines(data.rate, data.rate_hz);
+            let statistic =
+                low_pass::detect(&cleaned, data.rate_hz, 0.683).map_or(0.0, |d| d.statistic);
             let p_value = ChiSquared::new(1.0).map_or(0.0, |c| c.sf(statistic));
             let effect = Effect::LowPass {
                 cutoff_hz: lp.cutoff_hz,
             };
-            (lp, Evidence::with_p(View::RollOff, (statistic, Some(effect)), &[], p_value, 1))
+            (
+                lp,
+                Evidence::with_p(View::RollOff, (statistic, Some(effect)), &[], p_value, 1),
+            )
         });
     let baseline = Model {
         terms: NoiseTerms {
@@ -618,8 +636,9 @@ fn add(
                 width_hz,
             },
         ) => {
+            // Half a Lorentzian's power lies beyond its half width; +-1.5 widths hold 80 %.
             let df = data.rate_hz / data.rate.len() as f64;
-            let half = width_hz / 2.0 + 2.0 * df;
+            let half = 1.5 * width_hz + 2.0 * df;
             removal.notches.push(Notch {
                 lo_hz: freq_hz - half,
                 hi_hz: freq_hz + half,
@@ -756,9 +775,9 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
                 &on_sims,
                 &ctx,
             )
-                .into_iter()
-                .map(|(v, _)| v)
-                .collect()
+            .into_iter()
+            .map(|(v, _)| v)
+            .collect()
         })
         .collect();
     // The alternative's noise model has every IEEE-952 random term free: a baseline that put
@@ -779,9 +798,7 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         columns: &columns,
         white: &white,
         realisations: r,
-        realise: &|terms: &NoiseTerms, i: usize| {
-            realise(data, terms, model.low_pass.as_ref(), i)
-        },
+        realise: &|terms: &NoiseTerms, i: usize| realise(data, terms, model.low_pass.as_ref(), i),
         candidates: probes.len(),
     };
     let evidence = probes

@@ -8,6 +8,7 @@ pub mod chain;
 pub mod device;
 pub mod dlpf;
 pub mod imu;
+pub mod line;
 pub mod model_file;
 pub mod noise;
 pub mod temperature;
