@@ -18,6 +18,7 @@ pub mod gauss_markov;
 pub mod noise_id;
 pub mod pipeline;
 pub mod psd;
+pub mod psd_terms;
 pub mod taus;
 pub mod units;
 

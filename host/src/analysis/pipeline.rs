@@ -6,7 +6,7 @@
 use super::psd::{self, BinnedPsd, Psd, WelchOptions, Window};
 use super::taus::TauGrid;
 use super::units::SensorKind;
-use super::{DataType, Deviation, Estimator, allan, ci, fit, phase_from_rate, taus};
+use super::{DataType, Deviation, Estimator, allan, ci, fit, phase_from_rate, psd_terms, taus};
 use crate::record::{Channel, Quantity, Record};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -72,7 +72,7 @@ pub struct ChannelResult {
     pub readouts: fit::SlopeReadouts,
     /// The Welch PSD of the rate (one-sided), log-binned; `Err` says why there is none.
     pub psd: Result<(Psd, BinnedPsd), String>,
-    pub psd_terms: Option<fit::PsdNoiseTerms>,
+    pub psd_terms: Option<psd_terms::PsdNoiseTerms>,
 }
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -215,7 +215,7 @@ fn analyze_channel(
     let psd_terms = psd
         .as_ref()
         .ok()
-        .map(|(full, _)| fit::fit_psd(&full.freq, &full.density));
+        .map(|(full, _)| psd_terms::fit_psd(&full.freq, &full.density));
     tick();
     ChannelResult {
         name: channel.name.clone(),

@@ -4,8 +4,8 @@
 //! log-binned, with the PSD read-outs' slope lines dashed).
 
 use super::plot::{Figure, Line, Panel};
-use crate::analysis::fit::PsdReadout;
 use crate::analysis::pipeline::ChannelResult;
+use crate::analysis::psd_terms::PsdReadout;
 use crate::analysis::units::SensorKind;
 use std::f64::consts::PI;
 

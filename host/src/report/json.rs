@@ -138,7 +138,7 @@ fn psd_noise(r: &ChannelResult) -> Value {
     let Some(p) = &r.psd_terms else {
         return Value::Null;
     };
-    let one = |t: NoiseTerm, x: &Option<crate::analysis::fit::PsdReadout>| {
+    let one = |t: NoiseTerm, x: &Option<crate::analysis::psd_terms::PsdReadout>| {
         x.as_ref().map(|x| {
             json!({
                 "value": x.value, "unit": units::si_unit(r.kind, t),
