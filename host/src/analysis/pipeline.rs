@@ -1,7 +1,7 @@
 //! The whole analysis of a record in one call: for every channel, in parallel, the requested
 //! Allan-family deviations with confidence intervals, the IEEE-952 noise terms fitted to the
-//! overlapping Allan variance, the classic slope read-outs, and the Welch PSD with the terms
-//! read from it.
+//! overlapping Allan variance, the classic slope read-outs, the Welch PSD, and N, B, K with
+//! intervals from the multi-resolution PSD.
 
 use super::psd::{self, BinnedPsd, Psd, WelchOptions, Window};
 use super::taus::TauGrid;
@@ -72,7 +72,8 @@ pub struct ChannelResult {
     pub readouts: fit::SlopeReadouts,
     /// The Welch PSD of the rate (one-sided), log-binned; `Err` says why there is none.
     pub psd: Result<(Psd, BinnedPsd), String>,
-    pub psd_terms: Option<psd_terms::PsdNoiseTerms>,
+    /// N, B and K fitted to the multi-resolution PSD; `Err` says why there are none.
+    pub psd_terms: Result<psd_terms::PsdNoiseTerms, String>,
 }
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -212,10 +213,12 @@ fn analyze_channel(
     let (fit, readouts) = fit_noise(&fit_curve, n_phase, options);
     tick();
     let psd = spectrum(&rate, rate_hz, options);
-    let psd_terms = psd
-        .as_ref()
-        .ok()
-        .map(|(full, _)| psd_terms::fit_psd(&full.freq, &full.density));
+    let psd_options = psd_terms::PsdFitOptions {
+        segment_len: options.psd_segment.unwrap_or(0),
+        window: options.psd_window,
+        confidence: options.confidence,
+    };
+    let psd_terms = psd_terms::fit_psd(&rate, rate_hz, &psd_options).map_err(|e| e.to_string());
     tick();
     ChannelResult {
         name: channel.name.clone(),
