@@ -20,6 +20,7 @@ pub mod low_pass;
 pub mod noise_id;
 pub mod pipeline;
 pub mod psd;
+pub mod psd_terms;
 pub mod taus;
 pub mod units;
 

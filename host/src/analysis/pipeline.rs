@@ -1,14 +1,14 @@
 //! The whole analysis of a record in one call: for every channel, in parallel, the requested
 //! Allan-family deviations with confidence intervals, the IEEE-952 noise terms fitted to the
-//! overlapping Allan variance, the classic slope read-outs, and the Welch PSD with the terms
-//! read from it.
+//! overlapping Allan variance, the classic slope read-outs, the Welch PSD, and N, B, K with
+//! intervals from the multi-resolution PSD.
 
 use super::lines;
 use super::low_pass::{self, LowPass};
 use super::psd::{self, BinnedPsd, Psd, WelchOptions, Window};
 use super::taus::TauGrid;
 use super::units::SensorKind;
-use super::{DataType, Deviation, Estimator, allan, ci, fit, phase_from_rate, taus};
+use super::{DataType, Deviation, Estimator, allan, ci, fit, phase_from_rate, psd_terms, taus};
 use crate::record::{Channel, Quantity, Record};
 use protocol::mpu6050::SensorSettings;
 use rayon::prelude::*;
@@ -94,7 +94,8 @@ pub struct ChannelResult {
     pub readouts: fit::SlopeReadouts,
     /// The Welch PSD of the rate (one-sided), log-binned; `Err` says why there is none.
     pub psd: Result<(Psd, BinnedPsd), String>,
-    pub psd_terms: Option<fit::PsdNoiseTerms>,
+    /// N, B and K fitted to the multi-resolution PSD; `Err` says why there are none.
+    pub psd_terms: Result<psd_terms::PsdNoiseTerms, String>,
 }
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -239,10 +240,12 @@ fn analyze_channel(
     let (fit, readouts) = fit_noise(&fit_curve, n_phase, low_pass, options);
     tick();
     let psd = spectrum(&rate, rate_hz, options);
-    let psd_terms = psd
-        .as_ref()
-        .ok()
-        .map(|(full, _)| fit::fit_psd(&full.freq, &full.density));
+    let psd_options = psd_terms::PsdFitOptions {
+        segment_len: options.psd_segment.unwrap_or(0),
+        window: options.psd_window,
+        confidence: options.confidence,
+    };
+    let psd_terms = psd_terms::fit_psd(&rate, rate_hz, &psd_options).map_err(|e| e.to_string());
     tick();
     ChannelResult {
         name: channel.name.clone(),

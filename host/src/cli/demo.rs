@@ -1,8 +1,9 @@
-//! `imunoise demo`: the whole chain with no hardware — the sensor settings of the paper this
-//! project follows; a stream of sample batches framed exactly as the board frames them,
-//! damaged on the way, decoded and accounted for to the last sample; and the paper's
-//! experiment on the virtual board (capture at each setting, stored sessions, the sweep
-//! table, the folding prediction, an HTML report).
+//! `imunoise demo`: the whole chain with no hardware — the four sensor settings of the
+//! MPU-6050 settings study this project follows (docs/signal_chain.md, Sources); a stream of
+//! sample batches framed exactly as the board frames them, damaged on the way, decoded and
+//! accounted for to the last sample; and the study's experiment on the virtual board
+//! (capture at each setting, stored sessions, the sweep table, the study's Table 2 beside
+//! the folding prediction, an HTML report).
 
 use crate::analysis::units::arw_to_deg_per_sqrt_h;
 use crate::cli::capture::PortSpec;
@@ -12,16 +13,12 @@ use crate::cli::stored::open_store;
 use crate::cli::sweep;
 use crate::link::accounting::SampleAccounting;
 use crate::link::replay::Speed;
-use crate::record::Quantity;
 use crate::report::sig;
-use crate::sim::chain::white_noise_inflation;
-use crate::sim::dlpf::{DlpfDesign, Sensor};
 use crate::sim::model_file;
 use crate::store::Store;
 use crate::store::clock::compact;
 use anyhow::{Context, Result};
 use protocol::frame::{self, FrameDecoder, MAX_WIRE_LEN};
-use protocol::mpu6050::Hz;
 use protocol::mpu6050::SensorSettings;
 use protocol::{DeviceMessage, MAX_SAMPLES_PER_BATCH, RawSample, SampleBatch};
 use std::time::SystemTime;
@@ -31,22 +28,18 @@ pub struct DemoArgs {
     /// Seconds of generated samples to frame
     #[arg(long, default_value_t = 10.0)]
     pub seconds: f64,
-    /// Simulated static data per setting for the paper's experiment (long enough to see
+    /// Simulated static data per setting for the settings study's experiment (long enough to see
     /// bias instability and rate random walk)
     #[arg(long, default_value = "2h")]
     pub duration: String,
 }
 
-/// The four settings compared in the paper: (output rate Hz, gyro bandwidth Hz).
-pub const PAPER_SETTINGS: [(f64, f64); 4] =
-    [(200.0, 256.0), (200.0, 42.0), (50.0, 256.0), (50.0, 42.0)];
-
 pub fn run(args: &DemoArgs, store: Option<&std::path::Path>) -> Result<()> {
     println!(
-        "imunoise demo: the paper's experiment on the simulated MPU-6050, and the protocol layer\n(the virtual board that ties them together comes next)\n"
+        "imunoise demo: the settings study's experiment on the simulated MPU-6050, and the protocol layer\n"
     );
-    println!("1. The paper's four sensor settings on the MPU-6050:");
-    for (rate, bandwidth) in PAPER_SETTINGS {
+    println!("1. The settings study's four sensor settings on the MPU-6050:");
+    for (rate, bandwidth, _) in sweep::PAPER_TABLE_2 {
         let s = SensorSettings::for_rate_and_bandwidth(rate, bandwidth)
             .map_err(|e| anyhow::anyhow!("{rate} Hz / {bandwidth} Hz: {e}"))?;
         println!(
@@ -132,24 +125,24 @@ pub fn run(args: &DemoArgs, store: Option<&std::path::Path>) -> Result<()> {
     paper_experiment(&args.duration, &open_store(store)?)
 }
 
-/// The paper's experiment on the virtual board: each setting captured (the firmware's own
-/// code on the simulated MPU-6050, at maximum speed), stored as a session, analysed; the
-/// sweep table, the gyro's white-noise coefficient against what the signal chain predicts,
-/// and an HTML report.
+/// The settings study's experiment on the virtual board: each setting captured (the
+/// firmware's own code on the simulated MPU-6050, at maximum speed), stored as a session,
+/// analysed; the sweep table with the study's Table 2 beside the gyro's N and the folding
+/// prediction, and an HTML report.
 fn paper_experiment(duration: &str, store: &Store) -> Result<()> {
     let seconds = parse_duration(duration).map_err(|e| anyhow::anyhow!("--duration: {e}"))?;
     let model = model_file::example();
     let n0 = model.gyro.noise.n;
     println!(
-        "\n3. The paper's experiment on the virtual board: {duration} of static data per setting \
+        "\n3. The settings study's experiment on the virtual board: {duration} of static data per setting \
          (the firmware's code on the\n   simulated MPU-6050 of examples/mpu6050.toml, gyro N0 = {} \
          deg/sqrt(h)), captured into the store {}",
         sig(arw_to_deg_per_sqrt_h(n0), 3),
         store.dir().display()
     );
-    let settings: Vec<SensorSettings> = PAPER_SETTINGS
+    let settings: Vec<SensorSettings> = sweep::PAPER_TABLE_2
         .iter()
-        .map(|&(rate, bw)| SensorSettings::for_rate_and_bandwidth(rate, bw))
+        .map(|&(rate, bw, _)| SensorSettings::for_rate_and_bandwidth(rate, bw))
         .collect::<Result<_, _>>()
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let spec = PortSpec {
@@ -160,30 +153,6 @@ fn paper_experiment(duration: &str, store: &Store) -> Result<()> {
     };
     let rows = sweep::sweep(store, &spec, &settings, seconds, "demo")?;
     print!("{}", sweep::table(&rows));
-    println!(
-        "\n   gyro N against the signal chain's prediction (noise above half the rate folds back):"
-    );
-    println!("   {:>14}  {:>8}  {:>9}", "setting", "N / N0", "predicted");
-    for row in &rows {
-        let gyro: Vec<f64> = row
-            .results
-            .iter()
-            .filter(|r| r.quantity == Quantity::AngularRate)
-            .filter_map(|r| r.fit.as_ref().ok().map(|f| f.n.value))
-            .collect();
-        let n = gyro.iter().sum::<f64>() / gyro.len().max(1) as f64;
-        let s = row.settings;
-        let design = DlpfDesign::for_setting(s.dlpf, Sensor::Gyro);
-        let predicted = white_noise_inflation(&design, 1 + usize::from(s.smplrt_div));
-        println!(
-            "   {:>6} Hz/{:>3} Hz  {:>8.3}  {:>9.3}{}",
-            Hz(s.output_rate_hz()),
-            Hz(s.dlpf.row().map_or(0.0, |r| r.gyro_bandwidth_hz)),
-            n / n0,
-            predicted,
-            if aliases(&s) { "  folds back" } else { "" }
-        );
-    }
     let reports = store.dir().join("reports");
     std::fs::create_dir_all(&reports).with_context(|| format!("creating {}", reports.display()))?;
     let path = reports.join(format!("demo-{}.html", compact(SystemTime::now())));

@@ -4,8 +4,8 @@
 //! log-binned, with the PSD read-outs' slope lines dashed).
 
 use super::plot::{Figure, Line, Panel};
-use crate::analysis::fit::PsdReadout;
 use crate::analysis::pipeline::ChannelResult;
+use crate::analysis::psd_terms::PsdReadout;
 use crate::analysis::units::SensorKind;
 use std::f64::consts::PI;
 
@@ -106,21 +106,19 @@ fn psd_lines(r: &ChannelResult, color: usize) -> Vec<Line> {
         color,
         dashed: false,
     }];
-    let Some(terms) = &r.psd_terms else {
+    let Ok(terms) = &r.psd_terms else {
         return lines;
     };
     // One-sided levels of IEEE 952 Table C.1's two-sided PSDs: 2 N^2, 2 B^2/(2 pi f),
-    // 2 K^2/(2 pi f)^2.
+    // 2 K^2/(2 pi f)^2, drawn where each resolved term dominates the fitted PSD.
     type Level = fn(f64, f64) -> f64;
-    let shapes: [(Option<&PsdReadout>, Level); 3] = [
-        (terms.n.as_ref(), |v, _| 2.0 * v * v),
-        (terms.b.as_ref(), |v, f| 2.0 * v * v / (2.0 * PI * f)),
-        (terms.k.as_ref(), |v, f| {
-            2.0 * v * v / (2.0 * PI * f).powi(2)
-        }),
+    let shapes: [(&PsdReadout, Level); 3] = [
+        (&terms.n, |v, _| 2.0 * v * v),
+        (&terms.b, |v, f| 2.0 * v * v / (2.0 * PI * f)),
+        (&terms.k, |v, f| 2.0 * v * v / (2.0 * PI * f).powi(2)),
     ];
-    for (readout, level) in shapes {
-        if let Some(x) = readout {
+    for (x, level) in shapes {
+        if x.resolved() && x.bins > 0 {
             let f = [x.f_min, x.f_max];
             lines.push(Line {
                 label: String::new(),

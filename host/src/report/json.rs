@@ -136,20 +136,33 @@ fn readouts(r: &ChannelResult) -> Value {
 }
 
 fn psd_noise(r: &ChannelResult) -> Value {
-    let Some(p) = &r.psd_terms else {
-        return Value::Null;
+    let p = match &r.psd_terms {
+        Ok(p) => p,
+        Err(e) => return json!({ "error": e }),
     };
-    let one = |t: NoiseTerm, x: &Option<crate::analysis::fit::PsdReadout>| {
-        x.as_ref().map(|x| {
-            json!({
-                "value": x.value, "unit": units::si_unit(r.kind, t),
-                "f_min": x.f_min, "f_max": x.f_max, "bins": x.bins,
-            })
+    let one = |t: NoiseTerm, x: &crate::analysis::psd_terms::PsdReadout| {
+        json!({
+            "value": x.value, "lo": x.lo, "hi": x.hi, "unit": units::si_unit(r.kind, t),
+            "resolved": x.resolved(), "dof": x.dof,
+            "f_min": x.f_min, "f_max": x.f_max, "bins": x.bins,
         })
     };
     json!({
+        "method": "weighted non-negative least squares of 2 N^2 + 2 B^2/(2 pi f) + 2 K^2/(2 pi f)^2 on the multi-resolution one-sided PSD; chi-squared intervals",
+        "confidence": p.confidence,
+        "f_min": p.f_min,
+        "f_max": p.f_max,
+        "points": p.points,
+        "reduced_chi2": p.reduced_chi2,
+        "segment_len": p.segment_len,
         "N": one(NoiseTerm::N, &p.n),
         "B": one(NoiseTerm::B, &p.b),
         "K": one(NoiseTerm::K, &p.k),
+        "spectrum": {
+            "freq": p.spectrum.iter().map(|s| s.freq).collect::<Vec<_>>(),
+            "density": p.spectrum.iter().map(|s| s.density).collect::<Vec<_>>(),
+            "dof": p.spectrum.iter().map(|s| s.dof).collect::<Vec<_>>(),
+            "level": p.spectrum.iter().map(|s| s.level).collect::<Vec<_>>(),
+        },
     })
 }

@@ -6,7 +6,8 @@ use super::{NOISE_TERMS, sig, term_of};
 use crate::analysis::fit::NoiseFit;
 use crate::analysis::low_pass::LowPassSource;
 use crate::analysis::pipeline::{ChannelResult, Options};
-use crate::analysis::units::{self, NoiseTerm, SensorKind};
+use crate::analysis::psd_terms::PsdReadout;
+use crate::analysis::units::{self, SensorKind};
 use crate::record::Record;
 use std::fmt::Write;
 
@@ -37,16 +38,30 @@ pub fn render(record: &Record, options: &Options, results: &[ChannelResult]) -> 
     let _ = writeln!(
         out,
         "\nRead-outs for comparison (SI): slopes of the Allan deviation (N at tau = 1 s on the \
-         -1/2 line, B = min / 0.664, K at tau = 3 s on the +1/2 line) and the one-sided PSD \
-         (N = sqrt(S/2))"
+         -1/2 line, B = min / 0.664, K at tau = 3 s on the +1/2 line)"
     );
     let _ = writeln!(
         out,
-        "{:<8} {:>10} {:>10} {:>10} {:>8} | {:>10} {:>10} {:>10}",
-        "channel", "N slope", "B floor", "K slope", "tau_B s", "N psd", "B psd", "K psd"
+        "{:<8} {:>10} {:>10} {:>10} {:>8}",
+        "channel", "N slope", "B floor", "K slope", "tau_B s"
     );
     for r in results {
         readout_row(&mut out, r);
+    }
+    let _ = writeln!(
+        out,
+        "\nPSD read-outs (SI): 2 N^2 + 2 B^2/(2 pi f) + 2 K^2/(2 pi f)^2 fitted to the \
+         multi-resolution one-sided PSD over the band shown, value [{} % interval]; \
+         \"< x\": not resolved, upper bound",
+        sig(options.confidence * 100.0, 3)
+    );
+    let _ = writeln!(
+        out,
+        "{:<8} {:>20} {:>26} {:>26} {:>26} {:>8}",
+        "channel", "band Hz", "N psd", "B psd", "K psd", "chi2/dof"
+    );
+    for r in results {
+        psd_row(&mut out, r);
     }
     out
 }
@@ -120,26 +135,41 @@ fn fit_note(fit: &NoiseFit) -> String {
 fn readout_row(out: &mut String, r: &ChannelResult) {
     let opt = |v: Option<f64>| v.map_or_else(|| "-".to_string(), |v| sig(v, 3));
     let ro = &r.readouts;
-    let psd = r.psd_terms.as_ref();
-    let pick = |t: NoiseTerm| {
-        psd.and_then(|p| match t {
-            NoiseTerm::N => p.n.as_ref(),
-            NoiseTerm::B => p.b.as_ref(),
-            _ => p.k.as_ref(),
-        })
-        .map(|x| x.value)
-    };
     let _ = writeln!(
         out,
-        "{:<8} {:>10} {:>10} {:>10} {:>8} | {:>10} {:>10} {:>10}",
+        "{:<8} {:>10} {:>10} {:>10} {:>8}",
         r.name,
         opt(ro.n.as_ref().map(|l| l.value)),
         opt(ro.b.as_ref().map(|b| b.value)),
         opt(ro.k.as_ref().map(|l| l.value)),
         opt(ro.b.as_ref().map(|b| b.tau)),
-        opt(pick(NoiseTerm::N)),
-        opt(pick(NoiseTerm::B)),
-        opt(pick(NoiseTerm::K)),
+    );
+}
+
+fn psd_row(out: &mut String, r: &ChannelResult) {
+    let p = match &r.psd_terms {
+        Ok(p) => p,
+        Err(e) => {
+            let _ = writeln!(out, "{:<8} no PSD read-outs: {e}", r.name);
+            return;
+        }
+    };
+    let cell = |x: &PsdReadout| {
+        if x.resolved() {
+            format!("{} [{}..{}]", sig(x.value, 3), sig(x.lo, 3), sig(x.hi, 3))
+        } else {
+            format!("< {}", sig(x.hi, 2))
+        }
+    };
+    let _ = writeln!(
+        out,
+        "{:<8} {:>20} {:>26} {:>26} {:>26} {:>8}",
+        r.name,
+        format!("{}..{}", sig(p.f_min, 2), sig(p.f_max, 3)),
+        cell(&p.n),
+        cell(&p.b),
+        cell(&p.k),
+        sig(p.reduced_chi2, 3)
     );
 }
 
