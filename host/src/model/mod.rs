@@ -49,7 +49,7 @@ pub mod report;
 use crate::analysis::lines::{self, LineOptions};
 use crate::analysis::low_pass::{self, LowPass, LowPassSource};
 use crate::analysis::pipeline::{self, ChannelResult, LowPassChoice, Options};
-use crate::analysis::{Deviation, fit};
+use crate::analysis::{Deviation, Estimator, allan, fit, phase_from_rate};
 use crate::record::{Channel, Quantity, Record};
 use crate::sim::noise::{AxisNoise, NoiseTerms, Sinusoid};
 use clean::{Notch, Removal, Temperature};
@@ -361,10 +361,18 @@ struct Data<'a> {
     lines: &'a (dyn Fn(&[f64], f64) -> Vec<Line> + Sync),
 }
 
+/// Lines as slow as [`LINE_MIN_CYCLES`] per record are searched: a period of a fifth of the
+/// record is five cycles, and such a slow sinusoid is one of the effects to name.
+pub const LINE_MIN_CYCLES: f64 = 4.0;
+
 /// The spectral lines of a cleaned series, as the workflow's line view sees them
 /// ([`lines::detect`] with its default family-wise false-alarm probability).
 fn detect_lines(series: &[f64], rate_hz: f64) -> Vec<Line> {
-    lines::detect(series, rate_hz, &LineOptions::default())
+    let options = LineOptions {
+        min_cycles: LINE_MIN_CYCLES,
+        ..LineOptions::default()
+    };
+    lines::detect(series, rate_hz, &options)
         .map(|found| {
             found
                 .into_iter()
@@ -420,10 +428,15 @@ pub fn run(
 ) -> Result<Outcome, ModelError> {
     let channel = pick(record, column)?;
     let temp_channel = pick_temperature(record, temp_column)?;
+    // The baseline is fitted to the record without its spectral lines: a strong tone would
+    // otherwise become quantization noise or a roll-off, and the lines are named as steps.
     let single = Record {
         source: record.source.clone(),
         rate_hz: record.rate_hz,
-        channels: vec![channel.clone()],
+        channels: vec![Channel {
+            values: pipeline::without_lines(&channel.values, record.rate_hz),
+            ..channel.clone()
+        }],
     };
     let options = Options {
         low_pass: settings.low_pass,
@@ -437,7 +450,14 @@ pub fn run(
         channel: channel.name.clone(),
         message,
     })?;
-    let measured = result.fit_curve.deviation.clone();
+    // The record's own curve (lines included) on the fit's averaging factors.
+    let tau0 = 1.0 / record.rate_hz;
+    let measured = allan::deviation(
+        Estimator::Oadev,
+        &phase_from_rate(&channel.values, tau0),
+        tau0,
+        &result.fit_curve.deviation.m,
+    );
     if measured.tau.len() < 3 {
         return Err(ModelError::TooFewTaus(channel.name.clone()));
     }
