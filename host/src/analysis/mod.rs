@@ -15,6 +15,7 @@ pub mod compare;
 pub mod filter;
 pub mod fit;
 pub mod gauss_markov;
+pub mod lines;
 pub mod noise_id;
 pub mod pipeline;
 pub mod psd;
