@@ -68,7 +68,7 @@
 use realfft::num_complex::Complex;
 use realfft::{RealFftPlanner, RealToComplex};
 use serde::Serialize;
-use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+use statrs::distribution::{Continuous, ContinuousCDF, FisherSnedecor};
 use std::collections::HashMap;
 use std::f64::consts::{LN_2, PI};
 use std::sync::Arc;
@@ -339,6 +339,8 @@ struct Search<'a> {
     /// First and last bin searched.
     k_lo: usize,
     k_hi: usize,
+    /// `ln k` for k = 0..=n/2 (`ln 0` unused).
+    ln_bin: Vec<f64>,
 }
 
 fn validate(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<(), LineError> {
@@ -405,6 +407,7 @@ fn search(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Found, LineE
         k_lo: (opts.min_cycles.ceil() as usize).max(2),
         // The Nyquist bin of an even length is real (one degree of freedom): not searched.
         k_hi: (n - 1) / 2,
+        ln_bin: (0..=n / 2).map(|k| (k as f64).ln()).collect(),
     };
     let mut work = rate.to_vec();
     let mut tones: Vec<Tone> = Vec::new();
@@ -509,8 +512,22 @@ impl Search<'_> {
         let mut mask = vec![false; spectra.rect.len()];
         let widest = self.widest();
         let estimate = |mask: &[bool]| Backgrounds {
-            rect: background(&spectra.rect, mask, self.k_hi, widest, RECT_MEDIAN_VARIANCE),
-            hann: background(&spectra.hann, mask, self.k_hi, widest, HANN_MEDIAN_VARIANCE),
+            rect: background(
+                &spectra.rect,
+                mask,
+                &self.ln_bin,
+                self.k_hi,
+                widest,
+                RECT_MEDIAN_VARIANCE,
+            ),
+            hann: background(
+                &spectra.hann,
+                mask,
+                &self.ln_bin,
+                self.k_hi,
+                widest,
+                HANN_MEDIAN_VARIANCE,
+            ),
         };
         let first = estimate(&mask);
         let bands = self.bands(spectra, &first);
@@ -607,8 +624,14 @@ impl Search<'_> {
                 } else {
                     ((cum[j + l - k_lo] - cum[j - k_lo]) / l as f64, &bg.rect)
                 };
-                if mean > thresholds.get(l, background.dof(centre), o, level) {
-                    passed.push((surprise(mean, l, background.rel_var[centre]), j, l));
+                let v = background.rel_var[centre];
+                // Every threshold lies beyond two standard deviations (level < 1 %): most runs
+                // are settled without one.
+                if mean <= 1.0 + 2.0 * (1.0 / l as f64 + v).sqrt() {
+                    continue;
+                }
+                if mean > thresholds.get(l, background.bucket[centre], o, level) {
+                    passed.push((surprise(mean, l, v), j, l));
                 }
             }
         }
@@ -854,29 +877,39 @@ fn merge_runs(marked: &[bool], first: usize) -> Vec<(usize, usize)> {
 }
 
 /// F-test thresholds on the mean ratio of L bins to the background, by L, by the background's
-/// degrees of freedom (rounded down to a grid of ratio 1.25, which errs on the cautious side)
-/// and by octave (each has its own level), computed when first needed.
+/// degrees of freedom (as a [`Background::bucket`]) and by octave (each has its own level),
+/// computed when first needed.
 #[derive(Default)]
 struct Thresholds {
     cache: HashMap<(usize, i32, usize), f64>,
+    /// The last key asked for and its threshold (neighbouring tests share them).
+    last: Option<((usize, i32, usize), f64)>,
 }
 
+/// Ratio of the grid on which the background's degrees of freedom are rounded down (which
+/// errs on the cautious side).
+const DOF_GRID: f64 = 1.25;
+
 impl Thresholds {
-    fn get(&mut self, l: usize, nu: f64, octave: usize, level: f64) -> f64 {
-        let step = 1.25f64.ln();
-        let bucket = ((nu / 2.0).max(1.0).ln() / step).floor() as i32;
-        *self.cache.entry((l, bucket, octave)).or_insert_with(|| {
-            f_threshold(
-                2.0 * l as f64,
-                2.0 * (f64::from(bucket) * step).exp(),
-                level,
-            )
-        })
+    fn get(&mut self, l: usize, bucket: i32, octave: usize, level: f64) -> f64 {
+        let key = (l, bucket, octave);
+        if let Some((k, t)) = self.last
+            && k == key
+        {
+            return t;
+        }
+        let t = *self.cache.entry(key).or_insert_with(|| {
+            let nu = 2.0 * DOF_GRID.powi(bucket);
+            f_threshold(2.0 * l as f64, nu, level)
+        });
+        self.last = Some((key, t));
+        t
     }
 }
 
 /// The x with `P(F(d1, d2) > x) = p`. For `d1 = 2` in closed form, `(d2/2)(p^(-2/d2) - 1)`;
-/// otherwise by bisection in ln x on statrs' survival function.
+/// otherwise Newton's method on `ln P(F > x)` in `ln x` (its derivative is `-x pdf / sf`),
+/// kept inside a bracket by bisection, on statrs' survival function.
 fn f_threshold(d1: f64, d2: f64, p: f64) -> f64 {
     if d1 == 2.0 {
         return d2 / 2.0 * (p.powf(-2.0 / d2) - 1.0);
@@ -884,35 +917,63 @@ fn f_threshold(d1: f64, d2: f64, p: f64) -> f64 {
     let Ok(f) = FisherSnedecor::new(d1, d2) else {
         return f64::INFINITY;
     };
-    let (mut lo, mut hi) = (0.0f64, 1.0f64);
-    while f.sf(hi.exp()) > p {
+    let target = p.ln();
+    let excess = |u: f64| f.sf(u.exp()).ln() - target;
+    // Bracket in u = ln x: excess(lo) > 0 > excess(hi).
+    let (mut lo, mut hi) = (0.0f64, 0.25f64);
+    while excess(hi) > 0.0 {
         lo = hi;
         hi *= 2.0;
         if hi > 60.0 {
             return hi.exp();
         }
     }
+    let mut u = 0.5 * (lo + hi);
     for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if f.sf(mid.exp()) > p {
-            lo = mid;
+        let x = u.exp();
+        let sf = f.sf(x);
+        let e = sf.ln() - target;
+        if e > 0.0 {
+            lo = u;
         } else {
-            hi = mid;
+            hi = u;
         }
+        let slope = -x * f.pdf(x) / sf;
+        let newton = u - e / slope;
+        let next = if slope < 0.0 && newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+        if (next - u).abs() < 1e-9 || hi - lo < 1e-9 {
+            return next.exp();
+        }
+        u = next;
     }
-    hi.exp()
+    u.exp()
 }
 
-/// A smooth background PSD per bin and the relative variance of its estimate.
+/// A smooth background PSD per bin, the relative variance of its estimate, and the degrees of
+/// freedom `nu = 2 / rel_var` of the scaled chi-square that stands for it, rounded down to
+/// the grid `2 DOF_GRID^bucket`.
 struct Background {
     level: Vec<f64>,
     rel_var: Vec<f64>,
+    bucket: Vec<i32>,
 }
 
 impl Background {
-    /// Degrees of freedom of the scaled chi-square that stands for the estimate at bin k.
-    fn dof(&self, k: usize) -> f64 {
-        2.0 / self.rel_var[k]
+    fn new(level: Vec<f64>, rel_var: Vec<f64>) -> Self {
+        let step = DOF_GRID.ln();
+        let bucket = rel_var
+            .iter()
+            .map(|v| ((1.0 / v).max(1.0).ln() / step).floor() as i32)
+            .collect();
+        Background {
+            level,
+            rel_var,
+            bucket,
+        }
     }
 }
 
@@ -922,6 +983,7 @@ impl Background {
 fn background(
     power: &[f64],
     mask: &[bool],
+    ln_bin: &[f64],
     k_hi: usize,
     widest: usize,
     median_variance: f64,
@@ -970,11 +1032,10 @@ fn background(
     let mut level = vec![f64::MIN_POSITIVE; power.len()];
     let mut rel_var = vec![1.0; power.len()];
     if smoothed.is_empty() {
-        return Background { level, rel_var };
+        return Background::new(level, rel_var);
     }
     let mut i = 0;
-    for k in 1..power.len() {
-        let x = (k as f64).ln();
+    for (k, &x) in ln_bin.iter().enumerate().skip(1) {
         while i + 1 < smoothed.len() && smoothed[i + 1].0 <= x {
             i += 1;
         }
@@ -990,7 +1051,7 @@ fn background(
         level[k] = ln_level.exp().max(f64::MIN_POSITIVE);
         rel_var[k] = var;
     }
-    Background { level, rel_var }
+    Background::new(level, rel_var)
 }
 
 /// The background's ln level at block `at` of a window of blocks (ln centre, ln level), and

@@ -1,8 +1,11 @@
 //! The whole analysis of a record in one call: for every channel, in parallel, the requested
 //! Allan-family deviations with confidence intervals, the IEEE-952 noise terms fitted to the
 //! overlapping Allan variance, the classic slope read-outs, and the Welch PSD with the terms
-//! read from it.
+//! read from it. Spectral lines found in the rate ([`lines`]) are removed from the record
+//! before the Allan curve that the noise fit uses, so that a tone or a resonance does not
+//! become quantization noise, a bias instability or a rate ramp.
 
+use super::lines::{self, Line, LineOptions};
 use super::psd::{self, BinnedPsd, Psd, WelchOptions, Window};
 use super::taus::TauGrid;
 use super::units::SensorKind;
@@ -30,6 +33,8 @@ pub struct Options {
     /// Shortest tau of the noise fit, s; `None` leaves out the taus the sensor's low-pass
     /// filter shaped ([`fit::low_pass_onset`]).
     pub fit_tau_min: Option<f64>,
+    /// The spectral-line search; `None` skips it (and fits the record as it is).
+    pub lines: Option<LineOptions>,
 }
 
 impl Default for Options {
@@ -43,6 +48,7 @@ impl Default for Options {
             psd_window: Window::Hann,
             psd_bins_per_decade: 20,
             fit_tau_min: None,
+            lines: Some(LineOptions::default()),
         }
     }
 }
@@ -66,8 +72,12 @@ pub struct ChannelResult {
     /// Samples analysed.
     pub n: usize,
     pub deviations: Vec<DeviationResult>,
-    /// The overlapping Allan curve the fit used (also in `deviations` when requested).
+    /// The overlapping Allan curve the fit used: the record's (also in `deviations` when
+    /// requested), or, when `lines` is not empty, that of the record with the lines removed
+    /// ([`lines::remove`]).
     pub fit_curve: DeviationResult,
+    /// Spectral lines of the rate (empty when the search is off or the record too short).
+    pub lines: Vec<Line>,
     pub fit: Result<fit::NoiseFit, String>,
     pub readouts: fit::SlopeReadouts,
     /// The Welch PSD of the rate (one-sided), log-binned; `Err` says why there is none.
@@ -202,11 +212,36 @@ fn analyze_channel(
     };
     let deviations: Vec<DeviationResult> =
         options.estimators.par_iter().map(|&e| curve(e)).collect();
-    let fit_curve = deviations
-        .iter()
-        .find(|d| d.deviation.estimator == Estimator::Oadev)
-        .cloned()
-        .unwrap_or_else(|| curve(Estimator::Oadev));
+    let removed = options
+        .lines
+        .and_then(|opts| lines::remove(&rate, rate_hz, &opts).ok())
+        .filter(|r| !r.lines.is_empty());
+    let fit_curve = match &removed {
+        // The fit's curve from the record without its lines, on the same taus.
+        Some(r) => {
+            let phase = phase_from_rate(&r.rate, tau0);
+            let factors = taus::factors(
+                options.taus,
+                allan::max_factor(Estimator::Oadev, phase.len()),
+            );
+            let deviation = allan::deviation(Estimator::Oadev, &phase, tau0, &factors);
+            let intervals = ci::intervals(&deviation, &phase, options.confidence);
+            // The step counted for the fit's curve (steps_per_channel).
+            if !options.estimators.contains(&Estimator::Oadev) {
+                tick();
+            }
+            DeviationResult {
+                deviation,
+                intervals,
+            }
+        }
+        None => deviations
+            .iter()
+            .find(|d| d.deviation.estimator == Estimator::Oadev)
+            .cloned()
+            .unwrap_or_else(|| curve(Estimator::Oadev)),
+    };
+    let lines = removed.map(|r| r.lines).unwrap_or_default();
     let n_phase = phase.len();
     drop(phase);
     let (fit, readouts) = fit_noise(&fit_curve, n_phase, options);
@@ -226,6 +261,7 @@ fn analyze_channel(
         n: channel.values.len(),
         deviations,
         fit_curve,
+        lines,
         fit,
         readouts,
         psd,

@@ -282,7 +282,12 @@ pub fn run(
         rate_hz: record.rate_hz,
         channels: vec![channel.clone()],
     };
-    let result: ChannelResult = pipeline::analyze(&single, &Options::default(), &|| {})?
+    // The record as it is, lines included: the workflow names them itself (sinusoid).
+    let options = Options {
+        lines: None,
+        ..Options::default()
+    };
+    let result: ChannelResult = pipeline::analyze(&single, &options, &|| {})?
         .into_iter()
         .next()
         .expect("one channel in, one result out");

@@ -540,7 +540,7 @@ fn line_study() {
         format!("mean {mean:+.3} sd {sd:.3} worst {worst:.3}")
     };
     println!(
-        "wide lines: {found} of 100 found; width {}; power {}; freq/width {}",
+        "wide lines: {found} of 200 found; width {}; power {}; freq/width {}",
         summary(&width_err),
         summary(&power_err),
         summary(&freq_err)
@@ -573,6 +573,7 @@ fn background_calibration() {
         fft: RealFftPlanner::<f64>::new().plan_fft_forward(n),
         k_lo: 5,
         k_hi: (n - 1) / 2,
+        ln_bin: (0..=n / 2).map(|k| (k as f64).ln()).collect(),
     };
     let ranges = [
         (5, 8),
@@ -597,7 +598,7 @@ fn background_calibration() {
             (0, &spectra.rect, RECT_MEDIAN_VARIANCE),
             (1, &spectra.hann, HANN_MEDIAN_VARIANCE),
         ] {
-            let bg = background(power, &mask, s.k_hi, s.widest(), c);
+            let bg = background(power, &mask, &s.ln_bin, s.k_hi, s.widest(), c);
             for (r, &(a, b)) in ranges.iter().enumerate() {
                 for k in a..b {
                     let e = (bg.level[k] / truth).ln();
