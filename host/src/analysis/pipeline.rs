@@ -1,9 +1,12 @@
 //! The whole analysis of a record in one call: for every channel, in parallel, the requested
 //! Allan-family deviations with confidence intervals, the IEEE-952 noise terms fitted to the
 //! overlapping Allan variance, the classic slope read-outs, the Welch PSD, and N, B, K with
-//! intervals from the multi-resolution PSD.
+//! intervals from the multi-resolution PSD. Spectral lines found in the rate ([`lines`]) are
+//! removed from the record before the Allan curve that the noise fit uses (and before the
+//! search for the sensor's low-pass roll-off), so that a tone or a resonance does not become
+//! quantization noise, a bias instability, a rate ramp or a filter.
 
-use super::lines;
+use super::lines::{self, Line, LineOptions};
 use super::low_pass::{self, LowPass};
 use super::psd::{self, BinnedPsd, Psd, WelchOptions, Window};
 use super::taus::TauGrid;
@@ -34,6 +37,8 @@ pub struct Options {
     pub fit_tau_min: Option<f64>,
     /// The sensor's low-pass filter, which the fit models ([`fit::FitOptions::low_pass`]).
     pub low_pass: LowPassChoice,
+    /// The spectral-line search; `None` skips it (and fits the record as it is).
+    pub lines: Option<LineOptions>,
 }
 
 /// Where the noise fit's low-pass filter comes from.
@@ -65,6 +70,7 @@ impl Default for Options {
             psd_bins_per_decade: 20,
             fit_tau_min: None,
             low_pass: LowPassChoice::Detect,
+            lines: Some(LineOptions::default()),
         }
     }
 }
@@ -88,8 +94,12 @@ pub struct ChannelResult {
     /// Samples analysed.
     pub n: usize,
     pub deviations: Vec<DeviationResult>,
-    /// The overlapping Allan curve the fit used (also in `deviations` when requested).
+    /// The overlapping Allan curve the fit used: the record's (also in `deviations` when
+    /// requested), or, when `lines` is not empty, that of the record with the lines removed
+    /// ([`lines::remove`]).
     pub fit_curve: DeviationResult,
+    /// Spectral lines of the rate (empty when the search is off or the record too short).
+    pub lines: Vec<Line>,
     pub fit: Result<fit::NoiseFit, String>,
     pub readouts: fit::SlopeReadouts,
     /// The Welch PSD of the rate (one-sided), log-binned; `Err` says why there is none.
@@ -229,14 +239,40 @@ fn analyze_channel(
     };
     let deviations: Vec<DeviationResult> =
         options.estimators.par_iter().map(|&e| curve(e)).collect();
-    let fit_curve = deviations
-        .iter()
-        .find(|d| d.deviation.estimator == Estimator::Oadev)
-        .cloned()
-        .unwrap_or_else(|| curve(Estimator::Oadev));
+    let removed = options
+        .lines
+        .and_then(|opts| lines::remove(&rate, rate_hz, &opts).ok())
+        .filter(|r| !r.lines.is_empty());
+    let fit_curve = match &removed {
+        // The fit's curve from the record without its lines, on the same taus.
+        Some(r) => {
+            let phase = phase_from_rate(&r.rate, tau0);
+            let factors = taus::factors(
+                options.taus,
+                allan::max_factor(Estimator::Oadev, phase.len()),
+            );
+            let deviation = allan::deviation(Estimator::Oadev, &phase, tau0, &factors);
+            let intervals = ci::intervals(&deviation, &phase, options.confidence);
+            // The step counted for the fit's curve (steps_per_channel).
+            if !options.estimators.contains(&Estimator::Oadev) {
+                tick();
+            }
+            DeviationResult {
+                deviation,
+                intervals,
+            }
+        }
+        None => deviations
+            .iter()
+            .find(|d| d.deviation.estimator == Estimator::Oadev)
+            .cloned()
+            .unwrap_or_else(|| curve(Estimator::Oadev)),
+    };
     let n_phase = phase.len();
     drop(phase);
-    let low_pass = channel_low_pass(channel.quantity, &rate, rate_hz, options);
+    let without: &[f64] = removed.as_ref().map_or(&rate, |r| &r.rate);
+    let low_pass = channel_low_pass(channel.quantity, without, rate_hz, options);
+    let lines = removed.map(|r| r.lines).unwrap_or_default();
     let (fit, readouts) = fit_noise(&fit_curve, n_phase, low_pass, options);
     tick();
     let psd = spectrum(&rate, rate_hz, options);
@@ -256,6 +292,7 @@ fn analyze_channel(
         n: channel.values.len(),
         deviations,
         fit_curve,
+        lines,
         fit,
         readouts,
         psd,
@@ -297,7 +334,7 @@ fn channel_low_pass(
 /// `rate` with its spectral lines removed ([`lines::remove`]): a tone or a resonance near
 /// Nyquist would otherwise read as a roll-off's shape.
 pub fn without_lines(rate: &[f64], rate_hz: f64) -> Vec<f64> {
-    lines::remove(rate, rate_hz, &lines::LineOptions::default())
+    lines::remove(rate, rate_hz, &LineOptions::default())
         .map_or_else(|_| rate.to_vec(), |r| r.rate)
 }
 

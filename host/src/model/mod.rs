@@ -438,8 +438,10 @@ pub fn run(
             ..channel.clone()
         }],
     };
+    // The lines were removed above (the workflow names them itself).
     let options = Options {
         low_pass: settings.low_pass,
+        lines: None,
         ..Options::default()
     };
     let result: ChannelResult = pipeline::analyze(&single, &options, &|| {})?

@@ -1,8 +1,10 @@
 //! The JSON document of `analyze --json`: per channel `name`, `unit`, `rate_hz`, `n`;
 //! `deviations.<estimator>` with `tau`, `dev`, `lo`, `hi`, `n` (and `alpha`, `edf`); `noise`
 //! with `Q N B K R`, each `{value, lo, hi, unit}` in SI; `psd` with `freq` and `density`
-//! (one-sided, log-binned); plus conventional units, slope and PSD read-outs and Kalibr's
-//! numbers. Conventions are stated in the document itself.
+//! (one-sided, log-binned); `lines[]`, the spectral lines removed before the fit, each
+//! `{freq_hz, amplitude, width_hz, power, statistic}` (amplitude in the channel's unit, power in
+//! its square); plus conventional units, slope and PSD read-outs and Kalibr's numbers.
+//! Conventions are stated in the document itself.
 
 use super::{NOISE_TERMS, conventions, kalibr, term_of};
 use crate::analysis::fit::NoiseFit;
@@ -83,6 +85,7 @@ fn channel(r: &ChannelResult) -> Value {
         "psd": psd,
         "psd_noise": psd_noise(r),
         "low_pass": r.fit.as_ref().ok().and_then(|f| f.low_pass.as_ref()),
+        "lines": r.lines,
     })
 }
 

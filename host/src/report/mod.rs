@@ -44,6 +44,7 @@ pub fn conventions(options: &Options) -> Value {
         "intervals": format!("two-sided {} confidence: chi-squared with the equivalent degrees of freedom (Greenhall's algorithm; SP 1065 for totdev), noise type identified per tau", options.confidence),
         "psd": "one-sided Welch estimate (as scipy.signal.welch), u^2/Hz; white rate noise with Allan coefficient N has one-sided PSD 2 N^2, so N = sqrt(S/2)",
         "noise_density": "N is the two-sided density (the Allan deviation at tau = 1 s on the -1/2 line), which is Kalibr's noise density; a datasheet's one-sided density is sqrt(2) N",
+        "lines": options.lines.map(|l| format!("spectral lines of the full-record periodogram against a running-median background, family-wise false-alarm probability {} per channel; removed from the record before the Allan curve the noise fit uses; amplitude = sqrt(2 power), width = the interquartile range of the line's power (a Lorentzian's full width at half maximum; 0 for a pure tone), statistic = the excess power in standard deviations of the background's", l.false_alarm)),
     })
 }
 

@@ -103,6 +103,7 @@ fn fit_rows(out: &mut String, r: &ChannelResult) {
     if let Some(line) = low_pass_note(fit) {
         let _ = writeln!(out, "  {line}");
     }
+    line_rows(out, r);
 }
 
 /// The low-pass filter the fit modelled, and where it came from.
@@ -121,6 +122,34 @@ fn low_pass_note(fit: &NoiseFit) -> Option<String> {
             sig(lp.cutoff_hi_hz, 3)
         ),
     })
+}
+
+/// The channel's spectral lines, removed from the record before the fit.
+fn line_rows(out: &mut String, r: &ChannelResult) {
+    if r.lines.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        out,
+        "  spectral lines (removed before the fit): {:>10} {:>12} {:>10} {:>12} {:>8}",
+        "freq Hz",
+        format!("amp {}", r.unit),
+        "width Hz",
+        format!("power {}^2", r.unit),
+        "z"
+    );
+    for l in &r.lines {
+        let _ = writeln!(
+            out,
+            "  {:>40} {:>10} {:>12} {:>10} {:>12} {:>8}",
+            "",
+            sig(l.freq_hz, 6),
+            sig(l.amplitude, 3),
+            sig(l.width_hz, 3),
+            sig(l.power, 3),
+            sig(l.statistic, 3)
+        );
+    }
 }
 
 fn fit_note(fit: &NoiseFit) -> String {
