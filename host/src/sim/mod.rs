@@ -1,6 +1,6 @@
 //! The simulated sensor: noise synthesis ([`noise`]), the die temperature ([`temperature`]),
 //! the MPU-6050's digital low-pass filter ([`dlpf`]) and signal chain ([`chain`]), the six
-//! axes ([`imu`]), narrow-band lines for tests ([`line`]), the model file ([`model_file`]),
+//! axes ([`imu`]), narrow-band lines for tests ([`mod@line`]), the model file ([`model_file`]),
 //! the simulated I2C device ([`device`]) and its line protocol for a bus model in another
 //! process ([`bus_server`]).
 
