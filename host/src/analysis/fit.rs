@@ -130,12 +130,15 @@ impl Goodness {
 /// The detection test of one term.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Support {
-    /// The term is in the final model: removing it worsens the fit significantly
-    /// (`p_value <` [`FitOptions::detection_level`]). A term not detected is reported as
-    /// value 0, lo 0 and hi its upper bound.
+    /// The term is in the final model (see [`fit_allan_with`]). A term not detected is
+    /// reported as value 0, lo 0 and hi its upper bound.
     pub detected: bool,
-    /// One-sided p-value of the term's quasi-likelihood-ratio test the last time it was
-    /// in the model (1 when the non-negativity constraint put it at 0).
+    /// One-sided p-value of the term in the final model, or in the final model with it
+    /// added when it is not detected: `1 - Phi(theta / sd)`, sd the Birge-widened sandwich
+    /// standard deviation of theta (1 when the non-negativity constraint puts it at 0).
+    /// Below [`FitOptions::detection_level`] for every detected term unless no model the
+    /// curve supports has all its terms that significant (then the deviance test alone
+    /// kept it; a p-value above the level marks such a weakly supported term).
     pub p_value: f64,
 }
 
@@ -166,6 +169,22 @@ impl NoiseFit {
     pub fn avar(&self, tau: f64) -> f64 {
         let theta = self.squared();
         basis(tau).iter().zip(theta).map(|(a, t)| a * t).sum()
+    }
+
+    /// The power-law exponent alpha (S_y(f) ∝ f^alpha) of the term that dominates the
+    /// model's AVAR at `tau`: Q white PM (2), N white FM (0), B flicker FM (-1), K and R
+    /// random-walk FM (-2; a ramp has no power law, and its AVAR grows like random walk's
+    /// over the taus where it matters). 0 when every term is zero.
+    pub fn dominant_alpha(&self, tau: f64) -> i32 {
+        const ALPHA: [i32; TERMS] = [2, 0, -1, -2, -2];
+        basis(tau)
+            .into_iter()
+            .zip(self.squared())
+            .map(|(a, theta)| a * theta)
+            .enumerate()
+            .filter(|(_, part)| *part > 0.0)
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .map_or(0, |(t, _)| ALPHA[t])
     }
 
     fn squared(&self) -> [f64; TERMS] {
@@ -296,19 +315,10 @@ pub fn fit_allan_with(
         cols.sort_unstable();
         (fit_cols(&cols), cols)
     };
-    // Each term's evidence given the final model: the test of removing it, or of adding it.
+    // Each term's evidence given the final model, or the final model with it added.
     let p_values: [f64; TERMS] = std::array::from_fn(|j| {
         let (with, cols) = with_term(&adequate[0], j);
-        if with.theta[j] <= 0.0 {
-            return 1.0;
-        }
-        let without: Vec<usize> = cols.iter().copied().filter(|&t| t != j).collect();
-        let delta = deviance(&rows, avar, edf, &fit_cols(&without).theta)
-            - deviance(&rows, avar, edf, &with.theta);
-        let corr = correlation(tau, &rows, &with.theta);
-        let cov = Covariance::new(&rows, &with.sigma, &corr, &cols);
-        let c = cols.iter().position(|&t| t == j).unwrap_or(0);
-        nested_p_value(delta, cov.as_ref(), &[c], inflate)
+        wald_p_value(tau, &rows, avar, &with, &cols, j)
     });
     let term = |j: usize| -> Term {
         if active.contains(&j) {
@@ -499,7 +509,8 @@ fn select_terms(
     let birge = goodness_of_fit(rows, avar, &all.sigma, &corr, &all.theta, &full).birge_ratio;
     let cov = Covariance::new(rows, &all.sigma, &corr, &full);
     let deviance_full = deviance(rows, avar, edf, &all.theta);
-    let mut adequate: Vec<((usize, bool, f64), Candidate)> = Vec::new();
+    // (adequate, (size, has R, deviance), fit) of every subset.
+    let mut fits: Vec<(bool, (usize, bool, f64), Candidate)> = Vec::new();
     for mask in 1u32..(1 << full.len()) {
         let subset: Vec<usize> = (0..full.len())
             .filter(|&c| mask & (1 << c) != 0)
@@ -513,19 +524,54 @@ fn select_terms(
         };
         let dev = deviance(rows, avar, edf, &fitted.theta);
         let p = nested_p_value(dev - deviance_full, cov.as_ref(), &dropped, birge);
-        if dropped.is_empty() || p >= opts.detection_level {
-            adequate.push(((subset.len(), subset.contains(&R), dev), fitted));
-        }
+        let adequate = dropped.is_empty() || p >= opts.detection_level;
+        fits.push((adequate, (subset.len(), subset.contains(&R), dev), fitted));
     }
-    adequate.sort_by(|a, b| {
-        let (ka, kb) = (a.0, b.0);
+    fits.sort_by(|a, b| {
+        let (ka, kb) = (a.1, b.1);
         (ka.0, ka.1).cmp(&(kb.0, kb.1)).then(ka.2.total_cmp(&kb.2))
     });
-    let mut out: Vec<Candidate> = adequate.into_iter().map(|(_, c)| c).collect();
+    // The first adequate fit whose every term is also significant on its own (with points
+    // of an edf near 1 at the longest taus the deviance and a term's own standard deviation
+    // can disagree); else the first adequate one: a fit whose terms are all significant but
+    // which the curve rejects trades a weak term for a reduced chi-square in the hundreds
+    // (two gyro axes of the MPU-6050 record in tests/data).
+    let significant = |c: &Candidate| {
+        let cols: Vec<usize> = (0..TERMS).filter(|&j| c.theta[j] > 0.0).collect();
+        cols.iter()
+            .all(|&j| wald_p_value(tau, rows, avar, c, &cols, j) < opts.detection_level)
+    };
+    let chosen = fits
+        .iter()
+        .position(|(adequate, _, c)| *adequate && significant(c))
+        .or_else(|| fits.iter().position(|f| f.0));
+    let first = chosen.map(|i| fits.remove(i).2);
+    let adequate = fits.into_iter().filter(|f| f.0).map(|f| f.2);
+    let mut out: Vec<Candidate> = first.into_iter().chain(adequate).collect();
     if out.is_empty() {
         out.push(all);
     }
     out
+}
+
+/// One-sided Wald p-value of term j in `model` (its non-zero terms `cols`, which contain j):
+/// `1 - Phi(theta_j / (b sd_j))`, sd_j from the sandwich covariance and b the model's Birge
+/// ratio; 1 when theta_j is 0.
+fn wald_p_value(
+    tau: &[f64],
+    rows: &[[f64; TERMS]],
+    avar: &[f64],
+    model: &Candidate,
+    cols: &[usize],
+    j: usize,
+) -> f64 {
+    if model.theta[j] <= 0.0 {
+        return 1.0;
+    }
+    let corr = correlation(tau, rows, &model.theta);
+    let birge = goodness_of_fit(rows, avar, &model.sigma, &corr, &model.theta, cols).birge_ratio;
+    let sd = sandwich_sd(rows, &model.sigma, &corr, cols, j) * birge;
+    Normal::standard().sf(model.theta[j] / sd)
 }
 
 /// One fitted subset of the terms: theta (zero outside the subset), the points' standard
@@ -635,7 +681,7 @@ pub fn fit_deviation(
     let mut alpha = vec![0; m.len()];
     let mut fit = fit_allan_with(tau, &avar, &edf_for(&alpha), opts)?;
     for _ in 0..5 {
-        let next: Vec<i32> = tau.iter().map(|&t| dominant_alpha(&fit, t)).collect();
+        let next: Vec<i32> = tau.iter().map(|&t| fit.dominant_alpha(t)).collect();
         if next == alpha {
             break;
         }
@@ -664,19 +710,6 @@ pub fn low_pass_onset(tau: &[f64], adev: &[f64]) -> usize {
     (0..search)
         .find(|&i| i + 2 < tau.len() && slope(i, i + 2) <= LOW_PASS_SLOPE)
         .unwrap_or(0)
-}
-
-/// The power-law exponent alpha of the term that dominates the model's AVAR at `tau`.
-fn dominant_alpha(fit: &NoiseFit, tau: f64) -> i32 {
-    const ALPHA: [i32; TERMS] = [2, 0, -1, -2, -2];
-    let parts = basis(tau)
-        .into_iter()
-        .zip(fit.squared())
-        .map(|(a, theta)| a * theta);
-    parts
-        .enumerate()
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map_or(0, |(t, _)| ALPHA[t])
 }
 
 fn validate(tau: &[f64], avar: &[f64], edf: &[f64], opts: &FitOptions) -> Result<(), FitError> {

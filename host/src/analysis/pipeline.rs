@@ -192,24 +192,32 @@ fn analyze_channel(
     };
     let curve = |est: Estimator| {
         let factors = taus::factors(options.taus, allan::max_factor(est, phase.len()));
-        let deviation = allan::deviation(est, &phase, tau0, &factors);
-        let intervals = ci::intervals(&deviation, &phase, options.confidence);
+        allan::deviation(est, &phase, tau0, &factors)
+    };
+    let curves: Vec<Deviation> = options.estimators.par_iter().map(|&e| curve(e)).collect();
+    let fit_deviation = curves
+        .iter()
+        .find(|d| d.estimator == Estimator::Oadev)
+        .cloned()
+        .unwrap_or_else(|| curve(Estimator::Oadev));
+    let (fit, readouts) = fit_noise(&fit_deviation, phase.len(), options);
+    // The intervals take the noise type from the fit where it has one (ci::intervals_with_model).
+    let with_intervals = |deviation: Deviation| {
+        let model = fit.as_ref().ok();
+        let intervals = ci::intervals_with_model(&deviation, &phase, options.confidence, model);
         tick();
         DeviationResult {
             deviation,
             intervals,
         }
     };
-    let deviations: Vec<DeviationResult> =
-        options.estimators.par_iter().map(|&e| curve(e)).collect();
+    let deviations: Vec<DeviationResult> = curves.into_par_iter().map(with_intervals).collect();
     let fit_curve = deviations
         .iter()
         .find(|d| d.deviation.estimator == Estimator::Oadev)
         .cloned()
-        .unwrap_or_else(|| curve(Estimator::Oadev));
-    let n_phase = phase.len();
+        .unwrap_or_else(|| with_intervals(fit_deviation));
     drop(phase);
-    let (fit, readouts) = fit_noise(&fit_curve, n_phase, options);
     tick();
     let psd = spectrum(&rate, rate_hz, options);
     let psd_terms = psd
@@ -243,11 +251,10 @@ pub fn sensor_kind(quantity: Quantity) -> SensorKind {
 }
 
 fn fit_noise(
-    curve: &DeviationResult,
+    d: &Deviation,
     n_phase: usize,
     options: &Options,
 ) -> (Result<fit::NoiseFit, String>, fit::SlopeReadouts) {
-    let d = &curve.deviation;
     let fit_options = fit::FitOptions {
         confidence: options.confidence,
         tau_min: options.fit_tau_min,
