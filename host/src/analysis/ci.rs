@@ -8,7 +8,8 @@
 //!   other noise types fall back to the simple SP 1065 Table 5 formulas.
 //! - bounds: SP 1065 eq. 45, var * edf / chi²(p, edf).
 
-use super::noise_id::identify_all;
+use super::fit::NoiseFit;
+use super::noise_id::{MIN_ACF_POINTS, identify_all};
 use super::{Deviation, Estimator};
 use serde::{Deserialize, Serialize};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
@@ -65,7 +66,43 @@ pub fn edf(est: Estimator, alpha: i32, m: usize, n_phase: usize) -> f64 {
 /// `x` it came from. Noise identification per tau ([`identify_all`]); where that is impossible the
 /// alpha of the nearest identified tau is used (the smaller tau on a tie), else 0 (white FM).
 pub fn intervals(dev: &Deviation, x: &[f64], confidence: f64) -> Intervals {
-    let found = identify_all(dev.estimator, x, &dev.m);
+    intervals_with_model(dev, x, confidence, None)
+}
+
+/// [`intervals`], with the noise type taken from a fitted five-term model (the power law of
+/// the term that dominates its AVAR, [`NoiseFit::dominant_alpha`]) at the taus it was fitted
+/// to; identified per tau elsewhere (below the fit's shortest tau), and, when the model does
+/// not describe the curve ([`crate::analysis::fit::Goodness::poor`]), also wherever enough
+/// clusters remain for the lag-1 autocorrelation method ([`MIN_ACF_POINTS`] decimated
+/// points).
+///
+/// Why: at the longest taus only a handful of clusters remain, and per-tau identification
+/// (the B1 ratio there) often names a white or flicker phase noise whose larger EDF gives
+/// intervals several times too narrow (+-8-30 % where +-50-200 % is right on records
+/// dominated by rate random walk); the fit's dominant term rests on the whole curve.
+pub fn intervals_with_model(
+    dev: &Deviation,
+    x: &[f64],
+    confidence: f64,
+    model: Option<&NoiseFit>,
+) -> Intervals {
+    let model_alpha = |k: usize| -> Option<i32> {
+        let fit = model?;
+        let (tau, m) = (dev.tau[k], dev.m[k]);
+        let few_clusters = x.len().div_ceil(m.max(1)) < MIN_ACF_POINTS;
+        let applies = tau >= fit.tau_min * (1.0 - 1e-9) && (!fit.goodness.poor() || few_clusters);
+        applies.then(|| fit.dominant_alpha(tau))
+    };
+    let from_model: Vec<Option<i32>> = (0..dev.m.len()).map(model_alpha).collect();
+    let unknown: Vec<usize> = (0..dev.m.len())
+        .filter(|&k| from_model[k].is_none())
+        .map(|k| dev.m[k])
+        .collect();
+    let mut identified = identify_all(dev.estimator, x, &unknown).into_iter();
+    let found: Vec<Option<i32>> = from_model
+        .iter()
+        .map(|a| a.or_else(|| identified.next().flatten()))
+        .collect();
     let alpha: Vec<i32> = (0..found.len()).map(|k| fill_alpha(&found, k)).collect();
     let edf: Vec<f64> = dev
         .m

@@ -13,7 +13,7 @@ use super::allan::deviation;
 
 /// Shortest decimated series for which the lag-1 autocorrelation is trusted (Riley &
 /// Greenhall recommend at least about 30 points).
-const MIN_ACF_POINTS: usize = 30;
+pub const MIN_ACF_POINTS: usize = 30;
 
 /// Longest decimated series the autocorrelation method uses. The noise type at a tau is a
 /// local property, and the standard error of r1 is about 1/sqrt(n) (0.003 at 2^17 points),

@@ -229,51 +229,52 @@ fn analyze_channel(
     };
     let curve = |est: Estimator| {
         let factors = taus::factors(options.taus, allan::max_factor(est, phase.len()));
-        let deviation = allan::deviation(est, &phase, tau0, &factors);
-        let intervals = ci::intervals(&deviation, &phase, options.confidence);
+        allan::deviation(est, &phase, tau0, &factors)
+    };
+    let curves: Vec<Deviation> = options.estimators.par_iter().map(|&e| curve(e)).collect();
+    // Spectral lines leave the record before the fit's curve and the roll-off search.
+    let removed = options
+        .lines
+        .and_then(|opts| lines::remove(&rate, rate_hz, &opts).ok())
+        .filter(|r| !r.lines.is_empty());
+    let fit_deviation = match &removed {
+        // The fit's curve from the record without its lines, on the same taus.
+        Some(r) => {
+            let clean = phase_from_rate(&r.rate, tau0);
+            let factors = taus::factors(
+                options.taus,
+                allan::max_factor(Estimator::Oadev, clean.len()),
+            );
+            allan::deviation(Estimator::Oadev, &clean, tau0, &factors)
+        }
+        None => curves
+            .iter()
+            .find(|d| d.estimator == Estimator::Oadev)
+            .cloned()
+            .unwrap_or_else(|| curve(Estimator::Oadev)),
+    };
+    let without: &[f64] = removed.as_ref().map_or(&rate, |r| &r.rate);
+    let low_pass = channel_low_pass(channel.quantity, without, rate_hz, options);
+    let lines = removed.map(|r| r.lines).unwrap_or_default();
+    let (fit, readouts) = fit_noise(&fit_deviation, phase.len(), low_pass, options);
+    // The intervals take the noise type from the fit where it has one (ci::intervals_with_model).
+    let with_intervals = |deviation: Deviation| {
+        let model = fit.as_ref().ok();
+        let intervals = ci::intervals_with_model(&deviation, &phase, options.confidence, model);
         tick();
         DeviationResult {
             deviation,
             intervals,
         }
     };
-    let deviations: Vec<DeviationResult> =
-        options.estimators.par_iter().map(|&e| curve(e)).collect();
-    let removed = options
-        .lines
-        .and_then(|opts| lines::remove(&rate, rate_hz, &opts).ok())
-        .filter(|r| !r.lines.is_empty());
-    let fit_curve = match &removed {
-        // The fit's curve from the record without its lines, on the same taus.
-        Some(r) => {
-            let phase = phase_from_rate(&r.rate, tau0);
-            let factors = taus::factors(
-                options.taus,
-                allan::max_factor(Estimator::Oadev, phase.len()),
-            );
-            let deviation = allan::deviation(Estimator::Oadev, &phase, tau0, &factors);
-            let intervals = ci::intervals(&deviation, &phase, options.confidence);
-            // The step counted for the fit's curve (steps_per_channel).
-            if !options.estimators.contains(&Estimator::Oadev) {
-                tick();
-            }
-            DeviationResult {
-                deviation,
-                intervals,
-            }
-        }
-        None => deviations
-            .iter()
-            .find(|d| d.deviation.estimator == Estimator::Oadev)
-            .cloned()
-            .unwrap_or_else(|| curve(Estimator::Oadev)),
-    };
-    let n_phase = phase.len();
+    let deviations: Vec<DeviationResult> = curves.into_par_iter().map(with_intervals).collect();
+    // With lines removed the fit's curve is not the record's own oadev.
+    let own = deviations
+        .iter()
+        .find(|d| d.deviation.estimator == Estimator::Oadev && lines.is_empty())
+        .cloned();
+    let fit_curve = own.unwrap_or_else(|| with_intervals(fit_deviation));
     drop(phase);
-    let without: &[f64] = removed.as_ref().map_or(&rate, |r| &r.rate);
-    let low_pass = channel_low_pass(channel.quantity, without, rate_hz, options);
-    let lines = removed.map(|r| r.lines).unwrap_or_default();
-    let (fit, readouts) = fit_noise(&fit_curve, n_phase, low_pass, options);
     tick();
     let psd = spectrum(&rate, rate_hz, options);
     let psd_options = psd_terms::PsdFitOptions {
@@ -339,12 +340,11 @@ pub fn without_lines(rate: &[f64], rate_hz: f64) -> Vec<f64> {
 }
 
 fn fit_noise(
-    curve: &DeviationResult,
+    d: &Deviation,
     n_phase: usize,
     low_pass: Option<LowPass>,
     options: &Options,
 ) -> (Result<fit::NoiseFit, String>, fit::SlopeReadouts) {
-    let d = &curve.deviation;
     let fit_options = fit::FitOptions {
         confidence: options.confidence,
         tau_min: options.fit_tau_min,

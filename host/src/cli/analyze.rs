@@ -226,6 +226,9 @@ pub fn analyse(
     let results = pipeline::analyze(&record, &options, &|| bar.inc(1))
         .with_context(|| record.source.clone())?;
     bar.finish_and_clear();
+    for warning in report::table::fit_warnings(&results) {
+        eprintln!("warning: {warning}");
+    }
     let mut document = report::json::document(&record, &options, &results);
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     if !json_to_stdout {

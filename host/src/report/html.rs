@@ -2,7 +2,7 @@
 //! figures (inline SVG) on one page with no external resources.
 
 use super::plot::{self, PlotError};
-use super::{NOISE_TERMS, conventions, figures, kalibr, sig, table, term_of};
+use super::{NOISE_TERMS, conventions, figures, kalibr, sig, support_of, table, term_of};
 use crate::analysis::pipeline::{ChannelResult, Options};
 use crate::analysis::units::{self, SensorKind};
 use crate::record::Record;
@@ -100,7 +100,7 @@ fn terms_table(h: &mut String, r: &ChannelResult) {
     if r.kind != SensorKind::Other {
         h.push_str("<th>conventional</th><th>interval</th><th>unit</th>");
     }
-    h.push_str("</tr>\n");
+    h.push_str("<th>detected</th></tr>\n");
     for term in NOISE_TERMS {
         let t = term_of(fit, term);
         let _ = write!(
@@ -122,9 +122,20 @@ fn terms_table(h: &mut String, r: &ChannelResult) {
                 c(t.value).unit
             );
         }
+        let s = support_of(fit, term);
+        let _ = write!(
+            h,
+            "<td>{} (p = {})</td>",
+            if s.detected { "yes" } else { "no" },
+            sig(s.p_value, 2)
+        );
         h.push_str("</tr>\n");
     }
     h.push_str("</table>\n");
+    let _ = writeln!(h, "<p>{}</p>", escape(&table::goodness_line(fit)));
+    if let Some(warning) = table::poor_fit_warning(&r.name, fit) {
+        let _ = writeln!(h, "<p><strong>Warning:</strong> {}</p>", escape(&warning));
+    }
 }
 
 /// Text made safe to put inside HTML elements and attribute values.

@@ -1,12 +1,12 @@
 //! The JSON document of `analyze --json`: per channel `name`, `unit`, `rate_hz`, `n`;
 //! `deviations.<estimator>` with `tau`, `dev`, `lo`, `hi`, `n` (and `alpha`, `edf`); `noise`
-//! with `Q N B K R`, each `{value, lo, hi, unit}` in SI; `psd` with `freq` and `density`
-//! (one-sided, log-binned); `lines[]`, the spectral lines removed before the fit, each
-//! `{freq_hz, amplitude, width_hz, power, statistic}` (amplitude in the channel's unit, power in
-//! its square); plus conventional units, slope and PSD read-outs and Kalibr's numbers.
-//! Conventions are stated in the document itself.
+//! with `Q N B K R`, each `{value, lo, hi, unit, detected, p_value}` in SI; `fit.goodness`;
+//! `psd` with `freq` and `density` (one-sided, log-binned); `lines[]`, the spectral lines
+//! removed before the fit, each `{freq_hz, amplitude, width_hz, power, statistic}` (amplitude
+//! in the channel's unit, power in its square); plus conventional units, slope and PSD
+//! read-outs and Kalibr's numbers. Conventions are stated in the document itself.
 
-use super::{NOISE_TERMS, conventions, kalibr, term_of};
+use super::{NOISE_TERMS, conventions, kalibr, support_of, term_of};
 use crate::analysis::fit::NoiseFit;
 use crate::analysis::pipeline::{ChannelResult, Options};
 use crate::analysis::units::{self, NoiseTerm, SensorKind};
@@ -49,12 +49,21 @@ fn channel(r: &ChannelResult) -> Value {
             terms(fit, r.kind, false),
             terms(fit, r.kind, true),
             json!({
-                "method": "weighted non-negative least squares on the overlapping Allan variance",
+                "method": "weighted non-negative least squares on the overlapping Allan variance; terms kept only when the data support them",
                 "points": fit.points,
                 "effective_points": fit.effective_points,
                 "iterations": fit.iterations,
                 "tau_min": fit.tau_min,
                 "confidence": fit.confidence,
+                "goodness": {
+                    "reduced_chi2": fit.goodness.reduced_chi2,
+                    "dof": fit.goodness.dof,
+                    "p_value": fit.goodness.p_value,
+                    "birge_ratio": fit.goodness.birge_ratio,
+                    "poor": fit.goodness.poor(),
+                    "definition": "weighted residual sum over its expectation under the model with the points' modelled correlation; dof and p-value by Satterthwaite's approximation; poor when p < 0.001",
+                    "intervals": "every term's standard deviation was multiplied by birge_ratio = sqrt(max(1, reduced_chi2)) before its interval and detection test",
+                },
             }),
         ),
         Err(e) => (Value::Null, Value::Null, json!({ "error": e })),
@@ -110,6 +119,8 @@ fn terms(fit: &NoiseFit, kind: SensorKind, conventional: bool) -> Value {
                     "lo": convert(t, term.lo).value,
                     "hi": convert(t, term.hi).value,
                     "unit": value.unit,
+                    "detected": support_of(fit, t).detected,
+                    "p_value": support_of(fit, t).p_value,
                 }),
             )
         })

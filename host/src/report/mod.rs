@@ -12,7 +12,7 @@ pub mod progress;
 pub mod table;
 pub mod yaml;
 
-use crate::analysis::fit::{NoiseFit, Term};
+use crate::analysis::fit::{NoiseFit, Support, Term};
 use crate::analysis::pipeline::Options;
 use crate::analysis::units::NoiseTerm;
 use serde_json::{Value, json};
@@ -36,12 +36,24 @@ pub fn term_of(fit: &NoiseFit, term: NoiseTerm) -> &Term {
     }
 }
 
+/// Whether the data support `term` (see [`crate::analysis::fit::fit_allan_with`]).
+pub fn support_of(fit: &NoiseFit, term: NoiseTerm) -> &Support {
+    let s = &fit.support;
+    match term {
+        NoiseTerm::Q => &s.q,
+        NoiseTerm::N => &s.n,
+        NoiseTerm::B => &s.b,
+        NoiseTerm::K => &s.k,
+        NoiseTerm::R => &s.r,
+    }
+}
+
 /// The conventions every output states, so no number is read in the wrong units.
 pub fn conventions(options: &Options) -> Value {
     json!({
         "units": "SI; u is the channel's unit (rad/s gyro, m/s^2 accel): N in u/sqrt(Hz), B in u, K in u*sqrt(Hz), Q in u*s, R in u/s",
         "model": "IEEE Std 952-1997 Annex C: AVAR(tau) = 3 Q^2/tau^2 + N^2/tau + (2 ln2/pi) B^2 + K^2 tau/3 + R^2 tau^2/2",
-        "intervals": format!("two-sided {} confidence: chi-squared with the equivalent degrees of freedom (Greenhall's algorithm; SP 1065 for totdev), noise type identified per tau", options.confidence),
+        "intervals": format!("two-sided {} confidence: chi-squared with the equivalent degrees of freedom (Greenhall's algorithm; SP 1065 for totdev), noise type from the fitted model's dominant term at the taus it was fitted to, identified per tau elsewhere", options.confidence),
         "psd": "one-sided Welch estimate (as scipy.signal.welch), u^2/Hz; white rate noise with Allan coefficient N has one-sided PSD 2 N^2, so N = sqrt(S/2)",
         "noise_density": "N is the two-sided density (the Allan deviation at tau = 1 s on the -1/2 line), which is Kalibr's noise density; a datasheet's one-sided density is sqrt(2) N",
         "lines": options.lines.map(|l| format!("spectral lines of the full-record periodogram against a running-median background, family-wise false-alarm probability {} per channel; removed from the record before the Allan curve the noise fit uses; amplitude = sqrt(2 power), width = the interquartile range of the line's power (a Lorentzian's full width at half maximum; 0 for a pure tone), statistic = the excess power in standard deviations of the background's", l.false_alarm)),

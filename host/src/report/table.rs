@@ -2,8 +2,8 @@
 //! IEEE-952 terms with intervals in SI and conventional units, the classic slope read-outs
 //! and the PSD read-outs side by side. Every column names its unit.
 
-use super::{NOISE_TERMS, sig, term_of};
-use crate::analysis::fit::NoiseFit;
+use super::{NOISE_TERMS, sig, support_of, term_of};
+use crate::analysis::fit::{NoiseFit, POOR_FIT_P};
 use crate::analysis::low_pass::LowPassSource;
 use crate::analysis::pipeline::{ChannelResult, Options};
 use crate::analysis::psd_terms::PsdReadout;
@@ -97,9 +97,18 @@ fn fit_rows(out: &mut String, r: &ChannelResult) {
                 c.unit
             )
         };
-        let _ = writeln!(out, "{line:<52} {conventional}");
+        let detected = if support_of(fit, term).detected {
+            ""
+        } else {
+            "  not detected"
+        };
+        let _ = writeln!(out, "{line:<52} {conventional}{detected}");
     }
     let _ = writeln!(out, "  {}", fit_note(fit));
+    let _ = writeln!(out, "  {}", goodness_line(fit));
+    if let Some(warning) = poor_fit_warning(&r.name, fit) {
+        let _ = writeln!(out, "  WARNING: {warning}");
+    }
     if let Some(line) = low_pass_note(fit) {
         let _ = writeln!(out, "  {line}");
     }
@@ -154,11 +163,50 @@ fn line_rows(out: &mut String, r: &ChannelResult) {
 
 fn fit_note(fit: &NoiseFit) -> String {
     format!(
-        "({} taus from {} s, ~{} independent; terms at 0 were not resolved: their upper bound is given)",
+        "({} taus from {} s, ~{} independent; a term not detected is 0 with its upper bound)",
         fit.points,
         sig(fit.tau_min, 3),
         sig(fit.effective_points, 2)
     )
+}
+
+/// The fit's goodness in one line: reduced chi-square, effective dof, p-value and the factor
+/// the intervals were widened by.
+pub fn goodness_line(fit: &NoiseFit) -> String {
+    let g = &fit.goodness;
+    if !g.reduced_chi2.is_finite() {
+        return "goodness of fit: no residual degrees of freedom".into();
+    }
+    format!(
+        "goodness of fit: reduced chi-square {} on {} effective dof, p = {}; intervals widened x{} (Birge ratio)",
+        sig(g.reduced_chi2, 3),
+        sig(g.dof, 2),
+        sig(g.p_value, 2),
+        sig(g.birge_ratio, 3)
+    )
+}
+
+/// The warning for a channel whose curve the five-term model does not describe, if it is
+/// one.
+pub fn poor_fit_warning(channel: &str, fit: &NoiseFit) -> Option<String> {
+    fit.goodness.poor().then(|| {
+        format!(
+            "{channel}: the five-term model does not describe the Allan curve (p = {} < {}); \
+             its terms are biased by what it lacks (a tone, a Gauss-Markov or temperature \
+             effect, a filter) beyond their intervals, which were widened x{}",
+            sig(fit.goodness.p_value, 2),
+            POOR_FIT_P,
+            sig(fit.goodness.birge_ratio, 3)
+        )
+    })
+}
+
+/// The poor-fit warnings of every channel (for stderr).
+pub fn fit_warnings(results: &[ChannelResult]) -> Vec<String> {
+    results
+        .iter()
+        .filter_map(|r| poor_fit_warning(&r.name, r.fit.as_ref().ok()?))
+        .collect()
 }
 
 fn readout_row(out: &mut String, r: &ChannelResult) {
