@@ -715,7 +715,6 @@ pub fn fit_deviation(
     Ok(fit)
 }
 
-
 fn validate(tau: &[f64], avar: &[f64], edf: &[f64], opts: &FitOptions) -> Result<(), FitError> {
     if tau.len() != avar.len() || tau.len() != edf.len() {
         return Err(FitError::LengthMismatch {

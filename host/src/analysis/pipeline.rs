@@ -335,8 +335,7 @@ fn channel_low_pass(
 /// `rate` with its spectral lines removed ([`lines::remove`]): a tone or a resonance near
 /// Nyquist would otherwise read as a roll-off's shape.
 pub fn without_lines(rate: &[f64], rate_hz: f64) -> Vec<f64> {
-    lines::remove(rate, rate_hz, &LineOptions::default())
-        .map_or_else(|_| rate.to_vec(), |r| r.rate)
+    lines::remove(rate, rate_hz, &LineOptions::default()).map_or_else(|_| rate.to_vec(), |r| r.rate)
 }
 
 fn fit_noise(

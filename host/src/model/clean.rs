@@ -118,6 +118,8 @@ impl Removal {
         rate_hz: f64,
         temperature: Option<&Temperature>,
     ) -> Coefficients {
+        // Dense small-matrix algebra reads best with explicit indices.
+        #![allow(clippy::needless_range_loop)]
         let n = y.len();
         let time: Vec<f64>;
         let mut columns: Vec<&[f64]> = Vec::new();

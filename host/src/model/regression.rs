@@ -67,7 +67,7 @@ fn quadratic(c: &[f64], s: &[[f64; 2]; 2]) -> Option<f64> {
         1 => (s[0][0] > 0.0).then(|| c[0] * c[0] / s[0][0]),
         _ => {
             let det = s[0][0] * s[1][1] - s[0][1] * s[1][0];
-            if !(det > 0.0) {
+            if det.is_nan() || det <= 0.0 {
                 return None;
             }
             let inv = [
