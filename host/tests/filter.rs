@@ -168,16 +168,6 @@ fn filter_numbers(n: f64, k: f64, gm: GaussMarkov, dt: f64) -> FilterNoise {
         lo: value * 0.9,
         hi: value * 1.1,
     };
-    let (detected, undetected) = (
-        Support {
-            detected: true,
-            p_value: 0.0,
-        },
-        Support {
-            detected: false,
-            p_value: 1.0,
-        },
-    );
     let fit = NoiseFit {
         q: Term {
             value: 0.0,
@@ -195,19 +185,11 @@ fn filter_numbers(n: f64, k: f64, gm: GaussMarkov, dt: f64) -> FilterNoise {
         iterations: 3,
         tau_min: dt,
         low_pass: None,
-        goodness: Goodness {
-            reduced_chi2: 1.0,
-            dof: 5.0,
-            p_value: 0.5,
-            birge_ratio: 1.0,
-        },
-        support: TermSupport {
-            q: undetected,
-            n: detected,
-            b: undetected,
-            k: undetected,
-            r: undetected,
-        },
+        goodness: Goodness::NOMINAL,
+        support: TermSupport::same(Support {
+            detected: true,
+            p_value: 0.0,
+        }),
     };
     let gm_fit = GaussMarkovFit {
         sigma: gm.sigma,

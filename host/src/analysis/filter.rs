@@ -194,16 +194,6 @@ mod tests {
     /// Q_d = 1e-6 (1 - exp(-4e-4)) = 3.99920011e-10.
     #[test]
     fn hand_derived_values() {
-        let (detected, undetected) = (
-            Support {
-                detected: true,
-                p_value: 0.0,
-            },
-            Support {
-                detected: false,
-                p_value: 1.0,
-            },
-        );
         let fit = NoiseFit {
             q: term(0.0, 0.0),
             n: Term {
@@ -221,19 +211,11 @@ mod tests {
             iterations: 1,
             tau_min: 0.01,
             low_pass: None,
-            goodness: Goodness {
-                reduced_chi2: 1.0,
-                dof: 5.0,
-                p_value: 0.5,
-                birge_ratio: 1.0,
-            },
-            support: TermSupport {
-                q: undetected,
-                n: detected,
-                b: undetected,
-                k: undetected,
-                r: undetected,
-            },
+            goodness: Goodness::NOMINAL,
+            support: TermSupport::same(Support {
+                detected: true,
+                p_value: 0.0,
+            }),
         };
         let gm = GaussMarkovFit {
             sigma: 1e-3,

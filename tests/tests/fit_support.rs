@@ -1,0 +1,207 @@
+//! Which noise terms the fit claims, and how well its intervals cover the truth, through the
+//! whole analysis (phase, overlapping Allan deviation, fit, curve intervals) on simulated
+//! records of white rate noise plus rate random walk (no B, Q or R), and of white noise
+//! plus flicker (B present).
+//!
+//! A term is "claimed" when its interval's lower bound is above 0. The fit keeps a term only
+//! when the data support it at a 1 % level (`FitOptions::detection_level`), so on curves
+//! without B or Q those are claimed in about 1 % of records.
+//!
+//! Binomial ranges: with `n` records and a per-record probability `p` a count lies within
+//! `n p +- 2 sqrt(n p (1 - p))` about 95 % of the time; each bound below is derived from
+//! that and stated with its numbers. The seeds are fixed, so every outcome is deterministic.
+
+use imunoise::analysis::fit::NoiseFit;
+use imunoise::analysis::pipeline::{self, ChannelResult, Options};
+use imunoise::record::{Channel, Record};
+use imunoise::sim::noise::{AxisNoise, NoiseTerms};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+const RATE_HZ: f64 = 100.0;
+
+/// The analysis of one simulated record of `seconds` at [`RATE_HZ`].
+fn analyse(truth: NoiseTerms, seconds: f64, seed: u64) -> ChannelResult {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let n = (RATE_HZ * seconds) as usize;
+    let mut axis = AxisNoise::new(truth, RATE_HZ, seconds, &mut rng);
+    let record = Record {
+        source: format!("seed {seed}"),
+        rate_hz: RATE_HZ,
+        channels: vec![Channel::named("gx", axis.take(n, &mut rng))],
+    };
+    let mut results = pipeline::analyze(&record, &Options::default(), &|| {}).unwrap();
+    results.remove(0)
+}
+
+/// Every seed's analysis, in parallel; `truth(seed)` draws the terms.
+fn analyse_all(
+    seeds: std::ops::Range<u64>,
+    seconds: f64,
+    truth: impl Fn(u64) -> NoiseTerms + Sync,
+) -> Vec<(NoiseTerms, ChannelResult)> {
+    std::thread::scope(|s| {
+        let handles: Vec<_> = seeds
+            .map(|seed| {
+                let truth = &truth;
+                s.spawn(move || {
+                    let t = truth(seed);
+                    (t, analyse(t, seconds, seed))
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    })
+}
+
+/// What the study counts over its records.
+#[derive(Debug, Default)]
+struct Tally {
+    claimed_q: usize,
+    claimed_b: usize,
+    claimed_r: usize,
+    covered_n: usize,
+    covered_k: usize,
+    /// Mean of K_fit / K_true - 1.
+    k_bias: f64,
+    /// The same over the records where K is detected, and their number.
+    k_bias_detected: f64,
+    k_detected: usize,
+    /// Goodness p-values below 0.01.
+    poor_fits: usize,
+    /// (covered, total) of the curve's intervals at the last `LONG_TAUS` taus.
+    long_tau_covered: usize,
+    long_tau_total: usize,
+}
+
+/// How many of the longest taus count as "long" for the curve's interval coverage.
+const LONG_TAUS: usize = 10;
+
+fn fit_of(r: &ChannelResult) -> &NoiseFit {
+    r.fit.as_ref().unwrap()
+}
+
+fn tally(results: &[(NoiseTerms, ChannelResult)]) -> Tally {
+    let mut t = Tally::default();
+    for (truth, r) in results {
+        let f = fit_of(r);
+        t.claimed_q += usize::from(f.q.lo > 0.0);
+        t.claimed_b += usize::from(f.b.lo > 0.0);
+        t.claimed_r += usize::from(f.r.lo > 0.0);
+        t.covered_n += usize::from(f.n.lo <= truth.n && truth.n <= f.n.hi);
+        t.covered_k += usize::from(f.k.lo <= truth.k && truth.k <= f.k.hi);
+        t.k_bias += (f.k.value / truth.k - 1.0) / results.len() as f64;
+        if f.support.k.detected {
+            t.k_detected += 1;
+            t.k_bias_detected += f.k.value / truth.k - 1.0;
+        }
+        t.poor_fits += usize::from(f.goodness.p_value < 0.01);
+        let (d, iv) = (&r.fit_curve.deviation, &r.fit_curve.intervals);
+        for i in d.tau.len().saturating_sub(LONG_TAUS)..d.tau.len() {
+            let tau = d.tau[i];
+            let adev = (truth.n * truth.n / tau + truth.k * truth.k * tau / 3.0).sqrt();
+            t.long_tau_total += 1;
+            t.long_tau_covered += usize::from(iv.lo[i] <= adev && adev <= iv.hi[i]);
+        }
+    }
+    t.k_bias_detected /= t.k_detected.max(1) as f64;
+    t
+}
+
+/// White noise N drawn log-uniformly from [5e-4, 2e-3] u/sqrt(Hz) and rate random walk K
+/// set so the two cross (`N^2 / tau = K^2 tau / 3`) at a tau drawn log-uniformly from
+/// [`cross_lo`, `cross_hi`] s.
+fn white_and_random_walk(seed: u64, cross_lo: f64, cross_hi: f64) -> NoiseTerms {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+    let log_uniform = |rng: &mut ChaCha8Rng, lo: f64, hi: f64| {
+        (lo.ln() + rng.random::<f64>() * (hi / lo).ln()).exp()
+    };
+    let n = log_uniform(&mut rng, 5e-4, 2e-3);
+    let cross = log_uniform(&mut rng, cross_lo, cross_hi);
+    NoiseTerms {
+        n,
+        k: 3f64.sqrt() * n / cross,
+        ..NoiseTerms::default()
+    }
+}
+
+/// CI-sized: 16 records of 30 min, N from [5e-4, 2e-3], random walk crossing white noise
+/// between 5 and 50 s (K = 1.7e-5 .. 7e-4), so K owns 1.5 to 2.5 decades of the curve.
+#[test]
+fn white_and_random_walk_claim_no_flicker_and_cover_n_and_k() {
+    let results = analyse_all(0..16, 1800.0, |s| white_and_random_walk(s, 5.0, 50.0));
+    let t = tally(&results);
+    println!("{t:?}");
+    // Null rate of a claim 1 % (detection level): P(>= 2 of 16) = 1.1 %.
+    assert!(
+        t.claimed_b <= 1 && t.claimed_q <= 1 && t.claimed_r <= 1,
+        "{t:?}"
+    );
+    // 68.3 % intervals: 16 x 0.683 = 10.9 +- 2 x 1.86 -> 7 ..= 14 (rounded outwards).
+    assert!((7..=14).contains(&t.covered_n), "{t:?}");
+    assert!((7..=14).contains(&t.covered_k), "{t:?}");
+    // K from the last 1.5-2.5 decades: relative s.d. of one record's K about 10-20 %, of
+    // the mean of 16 about 4 %; a bias within 10 % is 2.5 s.d.
+    assert!(t.k_bias.abs() < 0.1, "{t:?}");
+    // Goodness: p < 0.01 in at most 2 of 16 if the p-value is calibrated (P = 1.1 %).
+    assert!(t.poor_fits <= 2, "{t:?}");
+    // The curve's 68.3 % intervals at the 10 longest taus (160 intervals, strongly
+    // correlated within a record, so the range is wider than binomial(160): the mean of
+    // 16 records' coverages of 10 taus each, s.d. about 0.47 / 4): 0.45 ..= 0.92.
+    let cover = t.long_tau_covered as f64 / t.long_tau_total as f64;
+    assert!((0.45..=0.92).contains(&cover), "{cover} {t:?}");
+}
+
+/// CI-sized: a flicker floor that owns 2-3 decades is claimed in every record. White N from
+/// [5e-4, 2e-3], B such that the floor `0.664 B` meets `N / sqrt(tau)` at 1-10 s.
+#[test]
+fn a_flicker_floor_is_claimed() {
+    let results = analyse_all(100..108, 1800.0, |seed| {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let n = 5e-4 + 1.5e-3 * rng.random::<f64>();
+        let cross = 10f64.powf(rng.random::<f64>());
+        NoiseTerms {
+            n,
+            b: n / (0.441 * cross).sqrt(),
+            ..NoiseTerms::default()
+        }
+    });
+    for (truth, r) in &results {
+        let f = fit_of(r);
+        assert!(f.support.b.detected && f.b.lo > 0.0, "{truth:?}: {f:?}");
+        // 68.3 % interval; 8 records: not asserted per record, only that B is near.
+        assert!((f.b.value / truth.b - 1.0).abs() < 0.3, "{truth:?}: {f:?}");
+    }
+}
+
+/// The issue's targets on 20 records of 2 h at 100 Hz, N = 1e-3, K = 1e-5 and K = 1e-4 (a
+/// few minutes at opt-level 3). Run with
+/// `cargo test --release -p imunoise-tests --test fit_support -- --ignored --nocapture`.
+///
+/// Bounds: B and Q each claimed in at most 3 of 20; N and K covered by their 68.3 %
+/// intervals in 20 x 0.683 = 13.7 +- 2 x 2.1, i.e. at least 10 of 20 (at most 17 for N; K's
+/// intervals are conservative at K = 1e-5, 82 of 100 records on seeds 1000..1100, so
+/// at most 19); K's mean bias within 10 % where K is detected, and overall within 10 % at
+/// K = 1e-4 and 20 % at K = 1e-5: at K = 1e-5 the random walk owns only the last 1.3
+/// decades, and in 2-3 of 20 records their AVAR lies 5-10 times below the truth (a chi-square
+/// with 1-5 degrees of freedom), white noise plus flicker or a ramp explains the curve
+/// better, and K is not detected (0).
+#[test]
+#[ignore]
+fn issue_targets_on_two_hour_records() {
+    for (k, bias) in [(1e-5, 0.2), (1e-4, 0.1)] {
+        let truth = NoiseTerms {
+            n: 1e-3,
+            k,
+            ..NoiseTerms::default()
+        };
+        let results = analyse_all(0..20, 7200.0, |_| truth);
+        let t = tally(&results);
+        println!("K = {k:e}: {t:?}");
+        assert!(t.claimed_b <= 3 && t.claimed_q <= 3, "{t:?}");
+        assert!((10..=17).contains(&t.covered_n), "{t:?}");
+        assert!((10..=19).contains(&t.covered_k), "{t:?}");
+        assert!(t.k_bias_detected.abs() < 0.1, "{t:?}");
+        assert!(t.k_bias.abs() < bias, "{t:?}");
+    }
+}
