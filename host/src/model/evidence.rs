@@ -68,6 +68,20 @@ pub enum Probe {
 }
 
 impl Probe {
+    /// The effect kind the probe stands for (as in `steps[].effect.kind`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Probe::Line => "sinusoid",
+            Probe::Ramp => "rate_ramp",
+            Probe::Temperature => "temperature",
+            Probe::GaussMarkov => "gauss_markov",
+            Probe::Term(Column::Q) => "quantization",
+            Probe::Term(Column::B) => "bias_instability",
+            Probe::Term(Column::K) => "rate_random_walk",
+            Probe::Term(_) => "noise term",
+        }
+    }
+
     pub fn view(self) -> View {
         match self {
             Probe::Line => View::Lines,
@@ -192,6 +206,8 @@ pub fn statistics(series: &[f64], probes: &[Probe], ctx: &Context) -> Vec<(f64, 
 /// stands on the detector's own false-alarm control: p is 0 if it found a line, else 1.
 #[derive(Debug, Clone, Serialize)]
 pub struct Evidence {
+    /// The candidate's effect kind.
+    pub candidate: &'static str,
     pub view: View,
     /// The effect the measured record's statistic estimates (none when the view found none).
     pub effect: Option<Effect>,
@@ -210,6 +226,7 @@ pub struct Evidence {
 
 impl Evidence {
     pub fn new(
+        candidate: &'static str,
         view: View,
         measured: (f64, Option<Effect>),
         simulated: &[f64],
@@ -233,11 +250,12 @@ impl Evidence {
         } else {
             1.0
         };
-        Evidence::with_p(view, measured, simulated, p_value, candidates)
+        Evidence::with_p(candidate, view, measured, simulated, p_value, candidates)
     }
 
     /// Evidence with a p-value computed by the view itself.
     pub fn with_p(
+        candidate: &'static str,
         view: View,
         measured: (f64, Option<Effect>),
         simulated: &[f64],
@@ -250,11 +268,14 @@ impl Evidence {
             / (simulated.len().max(2) - 1) as f64;
         let max = simulated.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let (statistic, effect) = measured;
+        // Clamped where the normal quantile runs out of double precision (p below 1e-300)
+        // and, symmetrically, where p is 1.
         let z = Normal::standard()
-            .inverse_cdf((1.0 - p_value).clamp(0.0, 1.0 - 1e-300))
+            .inverse_cdf((1.0 - p_value).clamp(1e-300, 1.0 - 1e-300))
             .clamp(-40.0, 40.0);
         let p_needed = super::FAMILY_ALPHA / candidates.max(1) as f64;
         Evidence {
+            candidate,
             view,
             effect,
             statistic,

@@ -285,7 +285,7 @@ impl std::fmt::Display for Stop {
             Stop::NothingStandsOut { best: Some(e) } => write!(
                 f,
                 "no further effect stands out of the simulated spread (strongest: {} in the {}, p = {:.3e}, z = {:.2}; naming needs p < {:.2e} and a statistic above every simulation's)",
-                e.effect.map_or("none", |x| x.kind()),
+                e.candidate,
                 e.view.describe(),
                 e.p_value,
                 e.z,
@@ -430,11 +430,12 @@ pub fn run(
     let temp_channel = pick_temperature(record, temp_column)?;
     // The baseline is fitted to the record without its spectral lines: a strong tone would
     // otherwise become quantization noise or a roll-off, and the lines are named as steps.
+    let line_free = pipeline::without_lines(&channel.values, record.rate_hz);
     let single = Record {
         source: record.source.clone(),
         rate_hz: record.rate_hz,
         channels: vec![Channel {
-            values: pipeline::without_lines(&channel.values, record.rate_hz),
+            values: line_free.clone(),
             ..channel.clone()
         }],
     };
@@ -482,16 +483,22 @@ pub fn run(
         .clone()
         .filter(|lp| lp.source == LowPassSource::Fitted)
         .map(|lp| {
-            let cleaned = pipeline::without_lines(data.rate, data.rate_hz);
             let statistic =
-                low_pass::detect(&cleaned, data.rate_hz, 0.683).map_or(0.0, |d| d.statistic);
+                low_pass::detect(&line_free, data.rate_hz, 0.683).map_or(0.0, |d| d.statistic);
             let p_value = ChiSquared::new(1.0).map_or(0.0, |c| c.sf(statistic));
             let effect = Effect::LowPass {
                 cutoff_hz: lp.cutoff_hz,
             };
             (
                 lp,
-                Evidence::with_p(View::RollOff, (statistic, Some(effect)), &[], p_value, 1),
+                Evidence::with_p(
+                    "low_pass",
+                    View::RollOff,
+                    (statistic, Some(effect)),
+                    &[],
+                    p_value,
+                    1,
+                ),
             )
         });
     let baseline = Model {
@@ -556,7 +563,7 @@ pub fn run(
                 .evidence
                 .iter()
                 .filter(|e| e.effect.is_some())
-                .max_by(|a, b| a.z.total_cmp(&b.z))
+                .min_by(|a, b| a.p_value.total_cmp(&b.p_value))
                 .cloned();
             break (round.evidence, Stop::NothingStandsOut { best });
         };
@@ -828,7 +835,7 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         .map(|p| match on_sims.iter().position(|q| q == p) {
             Some(j) => {
                 let simulated: Vec<f64> = sims.iter().map(|s| s[j]).collect();
-                Evidence::new(p.view(), measured[j], &simulated, probes.len())
+                Evidence::new(p.name(), p.view(), measured[j], &simulated, probes.len())
             }
             None => regression::test(*p, data.rate, &setup),
         })

@@ -129,6 +129,7 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
         Err(_) => 1.0,
     };
     Evidence::with_p(
+        probe.name(),
         probe.view(),
         (stat, Some(effect)),
         &simulated,

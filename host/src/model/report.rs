@@ -155,7 +155,7 @@ fn evidence_rows(evidence: &[Evidence], named: Option<&Step>, u: &str) -> String
             };
             vec![
                 e.effect
-                    .map_or_else(|| "(none found)".to_string(), |x| x.describe(u)),
+                    .map_or_else(|| format!("{}: none found", e.candidate), |x| x.describe(u)),
                 e.view.describe().to_string(),
                 sig(e.statistic, 4),
                 format!("{} +- {}", sig(e.sim_mean, 3), sig(e.sim_sd, 3)),
@@ -348,7 +348,7 @@ fn evidence_html(page: &mut String, evidence: &[Evidence], named: Option<&Step>,
             "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.2e}</td><td>{:.2}</td><td>{verdict}</td></tr>",
             escape(
                 &e.effect
-                    .map_or_else(|| "(none found)".to_string(), |x| x.describe(u))
+                    .map_or_else(|| format!("{}: none found", e.candidate), |x| x.describe(u))
             ),
             e.view.describe(),
             sig(e.statistic, 4),
