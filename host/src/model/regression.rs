@@ -18,7 +18,7 @@
 //! part of the random walk with it, which the family tests without an effect check.
 
 use super::Effect;
-use super::clean::{Removal, Temperature};
+use super::clean::{Coefficients, Removal, Temperature};
 use super::evidence::{self, Evidence, Probe};
 use super::refit::{self, Column, Curve, WhiteShape};
 use crate::sim::noise::NoiseTerms;
@@ -42,13 +42,18 @@ pub struct Setup<'a> {
     pub candidates: usize,
 }
 
-/// The coefficients of `probe`'s regressor(s) in `series`.
-fn coefficients(probe: Probe, series: &[f64], removal: &Removal, s: &Setup) -> Vec<f64> {
-    let (_, c) = removal.apply(series, s.rate_hz, s.temperature);
+/// The coefficients of `probe`'s regressor(s) among the fitted ones.
+fn of_probe(probe: Probe, c: &Coefficients) -> Vec<f64> {
     match probe {
         Probe::Ramp => vec![c.slope.unwrap_or(0.0)],
         _ => vec![c.temp.unwrap_or(0.0), c.temp_rate.unwrap_or(0.0)],
     }
+}
+
+/// The coefficients of `probe`'s regressor(s) in `series`.
+fn coefficients(probe: Probe, series: &[f64], removal: &Removal, s: &Setup) -> Vec<f64> {
+    let (_, c) = removal.apply(series, s.rate_hz, s.temperature);
+    of_probe(probe, &c)
 }
 
 /// The removal with `probe`'s regressor added.
@@ -86,10 +91,7 @@ fn quadratic(c: &[f64], s: &[[f64; 2]; 2]) -> Option<f64> {
 pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
     let more = with_regressor(s.removal, probe);
     let (clean, c) = more.apply(x, s.rate_hz, s.temperature);
-    let measured = match probe {
-        Probe::Ramp => vec![c.slope.unwrap_or(0.0)],
-        _ => vec![c.temp.unwrap_or(0.0), c.temp_rate.unwrap_or(0.0)],
-    };
+    let measured = of_probe(probe, &c);
     let effect = match probe {
         Probe::Ramp => Effect::RateRamp { slope: measured[0] },
         _ => Effect::Temperature {
