@@ -1106,6 +1106,19 @@ fn window_level(window: &[(f64, f64, usize)], at: usize) -> (f64, f64) {
     (*median, 1.0 + 3.0 * offset * offset)
 }
 
+/// The least-squares sinusoid near `freq_hz` in `rate` (within a bin of it), with an offset
+/// and a slope fitted jointly: its frequency, Hz, and amplitude, u. `None` when the fit is
+/// singular.
+pub fn tone_near(rate: &[f64], rate_hz: f64, freq_hz: f64) -> Option<(f64, f64)> {
+    let n = rate.len();
+    if n < 4 {
+        return None;
+    }
+    let (trend, _) = detrend(rate);
+    let tone = fit_tone(rate, trend, 2.0 * PI * freq_hz / rate_hz)?;
+    Some((tone.omega * rate_hz / (2.0 * PI), tone.a.hypot(tone.b)))
+}
+
 /// Jacobsen's fractional-bin offset of a tone near bin k from the rectangular-window DFT:
 /// `-Re[(X_{k+1} - X_{k-1}) / (2 X_k - X_{k-1} - X_{k+1})]`, clipped to +-1 bin.
 fn jacobsen(dft: &[Complex<f64>], k: usize) -> f64 {

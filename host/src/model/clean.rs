@@ -95,6 +95,15 @@ pub struct Coefficients {
 }
 
 impl Removal {
+    /// Whether `freq_hz` lies in a notch or within its width of it: what a notch leaves of
+    /// a named line's wings is that line, not a new one.
+    pub fn near_notch(&self, freq_hz: f64) -> bool {
+        self.notches.iter().any(|n| {
+            let width = n.hi_hz - n.lo_hz;
+            freq_hz > n.lo_hz - width && freq_hz < n.hi_hz + width
+        })
+    }
+
     /// `x` with the notches and the regressors removed, and the regressors' coefficients.
     pub fn apply(
         &self,

@@ -5,6 +5,7 @@
 //! | candidate | view | statistic on a series s |
 //! |---|---|---|
 //! | spectral line | line detector on the cleaned series | the strongest line's detection statistic |
+//! | slow line | low-frequency periodogram ([`super::spectrum`]) | the largest bin over the fitted background |
 //! | rate ramp | regression on time | Wald statistic of the slope ([`super::regression`]) |
 //! | temperature | regression on temperature and its derivative | Wald statistic of both coefficients |
 //! | Gauss-Markov, B, K, Q | nested fit of the Allan curve | misfit(model) - misfit(model + term), both refitted |
@@ -18,8 +19,10 @@
 
 use super::clean::{Removal, Temperature};
 use super::refit::{self, Column, Curve, WhiteShape};
+use super::spectrum;
 use super::{Effect, Line};
-use crate::analysis::{Estimator, allan, into_phase};
+use crate::analysis::low_pass::LowPass;
+use crate::analysis::{Estimator, allan, into_phase, lines};
 use crate::sim::noise::NoiseTerms;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
@@ -38,6 +41,9 @@ pub enum View {
     NestedFit,
     /// The spectrum's roll-off against a low-pass-free model ([`crate::analysis::low_pass::detect`]).
     RollOff,
+    /// The largest low-frequency periodogram bin over the fitted background
+    /// ([`super::spectrum`]).
+    LowSpectrum,
 }
 
 impl View {
@@ -48,6 +54,7 @@ impl View {
             View::RegressionOnTemperature => "regression on temperature",
             View::NestedFit => "Allan misfit drop",
             View::RollOff => "spectrum roll-off",
+            View::LowSpectrum => "low-frequency periodogram",
         }
     }
 
@@ -61,6 +68,7 @@ impl View {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Probe {
     Line,
+    SlowLine,
     Ramp,
     Temperature,
     GaussMarkov,
@@ -71,7 +79,7 @@ impl Probe {
     /// The effect kind the probe stands for (as in `steps[].effect.kind`).
     pub fn name(self) -> &'static str {
         match self {
-            Probe::Line => "sinusoid",
+            Probe::Line | Probe::SlowLine => "sinusoid",
             Probe::Ramp => "rate_ramp",
             Probe::Temperature => "temperature",
             Probe::GaussMarkov => "gauss_markov",
@@ -85,6 +93,7 @@ impl Probe {
     pub fn view(self) -> View {
         match self {
             Probe::Line => View::Lines,
+            Probe::SlowLine => View::LowSpectrum,
             Probe::Ramp => View::RegressionOnTime,
             Probe::Temperature => View::RegressionOnTemperature,
             Probe::GaussMarkov | Probe::Term(_) => View::NestedFit,
@@ -104,6 +113,8 @@ pub struct Context<'a> {
     /// The current model's stochastic terms (the columns refitted).
     pub terms: &'a NoiseTerms,
     pub white: WhiteShape<'a>,
+    /// The sensor's low-pass filter in the model, if any.
+    pub low_pass: Option<&'a LowPass>,
     /// Correlation times a Gauss-Markov candidate may take, s.
     pub gauss_markov_range: (f64, f64),
     pub lines: &'a (dyn Fn(&[f64], f64) -> Vec<Line> + Sync),
@@ -143,19 +154,30 @@ pub fn statistics(series: &[f64], probes: &[Probe], ctx: &Context) -> Vec<(f64, 
         .map(|probe| match *probe {
             Probe::Line => {
                 let found = (ctx.lines)(&clean, ctx.rate_hz);
-                // What a notch leaves of a named line's wings is that line, not a new one.
-                let named = |l: &Line| {
-                    ctx.removal.notches.iter().any(|n| {
-                        let half = n.hi_hz - n.lo_hz;
-                        l.freq_hz > n.lo_hz - half && l.freq_hz < n.hi_hz + half
-                    })
-                };
                 let strongest = found
                     .into_iter()
-                    .filter(|l| !named(l))
+                    .filter(|l| !ctx.removal.near_notch(l.freq_hz))
                     .max_by(|a, b| a.statistic.total_cmp(&b.statistic));
                 match strongest {
                     Some(l) => (l.statistic, Some(Effect::from_line(&l))),
+                    None => (0.0, None),
+                }
+            }
+            Probe::SlowLine => {
+                let f_hi = spectrum::highest_hz(ctx.rate_hz, ctx.low_pass);
+                let pgram = spectrum::periodogram(&clean, ctx.rate_hz, f_hi);
+                let banded = spectrum::Banded::new(&pgram, ctx.low_pass);
+                match spectrum::slow_line(&banded, &|f| ctx.removal.near_notch(f)) {
+                    Some((ratio, freq_hz)) => {
+                        let effect = lines::tone_near(&clean, ctx.rate_hz, freq_hz).map(
+                            |(freq_hz, amplitude)| Effect::Sinusoid {
+                                freq_hz,
+                                amplitude,
+                                width_hz: 0.0,
+                            },
+                        );
+                        (ratio, effect)
+                    }
                     None => (0.0, None),
                 }
             }

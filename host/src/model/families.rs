@@ -11,7 +11,9 @@
 use crate::analysis::low_pass::LowPass;
 use crate::record::{Channel, Record};
 use crate::sim::noise::sinusoid_avar;
-use crate::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms, Sinusoid, gauss_markov_avar};
+use crate::sim::noise::{
+    AxisNoise, GaussMarkov, NoiseTerms, Sinusoid, add_line, gauss_markov_avar,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -222,7 +224,7 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
             shape.rate_hz,
             freq_hz,
             width_hz,
-            power,
+            (2.0 * power).sqrt(),
             &mut rng,
         );
     }
@@ -234,26 +236,5 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
         source: format!("{kind:?} seed {seed}"),
         rate_hz: shape.rate_hz,
         channels,
-    }
-}
-
-/// Add a line of `power` (u^2) at `freq_hz`: a pure tone of random phase when `width_hz` is
-/// 0, else a sinusoid whose phase diffuses (a Wiener phase of variance `2 pi w` per second
-/// gives a Lorentzian of FWHM w Hz).
-fn add_line(
-    values: &mut [f64],
-    rate_hz: f64,
-    freq_hz: f64,
-    width_hz: f64,
-    power: f64,
-    rng: &mut ChaCha8Rng,
-) {
-    let amplitude = (2.0 * power).sqrt();
-    let tau0 = 1.0 / rate_hz;
-    let step = (2.0 * PI * width_hz * tau0).sqrt();
-    let mut phase = uniform(rng, 0.0, 2.0 * PI);
-    for v in values.iter_mut() {
-        *v += amplitude * phase.sin();
-        phase += 2.0 * PI * freq_hz * tau0 + step * rng.sample::<f64, _>(StandardNormal);
     }
 }

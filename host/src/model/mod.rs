@@ -13,9 +13,11 @@
 //!
 //! **Evidence** ([`evidence`]). Every candidate effect has a statistic computed by one
 //! function on the measured record and on each realisation, after the effects already named
-//! are removed from both ([`clean`]): the strongest spectral line, the Allan drop of a
-//! regression on time or on temperature, the misfit drop of a nested Allan fit (Gauss-Markov,
-//! B, K, Q). Its p-value is taken from the realisations' distribution of the same statistic.
+//! are removed from both ([`clean`]): the strongest spectral line, the strongest slow line
+//! of the low-frequency periodogram ([`spectrum`]), the Wald statistic of a regression on
+//! time or on temperature ([`regression`]), the misfit drop of a nested Allan fit
+//! (Gauss-Markov, B, K, Q). Its p-value is taken from the realisations' distribution of the
+//! same statistic. The realisations carry the named lines too (see `realise`).
 //!
 //! **Naming rule** ([`names`]). A candidate is named when its p-value against the simulated
 //! distribution (a scaled chi-square matched to the realisations' statistics, see
@@ -25,9 +27,12 @@
 //! round names nothing with probability about `1 - FAMILY_ALPHA`. Deterministic
 //! candidates (lines, ramp, temperature) are judged first: a baseline that explains the curve
 //! through K, B or R must not hide what a regressor or a line explains. Among the passing
-//! candidates of the first group that has any, the largest z is named. Then the model takes
+//! candidates of the first group that has any, the smallest p is named. Then the model takes
 //! the effect, its stochastic terms are refitted to the cleaned record, and the loop repeats
-//! (at most [`MAX_STEPS`] effects), so a record with two effects gets both.
+//! (at most [`MAX_STEPS`] effects), so a record with two effects gets both. A stochastic
+//! term after which the Allan gap does not shrink is taken back and the round's next passing
+//! candidate tried: several random terms can pass one round (a Gauss-Markov bump moves the
+//! fitted N, so quantization passes too), and only one of them is the missing effect.
 //!
 //! **Gap** (reported, not decided on). `z(tau) = (ln ADEV_measured(tau) - mean ln
 //! ADEV_sim(tau)) / std ln ADEV_sim(tau)`, the realisations carrying the named deterministic
@@ -45,13 +50,14 @@ pub mod evidence;
 pub mod refit;
 pub mod regression;
 pub mod report;
+pub mod spectrum;
 
 use crate::analysis::lines::{self, LineOptions};
 use crate::analysis::low_pass::{self, LowPass, LowPassSource};
 use crate::analysis::pipeline::{self, ChannelResult, LowPassChoice, Options};
 use crate::analysis::{Deviation, Estimator, allan, fit, phase_from_rate};
 use crate::record::{Channel, Quantity, Record};
-use crate::sim::noise::{AxisNoise, NoiseTerms, Sinusoid};
+use crate::sim::noise::{AxisNoise, NoiseTerms, Sinusoid, add_line};
 use clean::{Notch, Removal, Temperature};
 use evidence::{Context, Evidence, Probe, View};
 use rand::SeedableRng;
@@ -60,6 +66,7 @@ use rayon::prelude::*;
 use refit::Column;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
+use std::f64::consts::PI;
 
 /// Chance, per round, that pure noise gets some candidate named: split evenly over the
 /// candidates of the round (Bonferroni).
@@ -215,6 +222,16 @@ impl Model {
     }
 
     /// Only the stochastic terms, as the simulator synthesises them.
+    /// The stochastic terms' one-sided PSD at `f` Hz, u^2/Hz: twice IEEE 952 Table C.1's
+    /// two-sided `(2 pi f)^2 Q^2 tau0 + N^2 |H(f)|^2 + B^2 / (2 pi f) + K^2 / (2 pi f)^2`
+    /// (`tau0` the sample interval; H the sensor filter, if any).
+    fn one_sided_psd(&self, f: f64, tau0: f64) -> f64 {
+        let t = &self.terms;
+        let w = 2.0 * PI * f;
+        let gain = self.low_pass.as_ref().map_or(1.0, |lp| lp.power_gain(f));
+        2.0 * (w * w * t.q * t.q * tau0 + t.n * t.n * gain + t.b * t.b / w + t.k * t.k / (w * w))
+    }
+
     fn stochastic(&self) -> NoiseTerms {
         NoiseTerms {
             r: 0.0,
@@ -274,8 +291,8 @@ pub enum Stop {
     NothingStandsOut { best: Option<Evidence> },
     /// [`MAX_STEPS`] effects were named.
     MaxSteps,
-    /// The stochastic term named last did not bring the simulations closer to the record
-    /// (the Allan gap did not shrink), so it was taken back.
+    /// The stochastic terms that passed their tests did not bring the simulations closer to
+    /// the record (the Allan gap did not shrink), so they were taken back; the last is given.
     NoCloser { undone: Option<Effect> },
 }
 
@@ -516,29 +533,45 @@ pub fn run(
     let mut removal = Removal::default();
     let mut steps: Vec<Step> = Vec::new();
     let mut initial: Option<(Comparison, Vec<Evidence>)> = None;
+    // The round a step was chosen in, with the model and removal before it: a stochastic
+    // term taken back makes room for the round's next passing candidate.
+    let mut chosen_in: Option<(Round, Model, Removal)> = None;
+    // Candidates taken back since the last step that stayed.
+    let mut taken_back: Vec<Probe> = Vec::new();
+    let mut last_undone: Option<Effect> = None;
     let (final_evidence, stop) = loop {
         let round = simulate_round(&data, &model, &removal);
-        match steps.last_mut() {
+        let round = match steps.last_mut() {
             Some(s) if !s.view.is_deterministic() && round.comparison.gap >= s.gap_before => {
                 // A stochastic term that does not bring the simulations closer to the record
                 // explains nothing: the refit traded one part of the curve for another.
-                let undone = steps.pop();
-                break (
-                    undone
-                        .as_ref()
-                        .map(|s| s.evidence.clone())
-                        .unwrap_or_default(),
-                    Stop::NoCloser {
-                        undone: undone.map(|s| s.effect),
-                    },
-                );
+                let undone = steps.pop().expect("matched a last step");
+                last_undone = Some(undone.effect);
+                let Some((before, m, r)) = chosen_in.take() else {
+                    unreachable!("every step records the round it was chosen in")
+                };
+                if let Some(&probe) = before
+                    .probes
+                    .iter()
+                    .zip(&before.evidence)
+                    .find_map(|(p, e)| (e.effect == Some(undone.effect)).then_some(p))
+                {
+                    taken_back.push(probe);
+                }
+                (model, removal) = (m, r);
+                before
             }
             Some(s) => {
                 s.gap_after = round.comparison.gap;
                 s.comparison = round.comparison.clone();
+                taken_back.clear();
+                round
             }
-            None => initial = Some((round.comparison.clone(), round.evidence.clone())),
-        }
+            None => {
+                initial = Some((round.comparison.clone(), round.evidence.clone()));
+                round
+            }
+        };
         if let Some((lp, evidence)) = pending.take() {
             let effect = evidence.effect.unwrap_or(Effect::LowPass {
                 cutoff_hz: lp.cutoff_hz,
@@ -558,7 +591,15 @@ pub fn run(
             });
             continue;
         }
-        let Some(chosen) = choose(&round.evidence) else {
+        let Some(chosen) = choose(&round, &taken_back) else {
+            if !taken_back.is_empty() {
+                break (
+                    round.evidence,
+                    Stop::NoCloser {
+                        undone: last_undone,
+                    },
+                );
+            }
             let best = round
                 .evidence
                 .iter()
@@ -574,6 +615,7 @@ pub fn run(
         let Some(effect) = evidence.effect else {
             unreachable!("a passing candidate has an effect")
         };
+        let before = (model.clone(), removal.clone());
         model = add(&data, &model, &mut removal, (probe, effect), &round.sd_ln);
         steps.push(Step {
             description: effect.describe(channel.unit()),
@@ -585,6 +627,7 @@ pub fn run(
             model: model.clone(),
             comparison: round.comparison.clone(),
         });
+        chosen_in = Some((round, before.0, before.1));
     };
     let (initial, initial_evidence) = initial.expect("the first round always runs");
     Ok(Outcome {
@@ -606,15 +649,18 @@ pub fn run(
     })
 }
 
-/// The candidate to name: the largest z among the passing deterministic candidates, else
-/// among the passing stochastic ones.
-fn choose(evidence: &[Evidence]) -> Option<usize> {
+/// The candidate to name: the smallest p-value (the largest z, which is clamped where p
+/// underflows) among the passing deterministic candidates, else among the passing
+/// stochastic ones, leaving out those `taken_back` in this round.
+fn choose(round: &Round, taken_back: &[Probe]) -> Option<usize> {
     let best = |deterministic: bool| {
-        evidence
+        round
+            .evidence
             .iter()
             .enumerate()
+            .filter(|&(i, _)| !taken_back.contains(&round.probes[i]))
             .filter(|(_, e)| e.passes && e.view.is_deterministic() == deterministic)
-            .max_by(|a, b| a.1.z.total_cmp(&b.1.z))
+            .min_by(|a, b| a.1.p_value.total_cmp(&b.1.p_value))
             .map(|(i, _)| i)
     };
     best(true).or_else(|| best(false))
@@ -623,7 +669,7 @@ fn choose(evidence: &[Evidence]) -> Option<usize> {
 /// The candidates the model can still take.
 fn probes(data: &Data, model: &Model, removal: &Removal) -> Vec<Probe> {
     let t = &model.terms;
-    let mut out = vec![Probe::Line];
+    let mut out = vec![Probe::Line, Probe::SlowLine];
     if !removal.ramp {
         out.push(Probe::Ramp);
     }
@@ -658,13 +704,19 @@ fn add(
     let mut columns = refit::columns_of(&model.stochastic());
     match (probe, effect) {
         (
-            Probe::Line,
+            Probe::Line | Probe::SlowLine,
             Effect::Sinusoid {
                 freq_hz,
                 amplitude,
                 width_hz,
             },
         ) => {
+            // A wide line's power is read against the model's own background; the notch
+            // below takes its core, and the realisations carry it whole (see `realise`).
+            let background = |f: f64| model.one_sided_psd(f, 1.0 / data.rate_hz);
+            let amplitude =
+                spectrum::line_power(data.rate, data.rate_hz, freq_hz, width_hz, &background)
+                    .map_or(amplitude, |p| (2.0 * p).sqrt());
             // Half a Lorentzian's power lies beyond its half width; +-1.5 widths hold 80 %.
             let df = data.rate_hz / data.rate.len() as f64;
             let half = 1.5 * width_hz + 2.0 * df;
@@ -722,6 +774,7 @@ fn add(
 
 /// One round: the current model simulated, compared with the record, and every candidate's
 /// evidence.
+#[derive(Clone)]
 struct Round {
     comparison: Comparison,
     /// Standard deviation of ln AVAR per tau over the realisations (the refits' weights).
@@ -731,8 +784,18 @@ struct Round {
 }
 
 /// `n` samples of the stochastic `terms`, realisation `i`; the white noise through
-/// `low_pass` when there is one.
-fn realise(data: &Data, terms: &NoiseTerms, low_pass: Option<&LowPass>, i: usize) -> Vec<f64> {
+/// `low_pass` when there is one; plus the named `lines`, each at its estimated amplitude and
+/// width with a random phase. A line is simulated rather than only notched out of both
+/// series because a notch leaves a wide line's wings (a Lorentzian holds a fifth of its
+/// power beyond +-1.5 widths): in the record and in the realisations alike, so they are not
+/// taken for quantization noise or a new line.
+fn realise(
+    data: &Data,
+    terms: &NoiseTerms,
+    low_pass: Option<&LowPass>,
+    lines: &[Line],
+    i: usize,
+) -> Vec<f64> {
     let n = data.rate.len();
     let mut rng = ChaCha8Rng::seed_from_u64(data.settings.seed.wrapping_add(i as u64));
     let duration = n as f64 / data.rate_hz;
@@ -748,6 +811,16 @@ fn realise(data: &Data, terms: &NoiseTerms, low_pass: Option<&LowPass>, i: usize
         let white = lp.white_through(terms.n, n, &mut rng);
         y.iter_mut().zip(white).for_each(|(a, b)| *a += b);
     }
+    for l in lines {
+        add_line(
+            &mut y,
+            data.rate_hz,
+            l.freq_hz,
+            l.width_hz,
+            l.amplitude,
+            &mut rng,
+        );
+    }
     y
 }
 
@@ -761,12 +834,20 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
     let longest = data.measured.tau.last().copied().unwrap_or(tau0);
     let m = &data.measured.m;
     let r = data.settings.realisations.max(2);
-    let (clean, _) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
+    // The regressors as estimated from the record; the lines are simulated (see `realise`).
+    let regressors = Removal {
+        notches: Vec::new(),
+        ..removal.clone()
+    };
+    let (clean, _) = regressors.apply(data.rate, data.rate_hz, data.temperature.as_ref());
     let deterministic: Vec<f64> = data.rate.iter().zip(&clean).map(|(x, c)| x - c).collect();
+    let realise = |terms: &NoiseTerms, i: usize| {
+        realise(data, terms, model.low_pass.as_ref(), &model.lines, i)
+    };
     let logs: Vec<Vec<f64>> = (0..r)
         .into_par_iter()
         .map(|i| {
-            let s = realise(data, &model.terms, model.low_pass.as_ref(), i);
+            let s = realise(&model.terms, i);
             let with: Vec<f64> = s.iter().zip(&deterministic).map(|(a, b)| a + b).collect();
             evidence::allan_avar(with, data.rate_hz, m)
                 .iter()
@@ -787,6 +868,7 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         removal,
         terms: &stochastic,
         white: &white,
+        low_pass: model.low_pass.as_ref(),
         gauss_markov_range: (GAUSS_MARKOV_MIN_SAMPLES * tau0, longest / 2.0),
         lines: data.lines,
     };
@@ -799,14 +881,10 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
     let sims: Vec<Vec<f64>> = (0..r)
         .into_par_iter()
         .map(|i| {
-            evidence::statistics(
-                &realise(data, &model.terms, model.low_pass.as_ref(), i),
-                &on_sims,
-                &ctx,
-            )
-            .into_iter()
-            .map(|(v, _)| v)
-            .collect()
+            evidence::statistics(&realise(&model.terms, i), &on_sims, &ctx)
+                .into_iter()
+                .map(|(v, _)| v)
+                .collect()
         })
         .collect();
     // The alternative's noise model has every IEEE-952 random term free: a baseline that put
@@ -827,7 +905,7 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         columns: &columns,
         white: &white,
         realisations: r,
-        realise: &|terms: &NoiseTerms, i: usize| realise(data, terms, model.low_pass.as_ref(), i),
+        realise: &realise,
         candidates: probes.len(),
     };
     let evidence = probes
@@ -835,7 +913,18 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         .map(|p| match on_sims.iter().position(|q| q == p) {
             Some(j) => {
                 let simulated: Vec<f64> = sims.iter().map(|s| s[j]).collect();
-                Evidence::new(p.name(), p.view(), measured[j], &simulated, probes.len())
+                match p {
+                    // A maximum over bins: its tail is Gumbel, not a scaled chi-square.
+                    Probe::SlowLine => Evidence::with_p(
+                        p.name(),
+                        p.view(),
+                        measured[j],
+                        &simulated,
+                        spectrum::gumbel_p_value(measured[j].0, &simulated),
+                        probes.len(),
+                    ),
+                    _ => Evidence::new(p.name(), p.view(), measured[j], &simulated, probes.len()),
+                }
             }
             None => regression::test(*p, data.rate, &setup),
         })

@@ -99,16 +99,16 @@ const CI_SHAPE: Shape = Shape {
 };
 
 /// Every kind on three seeds at CI size (1 h at 20 Hz, shorter and slower than the study's
-/// 3 h at 50 Hz, so every effect is weaker against the noise): at least two thirds of the 30
-/// records named exactly right (23 of 30 measured; the full study is the claim), and at most
-/// one effect added on the six records without one (the naming rule's family-wise level is
-/// 1 % per round; the study measured about 1 in 10 records).
+/// 3 h at 50 Hz, so every effect is weaker against the noise): at least 24 of the 30 records
+/// named exactly right (27 of 30 measured; the full study is the claim), and at most one
+/// effect added on the six records without one (the naming rule's family-wise level is 1 %
+/// per round; the study measured about 1 in 10 records).
 #[test]
 fn families_at_ci_size() {
     let results = study(CI_SHAPE, 1..4, &KINDS);
     let right: usize = results.iter().map(|r| r.1).sum();
     let total: usize = results.iter().map(|r| r.2).sum();
-    assert!(right * 3 >= total * 2, "{right}/{total}: {results:?}");
+    assert!(right * 5 >= total * 4, "{right}/{total}: {results:?}");
     let clean: usize = results
         .iter()
         .filter(|r| matches!(r.0, Kind::None | Kind::NoneWithTemperature))
@@ -124,7 +124,13 @@ fn study_families() {
         rate_hz: 50.0,
         duration_s: 3.0 * 3600.0,
     };
-    let results = study(shape, 100..110, &KINDS);
+    // STUDY_KINDS=GaussMarkov,Tone runs only those kinds (names as in `Kind`'s Debug).
+    let only = std::env::var("STUDY_KINDS").unwrap_or_default();
+    let kinds: Vec<Kind> = KINDS
+        .into_iter()
+        .filter(|k| only.is_empty() || only.split(',').any(|o| o == format!("{k:?}")))
+        .collect();
+    let results = study(shape, 100..110, &kinds);
     for (kind, right, total) in &results {
         eprintln!("{kind:?}: {right}/{total}");
     }

@@ -47,6 +47,32 @@ pub const FLICKER_POLES_PER_DECADE: f64 = 3.0;
 /// A flicker process is advanced in steps of at most `tau_c / FLICKER_KNOT_SPACING`.
 pub const FLICKER_KNOT_SPACING: f64 = 8.0;
 
+/// Add a spectral line of peak amplitude `amplitude` (u) at `freq_hz` to `values` sampled at
+/// `rate_hz`: a pure tone of random phase when `width_hz` is 0, else a sinusoid whose phase
+/// diffuses. A Wiener phase of variance `2 pi w` per second gives a Lorentzian line of full
+/// width at half maximum w Hz, holding the tone's power `A^2 / 2` (the Lorentzian spectrum of
+/// phase diffusion; Rytov, Kravtsov & Tatarskii, *Principles of Statistical Radiophysics*
+/// vol. 2, 1988, sec. 1.3 on the phase-diffusion model of an oscillator).
+pub fn add_line(
+    values: &mut [f64],
+    rate_hz: f64,
+    freq_hz: f64,
+    width_hz: f64,
+    amplitude: f64,
+    rng: &mut impl Rng,
+) {
+    let tau0 = 1.0 / rate_hz;
+    let step = (2.0 * PI * width_hz * tau0).sqrt();
+    let mut phase = 2.0 * PI * rng.random::<f64>();
+    for v in values.iter_mut() {
+        *v += amplitude * phase.sin();
+        phase += 2.0 * PI * freq_hz * tau0;
+        if step > 0.0 {
+            phase += step * rng.sample::<f64, _>(StandardNormal);
+        }
+    }
+}
+
 /// One axis's noise terms, each 0 (or `None`) when absent.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct NoiseTerms {
