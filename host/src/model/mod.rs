@@ -221,7 +221,6 @@ impl Model {
         }
     }
 
-    /// Only the stochastic terms, as the simulator synthesises them.
     /// The stochastic terms' one-sided PSD at `f` Hz, u^2/Hz: twice IEEE 952 Table C.1's
     /// two-sided `(2 pi f)^2 Q^2 tau0 + N^2 |H(f)|^2 + B^2 / (2 pi f) + K^2 / (2 pi f)^2`
     /// (`tau0` the sample interval; H the sensor filter, if any).
@@ -232,6 +231,7 @@ impl Model {
         2.0 * (w * w * t.q * t.q * tau0 + t.n * t.n * gain + t.b * t.b / w + t.k * t.k / (w * w))
     }
 
+    /// Only the stochastic terms, as the simulator synthesises them.
     fn stochastic(&self) -> NoiseTerms {
         NoiseTerms {
             r: 0.0,
