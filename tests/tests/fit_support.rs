@@ -187,7 +187,7 @@ fn a_flicker_floor_is_claimed() {
 /// with 1-5 degrees of freedom), white noise plus flicker or a ramp explains the curve
 /// better, and K is not detected (0).
 #[test]
-#[ignore]
+#[ignore = "20 records of 2 h at 100 Hz per K; run with --release (see the doc comment)"]
 fn issue_targets_on_two_hour_records() {
     for (k, bias) in [(1e-5, 0.2), (1e-4, 0.1)] {
         let truth = NoiseTerms {

@@ -137,7 +137,7 @@ fn filtered_white_noise_gives_unbiased_n() {
 /// fitted; and the four settings of the paper with the settings known.
 /// Run: `cargo test --release -p imunoise-tests --test low_pass_fit -- --ignored --nocapture`.
 #[test]
-#[ignore]
+#[ignore = "24 records of 2 h; run with --release (see the doc comment)"]
 fn twenty_four_two_hour_records() {
     let records = 24;
     let mut failures = Vec::new();

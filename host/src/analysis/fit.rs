@@ -869,6 +869,25 @@ fn scaled_design(
     (g, norms)
 }
 
+/// [`nnls`] on `g` with every column scaled to unit norm first (bases that span many decades
+/// would otherwise be ill-conditioned), the solution mapped back to the original columns.
+pub fn nnls_normalised(mut g: Vec<Vec<f64>>, b: &[f64]) -> Vec<f64> {
+    let p = g.first().map_or(0, Vec::len);
+    let norms: Vec<f64> = (0..p)
+        .map(|j| {
+            g.iter()
+                .map(|r| r[j] * r[j])
+                .sum::<f64>()
+                .sqrt()
+                .max(f64::MIN_POSITIVE)
+        })
+        .collect();
+    for row in &mut g {
+        row.iter_mut().zip(&norms).for_each(|(v, n)| *v /= n);
+    }
+    nnls(&g, b).iter().zip(&norms).map(|(t, n)| t / n).collect()
+}
+
 /// Lawson–Hanson non-negative least squares, min ||G x - b|| subject to x >= 0 (Lawson &
 /// Hanson, "Solving Least Squares Problems", 1974, ch. 23). `g` is row-major with p columns.
 pub fn nnls(g: &[Vec<f64>], b: &[f64]) -> Vec<f64> {

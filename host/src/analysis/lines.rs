@@ -266,7 +266,7 @@ pub fn line_avar(line: &Line, tau: f64) -> f64 {
 
 /// A straight line `mean + slope * (t - (n - 1) / 2)`.
 #[derive(Debug, Clone, Copy)]
-struct Trend {
+pub(crate) struct Trend {
     mean: f64,
     slope: f64,
 }
@@ -278,7 +278,7 @@ impl Trend {
 }
 
 /// The least-squares line of `y` and `y` minus it.
-fn detrend(y: &[f64]) -> (Trend, Vec<f64>) {
+pub(crate) fn detrend(y: &[f64]) -> (Trend, Vec<f64>) {
     let n = y.len();
     let centre = (n as f64 - 1.0) / 2.0;
     let mean = super::neumaier_sum(y.iter().copied()) / n as f64;

@@ -135,8 +135,15 @@ pub fn allan_avar(rate: Vec<f64>, rate_hz: f64, m: &[usize]) -> Vec<f64> {
         .collect()
 }
 
-/// Each probe's statistic on `series`, with the effect it estimates.
-pub fn statistics(series: &[f64], probes: &[Probe], ctx: &Context) -> Vec<(f64, Option<Effect>)> {
+/// Each probe's statistic on `series`, with the effect it estimates. Only the record's
+/// effects are shown, so `effects` false (a realisation) skips the work that serves them
+/// alone (the slow line's least-squares tone fit).
+pub fn statistics(
+    series: &[f64],
+    probes: &[Probe],
+    ctx: &Context,
+    effects: bool,
+) -> Vec<(f64, Option<Effect>)> {
     let (clean, _) = ctx.removal.apply(series, ctx.rate_hz, ctx.temperature);
     let base_avar = avar(clean.clone(), ctx);
     let curve = Curve {
@@ -169,13 +176,14 @@ pub fn statistics(series: &[f64], probes: &[Probe], ctx: &Context) -> Vec<(f64, 
                 let banded = spectrum::Banded::new(&pgram, ctx.low_pass);
                 match spectrum::slow_line(&banded, &|f| ctx.removal.near_notch(f)) {
                     Some((ratio, freq_hz)) => {
-                        let effect = lines::tone_near(&clean, ctx.rate_hz, freq_hz).map(
-                            |(freq_hz, amplitude)| Effect::Sinusoid {
-                                freq_hz,
-                                amplitude,
-                                width_hz: 0.0,
-                            },
-                        );
+                        let fitted = effects
+                            .then(|| lines::tone_near(&clean, ctx.rate_hz, freq_hz))
+                            .flatten();
+                        let effect = fitted.map(|(freq_hz, amplitude)| Effect::Sinusoid {
+                            freq_hz,
+                            amplitude,
+                            width_hz: 0.0,
+                        });
                         (ratio, effect)
                     }
                     None => (0.0, None),

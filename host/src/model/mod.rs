@@ -533,9 +533,9 @@ pub fn run(
     let mut removal = Removal::default();
     let mut steps: Vec<Step> = Vec::new();
     let mut initial: Option<(Comparison, Vec<Evidence>)> = None;
-    // The round a step was chosen in, with the model and removal before it: a stochastic
-    // term taken back makes room for the round's next passing candidate.
-    let mut chosen_in: Option<(Round, Model, Removal)> = None;
+    // The round a step was chosen in, with the model and removal before it and the probe
+    // chosen: a stochastic term taken back makes room for the round's next passing candidate.
+    let mut chosen_in: Option<(Round, Model, Removal, Probe)> = None;
     // Candidates taken back since the last step that stayed.
     let mut taken_back: Vec<Probe> = Vec::new();
     let mut last_undone: Option<Effect> = None;
@@ -547,17 +547,10 @@ pub fn run(
                 // explains nothing: the refit traded one part of the curve for another.
                 let undone = steps.pop().expect("matched a last step");
                 last_undone = Some(undone.effect);
-                let Some((before, m, r)) = chosen_in.take() else {
+                let Some((before, m, r, probe)) = chosen_in.take() else {
                     unreachable!("every step records the round it was chosen in")
                 };
-                if let Some(&probe) = before
-                    .probes
-                    .iter()
-                    .zip(&before.evidence)
-                    .find_map(|(p, e)| (e.effect == Some(undone.effect)).then_some(p))
-                {
-                    taken_back.push(probe);
-                }
+                taken_back.push(probe);
                 (model, removal) = (m, r);
                 before
             }
@@ -627,7 +620,7 @@ pub fn run(
             model: model.clone(),
             comparison: round.comparison.clone(),
         });
-        chosen_in = Some((round, before.0, before.1));
+        chosen_in = Some((round, before.0, before.1, probe));
     };
     let (initial, initial_evidence) = initial.expect("the first round always runs");
     Ok(Outcome {
@@ -877,11 +870,11 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         .copied()
         .filter(|p| !matches!(p, Probe::Ramp | Probe::Temperature))
         .collect();
-    let measured = evidence::statistics(data.rate, &on_sims, &ctx);
+    let measured = evidence::statistics(data.rate, &on_sims, &ctx, true);
     let sims: Vec<Vec<f64>> = (0..r)
         .into_par_iter()
         .map(|i| {
-            evidence::statistics(&realise(&model.terms, i), &on_sims, &ctx)
+            evidence::statistics(&realise(&model.terms, i), &on_sims, &ctx, false)
                 .into_iter()
                 .map(|(v, _)| v)
                 .collect()
@@ -896,14 +889,8 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         }
     }
     let setup = regression::Setup {
-        rate_hz: data.rate_hz,
-        m,
-        tau: &data.measured.tau,
-        sd_ln: &sd_ln,
-        temperature: data.temperature.as_ref(),
-        removal,
+        view: &ctx,
         columns: &columns,
-        white: &white,
         realisations: r,
         realise: &realise,
         candidates: probes.len(),

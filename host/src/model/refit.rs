@@ -144,23 +144,10 @@ fn solve(curve: Curve, columns: &[Column], white: WhiteShape, reference: &[f64])
         );
         b.push(avar * w);
     }
-    // Unit-norm columns: the bases span many decades.
-    let norms: Vec<f64> = (0..columns.len())
-        .map(|j| {
-            g.iter()
-                .map(|r| r[j] * r[j])
-                .sum::<f64>()
-                .sqrt()
-                .max(f64::MIN_POSITIVE)
-        })
-        .collect();
-    for row in &mut g {
-        row.iter_mut().zip(&norms).for_each(|(v, n)| *v /= n);
-    }
-    let theta = fit::nnls(&g, &b);
+    let theta = fit::nnls_normalised(g, &b);
     let mut out = NoiseTerms::default();
-    for ((c, th), norm) in columns.iter().zip(theta).zip(norms) {
-        let amp = (th / norm).max(0.0).sqrt();
+    for (c, th) in columns.iter().zip(theta) {
+        let amp = th.max(0.0).sqrt();
         match *c {
             Column::Q => out.q = amp,
             Column::N => out.n = amp,

@@ -18,23 +18,18 @@
 //! part of the random walk with it, which the family tests without an effect check.
 
 use super::Effect;
-use super::clean::{Coefficients, Removal, Temperature};
-use super::evidence::{self, Evidence, Probe};
-use super::refit::{self, Column, Curve, WhiteShape};
+use super::clean::{Coefficients, Removal};
+use super::evidence::{self, Context, Evidence, Probe};
+use super::refit::{self, Column, Curve};
 use crate::sim::noise::NoiseTerms;
 use rayon::prelude::*;
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
 /// What a regressor test needs besides the record.
 pub struct Setup<'a> {
-    pub rate_hz: f64,
-    pub m: &'a [usize],
-    pub tau: &'a [f64],
-    pub sd_ln: &'a [f64],
-    pub temperature: Option<&'a Temperature>,
-    pub removal: &'a Removal,
+    /// The round's record, taus, spread, removal and white shape, as the other views see them.
+    pub view: &'a Context<'a>,
     pub columns: &'a [Column],
-    pub white: WhiteShape<'a>,
     pub realisations: usize,
     /// Realisation `i` of a stochastic model, as long as the record.
     pub realise: &'a (dyn Fn(&NoiseTerms, usize) -> Vec<f64> + Sync),
@@ -52,7 +47,7 @@ fn of_probe(probe: Probe, c: &Coefficients) -> Vec<f64> {
 
 /// The coefficients of `probe`'s regressor(s) in `series`.
 fn coefficients(probe: Probe, series: &[f64], removal: &Removal, s: &Setup) -> Vec<f64> {
-    let (_, c) = removal.apply(series, s.rate_hz, s.temperature);
+    let (_, c) = removal.apply(series, s.view.rate_hz, s.view.temperature);
     of_probe(probe, &c)
 }
 
@@ -89,8 +84,8 @@ fn quadratic(c: &[f64], s: &[[f64; 2]; 2]) -> Option<f64> {
 
 /// The Wald test of `probe` (a ramp or a temperature coupling) on the record `x`.
 pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
-    let more = with_regressor(s.removal, probe);
-    let (clean, c) = more.apply(x, s.rate_hz, s.temperature);
+    let more = with_regressor(s.view.removal, probe);
+    let (clean, c) = more.apply(x, s.view.rate_hz, s.view.temperature);
     let measured = of_probe(probe, &c);
     let effect = match probe {
         Probe::Ramp => Effect::RateRamp { slope: measured[0] },
@@ -99,13 +94,13 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
             rate_coeff: measured[1],
         },
     };
-    let avar = evidence::allan_avar(clean, s.rate_hz, s.m);
+    let avar = evidence::allan_avar(clean, s.view.rate_hz, s.view.m);
     let curve = Curve {
-        tau: s.tau,
+        tau: s.view.tau,
         avar: &avar,
-        sd_ln: s.sd_ln,
+        sd_ln: s.view.sd_ln,
     };
-    let h1 = refit::refit(curve, s.columns, s.white);
+    let h1 = refit::refit(curve, s.columns, s.view.white);
     let r = s.realisations.max(3);
     let sims: Vec<Vec<f64>> = (0..r)
         .into_par_iter()

@@ -42,8 +42,8 @@
 //! bins, and its deviance drop stood barely above the null's, no better than the Allan
 //! curve's misfit drop, which judges it ([`super::evidence`]).
 
-use crate::analysis::fit;
 use crate::analysis::low_pass::LowPass;
+use crate::analysis::{fit, lines};
 use realfft::RealFftPlanner;
 use std::f64::consts::PI;
 
@@ -94,23 +94,10 @@ pub fn periodogram(series: &[f64], rate_hz: f64, f_hi: f64) -> Periodogram {
             power: Vec::new(),
         };
     }
-    let centre = (n as f64 - 1.0) / 2.0;
-    let mean = series.iter().sum::<f64>() / n as f64;
-    let (mut sty, mut stt) = (0.0, 0.0);
-    for (t, v) in series.iter().enumerate() {
-        let tc = t as f64 - centre;
-        sty += tc * (v - mean);
-        stt += tc * tc;
-    }
-    let slope = sty / stt;
-    let mut x: Vec<f64> = series
-        .iter()
-        .enumerate()
-        .map(|(t, v)| {
-            let w = 0.5 - 0.5 * (2.0 * PI * t as f64 / n as f64).cos();
-            (v - mean - slope * (t as f64 - centre)) * w
-        })
-        .collect();
+    let (_, mut x) = lines::detrend(series);
+    x.iter_mut().enumerate().for_each(|(t, v)| {
+        *v *= 0.5 - 0.5 * (2.0 * PI * t as f64 / n as f64).cos();
+    });
     let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
     let mut spectrum = fft.make_output_vec();
     if fft.process(&mut x, &mut spectrum).is_err() {
@@ -261,23 +248,9 @@ impl<'a> Banded<'a> {
                 .zip(&weight)
                 .map(|(&j, w)| self.mean[j] * w.sqrt())
                 .collect();
-            let norms: Vec<f64> = (0..shapes.len())
-                .map(|c| {
-                    g.iter()
-                        .map(|r| r[c] * r[c])
-                        .sum::<f64>()
-                        .sqrt()
-                        .max(f64::MIN_POSITIVE)
-                })
-                .collect();
-            let scaled: Vec<Vec<f64>> = g
-                .iter()
-                .map(|r| r.iter().zip(&norms).map(|(v, n)| v / n).collect())
-                .collect();
-            let next: Vec<f64> = fit::nnls(&scaled, &b)
-                .iter()
-                .zip(&norms)
-                .map(|(t, n)| (t / n).max(0.0))
+            let next: Vec<f64> = fit::nnls_normalised(g, &b)
+                .into_iter()
+                .map(|t| t.max(0.0))
                 .collect();
             let d = deviance(&next);
             let settled = (best - d).abs() <= 1e-9 * d.abs().max(1.0);

@@ -211,7 +211,7 @@ fn slow_sinusoids_are_found() {
 /// As [`slow_sinusoids_are_found`] on 3 h at 100 Hz (1.08e6 samples). Run with
 /// `cargo test --release -p imunoise --lib lines::tests::slow_sinusoids_in_three_hours -- --ignored`.
 #[test]
-#[ignore]
+#[ignore = "a study on 3 h at 100 Hz; run with --release (see the doc comment)"]
 fn slow_sinusoids_in_three_hours() {
     slow_sinusoid_family(100.0, 1_080_000, 20, 500);
 }
@@ -494,7 +494,7 @@ fn bad_input_is_an_error() {
 /// on 3 h at 100 Hz. Run with
 /// `cargo test --release -p imunoise --lib lines::tests::line_study -- --ignored --nocapture`.
 #[test]
-#[ignore]
+#[ignore = "the full line study on 3 h at 100 Hz; run with --release (see the doc comment)"]
 fn line_study() {
     let (rate, n) = (100.0, 60_000);
     let df = rate / n as f64;
@@ -567,7 +567,7 @@ fn line_study() {
 /// Run with `cargo test --release -p imunoise --lib lines::tests::background_calibration --
 /// --ignored --nocapture`.
 #[test]
-#[ignore]
+#[ignore = "a Monte-Carlo calibration of the background; run with --release (see the doc comment)"]
 fn background_calibration() {
     let (rate, n) = (100.0, 100_000);
     let opts = LineOptions::default();
