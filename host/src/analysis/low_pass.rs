@@ -376,9 +376,11 @@ pub fn sensor_for(quantity: crate::record::Quantity) -> Option<Sensor> {
 // Detection.
 
 /// Welch segment of the detection PSD (shorter for short records).
-const DETECT_SEGMENT: usize = 1024;
+pub const DETECT_SEGMENT: usize = 1024;
 /// Fewest Welch segments worth a detection.
 const MIN_SEGMENTS: usize = 8;
+/// Fewest PSD bins fitted: four shapes and a cutoff need several bins each.
+const MIN_BINS: usize = 16;
 /// Points per decade of the cutoff grid before refinement.
 const GRID_PER_DECADE: f64 = 24.0;
 /// `1 + 2 sum_k rho_k^2` for the Hann window's adjacent-bin correlations rho_1 = -2/3 and
@@ -429,6 +431,18 @@ pub struct Detection {
 /// a cutoff above Nyquist folds back almost flat, so it is reported as no roll-off. The
 /// interval is where the profile rises by at most z^2 in those units (z the normal quantile).
 pub fn detect(y: &[f64], rate_hz: f64, confidence: f64) -> Result<Detection, LowPassError> {
+    detect_outside(y, rate_hz, confidence, &|_| false)
+}
+
+/// [`detect`] with the PSD bins at frequencies where `skip` holds left out of the fit: the
+/// bands of lines removed from `y`, which a notch leaves empty and a wide line's wings leave
+/// raised, and either of which near Nyquist looks like a roll-off.
+pub fn detect_outside(
+    y: &[f64],
+    rate_hz: f64,
+    confidence: f64,
+    skip: &dyn Fn(f64) -> bool,
+) -> Result<Detection, LowPassError> {
     if !(rate_hz.is_finite() && rate_hz > 0.0) {
         return Err(LowPassError::BadRate(rate_hz));
     }
@@ -441,7 +455,7 @@ pub fn detect(y: &[f64], rate_hz: f64, confidence: f64) -> Result<Detection, Low
         statistic: 0.0,
         reduced_chi2: f64::NAN,
     };
-    let Some(spectrum) = DetectionPsd::new(y, rate_hz) else {
+    let Some(spectrum) = DetectionPsd::new(y, rate_hz, skip) else {
         return Ok(none);
     };
     let white = spectrum.chi2(None);
@@ -490,7 +504,7 @@ struct DetectionPsd {
 }
 
 impl DetectionPsd {
-    fn new(y: &[f64], rate_hz: f64) -> Option<DetectionPsd> {
+    fn new(y: &[f64], rate_hz: f64, skip: &dyn Fn(f64) -> bool) -> Option<DetectionPsd> {
         let mut segment = DETECT_SEGMENT;
         while segment > 64 && y.len() < segment * MIN_SEGMENTS / 2 {
             segment /= 2;
@@ -507,7 +521,11 @@ impl DetectionPsd {
         let p = psd::welch(y, rate_hz, &options).ok()?;
         let first = (segment / 256).max(2);
         let last = segment / 2 - 1;
-        let keep = |v: &[f64]| v[first..last].to_vec();
+        let kept: Vec<usize> = (first..last).filter(|&i| !skip(p.freq[i])).collect();
+        if kept.len() < MIN_BINS {
+            return None;
+        }
+        let keep = |v: &[f64]| kept.iter().map(|&i| v[i]).collect();
         Some(DetectionPsd {
             rate_hz,
             freq: keep(&p.freq),
@@ -580,8 +598,9 @@ fn weighted_nnls4(rows: &[[f64; 4]], y: &[f64], sigma: &[f64]) -> [f64; 4] {
     std::array::from_fn(|j| x[j] / norms[j])
 }
 
-/// Minimum of a unimodal `f` on `[a, b]` by golden-section search in log frequency.
-fn golden_min(f: impl Fn(f64) -> f64, a: f64, b: f64) -> f64 {
+/// Minimum of a unimodal `f` on `[a, b]` (both positive) by golden-section search in log
+/// scale.
+pub(crate) fn golden_min(f: impl Fn(f64) -> f64, a: f64, b: f64) -> f64 {
     let ratio = (5f64.sqrt() - 1.0) / 2.0;
     let (mut lo, mut hi) = (a.ln(), b.ln());
     let mut x1 = hi - ratio * (hi - lo);

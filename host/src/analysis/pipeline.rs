@@ -325,11 +325,58 @@ fn channel_low_pass(
         // Validated in `analyze`, so the error branch is not reached.
         LowPassChoice::Bandwidth(hz) => LowPass::for_bandwidth(hz, rate_hz, sensor?).ok().flatten(),
         LowPassChoice::Detect => {
-            low_pass::detect(&without_lines(rate, rate_hz), rate_hz, options.confidence)
+            let (series, found) = match lines::remove(rate, rate_hz, &LineOptions::default()) {
+                Ok(removed) => (removed.rate, removed.lines),
+                Err(_) => (rate.to_vec(), Vec::new()),
+            };
+            let background = white_level(rate, rate_hz);
+            let near = |f: f64| found.iter().any(|l| near_line(l, f, rate_hz, background));
+            low_pass::detect_outside(&series, rate_hz, options.confidence, &near)
                 .ok()
                 .and_then(|d| d.low_pass)
         }
     }
+}
+
+/// Share of the background a removed line's wing may still add where the roll-off detection
+/// fits the spectrum.
+pub const LINE_WING_SHARE: f64 = 0.05;
+
+/// Whether `freq_hz` lies where `line`'s wings still add more than [`LINE_WING_SHARE`] of the
+/// `background` one-sided PSD (u^2/Hz), or within four of the detection's PSD bins of it (a
+/// pure tone's leakage). Its removal scales only the line's core down to the background,
+/// and a Lorentzian's wings ([`lines::lorentzian_excess`]) that rise towards a line near
+/// Nyquist read as quantization over a roll-off.
+fn near_line(line: &lines::Line, freq_hz: f64, rate_hz: f64, background: f64) -> bool {
+    let bins = 4.0 * rate_hz / low_pass::DETECT_SEGMENT as f64;
+    (freq_hz - line.freq_hz).abs() <= bins
+        || lines::lorentzian_excess(line.freq_hz, line.width_hz, line.power, freq_hz)
+            > LINE_WING_SHARE * background
+}
+
+/// The background level of a rate record, one-sided u^2/Hz: the median of its Welch PSD
+/// (segments of the roll-off detection's length) over the upper half of the band, where
+/// white noise dominates and a line holds a minority of the bins.
+fn white_level(rate: &[f64], rate_hz: f64) -> f64 {
+    let options = WelchOptions {
+        segment_len: low_pass::DETECT_SEGMENT.min(rate.len()).max(8),
+        ..WelchOptions::default()
+    };
+    let Ok(p) = psd::welch(rate, rate_hz, &options) else {
+        return 0.0;
+    };
+    let mut upper: Vec<f64> = p
+        .freq
+        .iter()
+        .zip(&p.density)
+        .filter(|(f, _)| **f >= rate_hz / 4.0)
+        .map(|(_, d)| *d)
+        .collect();
+    if upper.is_empty() {
+        return 0.0;
+    }
+    let half = upper.len() / 2;
+    *upper.select_nth_unstable_by(half, f64::total_cmp).1
 }
 
 /// `rate` with its spectral lines removed ([`lines::remove`]): a tone or a resonance near
@@ -365,4 +412,53 @@ fn spectrum(rate: &[f64], rate_hz: f64, options: &Options) -> Result<(Psd, Binne
     let spectrum = psd::welch(rate, rate_hz, &welch).map_err(|e| e.to_string())?;
     let binned = psd::log_binned(&spectrum, options.psd_bins_per_decade);
     Ok((spectrum, binned))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::noise::add_line;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// A wide line near Nyquist (0.3 to 1 Hz wide, 20 to 50 times the white PSD at its
+    /// peak, 40 to 45 % of the rate) on white noise is never read as a roll-off; behind a real
+    /// 10 Hz filter, the filter is still found.
+    #[test]
+    fn a_wide_line_near_nyquist_is_no_roll_off() {
+        let rate_hz = 50.0;
+        let n = 180_000;
+        let n_density: f64 = 1e-3;
+        let filter = LowPass::two_pole(10.0, rate_hz).unwrap();
+        for seed in 0..5 {
+            let mut rng = ChaCha8Rng::seed_from_u64(40 + seed);
+            let freq = rate_hz * (0.4 + 0.05 * rng.random::<f64>());
+            let width = 0.3 + 0.7 * rng.random::<f64>();
+            let rho = 20.0 + 30.0 * rng.random::<f64>();
+            // Peak one-sided excess 2 P / (pi w) = rho 2 N^2.
+            let power = rho * 2.0 * n_density * n_density * std::f64::consts::PI * width / 2.0;
+            for filtered in [false, true] {
+                let mut y = if filtered {
+                    filter.white_through(n_density, n, &mut rng)
+                } else {
+                    (0..n)
+                        .map(|_| {
+                            n_density
+                                * rate_hz.sqrt()
+                                * rng.sample::<f64, _>(rand_distr::StandardNormal)
+                        })
+                        .collect()
+                };
+                add_line(&mut y, rate_hz, freq, width, (2.0 * power).sqrt(), &mut rng);
+                let found =
+                    channel_low_pass(Quantity::AngularRate, &y, rate_hz, &Options::default());
+                match (filtered, found) {
+                    (false, Some(lp)) => panic!("seed {seed}: roll-off at {} Hz", lp.cutoff_hz),
+                    (true, None) => panic!("seed {seed}: the 10 Hz filter was missed"),
+                    (true, Some(lp)) => assert!((lp.cutoff_hz / 10.0 - 1.0).abs() < 0.2, "{lp:?}"),
+                    (false, None) => {}
+                }
+            }
+        }
+    }
 }

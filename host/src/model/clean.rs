@@ -9,8 +9,17 @@
 //! `W / (rate / 2)` of white noise too; the simulated realisations lose the same.
 //!
 //! **Regressors** (a constant always; time for a ramp; the centred temperature and its
-//! derivative for a temperature coupling) are removed jointly by ordinary least squares, on
-//! the notched series, through the normal equations of the centred, unit-norm columns.
+//! derivative for a temperature coupling; a sine and a cosine for each slow pure tone) are
+//! removed jointly by ordinary least squares, on the notched series, through the normal
+//! equations of the centred, unit-norm columns.
+//!
+//! **Slow tones are regressors, not notches.** A notch takes the bins around a line from the
+//! series but not from the regressor columns: a temperature cycle a few bins from a slow
+//! line would vanish from the series and stay in the temperature column, and the coupling
+//! would be estimated from the warm-up alone. Regressed jointly, the tone and the coupling
+//! share the record's information as least squares allots it; a tone within a bin or so of
+//! the temperature cycle stays confounded with the coupling to the temperature's rate of
+//! change (their columns are nearly collinear over the record), which no method separates.
 
 use crate::analysis::fit::householder_solve;
 use realfft::RealFftPlanner;
@@ -77,31 +86,52 @@ pub struct Notch {
     pub hi_hz: f64,
 }
 
+/// A pure tone removed by regression, and the band around it that its removal leaves
+/// disturbed (the periodogram's main lobe), Hz.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tone {
+    pub freq_hz: f64,
+    pub guard_hz: f64,
+}
+
 /// What to remove from a series.
 #[derive(Debug, Clone, Default)]
 pub struct Removal {
     pub ramp: bool,
     pub temperature: bool,
     pub notches: Vec<Notch>,
+    pub tones: Vec<Tone>,
 }
 
 /// Least-squares coefficients of the regressors, in the series' unit u: `slope` u/s,
 /// `temp` u/degC, `temp_rate` u/(degC/s).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Coefficients {
     pub slope: Option<f64>,
     pub temp: Option<f64>,
     pub temp_rate: Option<f64>,
+    /// Each tone's amplitude, u (peak), in the order of [`Removal::tones`].
+    pub tone_amplitudes: Vec<f64>,
 }
 
 impl Removal {
-    /// Whether `freq_hz` lies in a notch or within its width of it: what a notch leaves of
-    /// a named line's wings is that line, not a new one.
-    pub fn near_notch(&self, freq_hz: f64) -> bool {
-        self.notches.iter().any(|n| {
+    /// Whether `freq_hz` lies in a notch or within its width of it, or within a removed
+    /// tone's guard: what a removal leaves of a named line is that line, not a new one.
+    pub fn near_removed(&self, freq_hz: f64) -> bool {
+        let near_notch = self.notches.iter().any(|n| {
             let width = n.hi_hz - n.lo_hz;
             freq_hz > n.lo_hz - width && freq_hz < n.hi_hz + width
-        })
+        });
+        near_notch
+            || self
+                .tones
+                .iter()
+                .any(|t| (freq_hz - t.freq_hz).abs() < t.guard_hz)
+    }
+
+    /// Whether a line at `freq_hz` is removed as a tone (by regression).
+    pub fn is_tone(&self, freq_hz: f64) -> bool {
+        self.tones.iter().any(|t| t.freq_hz == freq_hz)
     }
 
     /// `x` with the notches and the regressors removed, and the regressors' coefficients.
@@ -130,17 +160,23 @@ impl Removal {
         // Dense small-matrix algebra reads best with explicit indices.
         #![allow(clippy::needless_range_loop)]
         let n = y.len();
-        let time: Vec<f64>;
-        let mut columns: Vec<&[f64]> = Vec::new();
+        let mut owned: Vec<Vec<f64>> = Vec::new();
         if self.ramp {
-            time = (0..n).map(|i| i as f64 / rate_hz).collect();
-            columns.push(&time);
+            owned.push((0..n).map(|i| i as f64 / rate_hz).collect());
         }
+        for tone in &self.tones {
+            let omega = 2.0 * std::f64::consts::PI * tone.freq_hz / rate_hz;
+            owned.push((0..n).map(|i| (omega * i as f64).sin()).collect());
+            owned.push((0..n).map(|i| (omega * i as f64).cos()).collect());
+        }
+        let (time, sines) = owned.split_at(usize::from(self.ramp));
+        let mut columns: Vec<&[f64]> = time.iter().map(Vec::as_slice).collect();
         let temp = temperature.filter(|_| self.temperature);
         if let Some(t) = temp {
             columns.push(&t.centred);
             columns.push(&t.derivative);
         }
+        columns.extend(sines.iter().map(Vec::as_slice));
         let mean_y = y.iter().sum::<f64>() / n.max(1) as f64;
         y.iter_mut().for_each(|v| *v -= mean_y);
         if columns.is_empty() {
@@ -195,7 +231,11 @@ impl Removal {
         if temp.is_some() {
             out.temp = Some(coeff(j));
             out.temp_rate = Some(coeff(j + 1));
+            j += 2;
         }
+        out.tone_amplitudes = (0..self.tones.len())
+            .map(|t| coeff(j + 2 * t).hypot(coeff(j + 2 * t + 1)))
+            .collect();
         out
     }
 }
@@ -250,12 +290,47 @@ mod tests {
             ramp: true,
             temperature: true,
             notches: vec![],
+            tones: vec![],
         };
         let (y, c) = removal.apply(&x, rate, Some(&t));
         assert!((c.slope.unwrap() - 2e-4).abs() < 1e-10, "{c:?}");
         assert!((c.temp.unwrap() - 5e-3).abs() < 1e-9, "{c:?}");
         assert!(c.temp_rate.unwrap().abs() < 1e-6, "{c:?}");
         assert!(y.iter().all(|v| v.abs() < 1e-9));
+    }
+
+    /// A slow tone two bins from the temperature's cycle: the joint regression gives both the
+    /// coupling and the tone's amplitude.
+    #[test]
+    fn a_tone_beside_a_temperature_cycle_is_regressed_jointly() {
+        let rate = 10.0;
+        let n = 100_000;
+        let duration = n as f64 / rate;
+        let cycle_hz = 5.0 / duration;
+        let tone_hz = 7.0 / duration;
+        let phase = |f: f64, i: usize| 2.0 * std::f64::consts::PI * f * i as f64 / rate;
+        let temps: Vec<f64> = (0..n)
+            .map(|i| 25.0 + 2.0 * (1.0 - (-(i as f64) / 20_000.0).exp()) + phase(cycle_hz, i).sin())
+            .collect();
+        let t = Temperature::new(&temps, rate);
+        let x: Vec<f64> = (0..n)
+            .map(|i| 3e-3 * t.centred[i] + 2e-3 * (phase(tone_hz, i) + 0.7).sin())
+            .collect();
+        let removal = Removal {
+            temperature: true,
+            tones: vec![Tone {
+                freq_hz: tone_hz,
+                guard_hz: 2.0 / duration,
+            }],
+            ..Removal::default()
+        };
+        let (y, c) = removal.apply(&x, rate, Some(&t));
+        assert!((c.temp.unwrap() - 3e-3).abs() < 1e-9, "{c:?}");
+        assert!(c.temp_rate.unwrap().abs() < 1e-7, "{c:?}");
+        assert!((c.tone_amplitudes[0] - 2e-3).abs() < 1e-9, "{c:?}");
+        assert!(y.iter().all(|v| v.abs() < 1e-9));
+        assert!(removal.near_removed(tone_hz + 1.5 / duration));
+        assert!(!removal.near_removed(tone_hz - 2.5 / duration));
     }
 
     #[test]

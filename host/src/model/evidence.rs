@@ -8,7 +8,9 @@
 //! | slow line | low-frequency periodogram ([`super::spectrum`]) | the largest bin over the fitted background |
 //! | rate ramp | regression on time | Wald statistic of the slope ([`super::regression`]) |
 //! | temperature | regression on temperature and its derivative | Wald statistic of both coefficients |
-//! | Gauss-Markov, B, K, Q | nested fit of the Allan curve | misfit(model) - misfit(model + term), both refitted |
+//! | Gauss-Markov | nested fit of the Allan curve | misfit(model') - misfit(model' + term), model' the model with B and K free, both refitted |
+//! | B, K, Q | nested fit of the Allan curve | misfit(model) - misfit(model + term), both refitted |
+//! | the sensor's low-pass | PSD roll-off ([`crate::analysis::low_pass::detect_outside`]) | likelihood ratio of a filter against none, the removed lines' bands left out |
 //!
 //! "Clean s" is s with the effects already named removed ([`super::clean`]). The regressors
 //! are judged by their own test ([`super::regression`]), whose noise model is refitted with
@@ -21,8 +23,8 @@ use super::clean::{Removal, Temperature};
 use super::refit::{self, Column, Curve, WhiteShape};
 use super::spectrum;
 use super::{Effect, Line};
-use crate::analysis::low_pass::LowPass;
-use crate::analysis::{Estimator, allan, into_phase, lines};
+use crate::analysis::low_pass::{self, LowPass};
+use crate::analysis::{Estimator, allan, into_phase, lines, pipeline};
 use crate::sim::noise::NoiseTerms;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
@@ -73,6 +75,8 @@ pub enum Probe {
     Temperature,
     GaussMarkov,
     Term(Column),
+    /// The sensor's own low-pass filter, when its settings are unknown.
+    RollOff,
 }
 
 impl Probe {
@@ -87,6 +91,7 @@ impl Probe {
             Probe::Term(Column::B) => "bias_instability",
             Probe::Term(Column::K) => "rate_random_walk",
             Probe::Term(_) => "noise term",
+            Probe::RollOff => "low_pass",
         }
     }
 
@@ -97,6 +102,7 @@ impl Probe {
             Probe::Ramp => View::RegressionOnTime,
             Probe::Temperature => View::RegressionOnTemperature,
             Probe::GaussMarkov | Probe::Term(_) => View::NestedFit,
+            Probe::RollOff => View::RollOff,
         }
     }
 }
@@ -118,6 +124,10 @@ pub struct Context<'a> {
     /// Correlation times a Gauss-Markov candidate may take, s.
     pub gauss_markov_range: (f64, f64),
     pub lines: &'a (dyn Fn(&[f64], f64) -> Vec<Line> + Sync),
+    /// The lines the model carries, and its one-sided PSD (u^2/Hz) at a frequency: where a
+    /// named line's wings still stand out of it, the roll-off is not judged.
+    pub named_lines: &'a [Line],
+    pub background: &'a (dyn Fn(f64) -> f64 + Sync),
 }
 
 /// Overlapping AVAR of a rate series on the context's averaging factors.
@@ -163,7 +173,7 @@ pub fn statistics(
                 let found = (ctx.lines)(&clean, ctx.rate_hz);
                 let strongest = found
                     .into_iter()
-                    .filter(|l| !ctx.removal.near_notch(l.freq_hz))
+                    .filter(|l| !ctx.removal.near_removed(l.freq_hz))
                     .max_by(|a, b| a.statistic.total_cmp(&b.statistic));
                 match strongest {
                     Some(l) => (l.statistic, Some(Effect::from_line(&l))),
@@ -174,7 +184,7 @@ pub fn statistics(
                 let f_hi = spectrum::highest_hz(ctx.rate_hz, ctx.low_pass);
                 let pgram = spectrum::periodogram(&clean, ctx.rate_hz, f_hi);
                 let banded = spectrum::Banded::new(&pgram, ctx.low_pass);
-                match spectrum::slow_line(&banded, &|f| ctx.removal.near_notch(f)) {
+                match spectrum::slow_line(&banded, &|f| ctx.removal.near_removed(f)) {
                     Some((ratio, freq_hz)) => {
                         let fitted = effects
                             .then(|| lines::tone_near(&clean, ctx.rate_hz, freq_hz))
@@ -189,14 +199,30 @@ pub fn statistics(
                     None => (0.0, None),
                 }
             }
+            Probe::RollOff => {
+                let near =
+                    |f: f64| outside_roll_off(f, ctx.removal, ctx.named_lines, ctx.background);
+                match low_pass::detect_outside(&clean, ctx.rate_hz, 0.683, &near) {
+                    Ok(d) => (
+                        d.statistic,
+                        d.low_pass.map(|lp| Effect::LowPass {
+                            cutoff_hz: lp.cutoff_hz,
+                        }),
+                    ),
+                    Err(_) => (0.0, None),
+                }
+            }
             Probe::Ramp | Probe::Temperature => {
                 unreachable!("regressors are tested by super::regression")
             }
             Probe::GaussMarkov => {
+                // Against the model with B and K free: a baseline that absorbed a
+                // Gauss-Markov bump into B, with K at 0, needs K back to leave room for it.
+                let free = with_random_walks(&base_columns);
                 let (lo, hi) = ctx.gauss_markov_range;
-                match refit::best_gauss_markov(curve, &base_columns, lo, hi, ctx.white) {
+                match refit::best_gauss_markov(curve, &free, lo, hi, ctx.white) {
                     Some((terms, m)) => (
-                        base_misfit() - m,
+                        refit::misfit(curve, &refit::refit(curve, &free, ctx.white), ctx.white) - m,
                         terms.gauss_markov.map(|g| Effect::GaussMarkov {
                             tau_c: g.tau_c,
                             sigma: g.sigma,
@@ -222,6 +248,35 @@ pub fn statistics(
             }
         })
         .collect()
+}
+
+/// Whether the roll-off detection leaves `f` Hz out: near a removed line, or where a named
+/// line's wings still add more than [`pipeline::LINE_WING_SHARE`] of the model's one-sided
+/// PSD `background` (a Lorentzian's wings rising towards a line near Nyquist read as
+/// quantization over a roll-off).
+pub fn outside_roll_off(
+    f: f64,
+    removal: &Removal,
+    named_lines: &[Line],
+    background: &(dyn Fn(f64) -> f64 + Sync),
+) -> bool {
+    removal.near_removed(f)
+        || named_lines.iter().any(|l| {
+            let power = l.amplitude * l.amplitude / 2.0;
+            lines::lorentzian_excess(l.freq_hz, l.width_hz, power, f)
+                > pipeline::LINE_WING_SHARE * background(f)
+        })
+}
+
+/// `columns` with bias instability and rate random walk free (added where absent).
+pub fn with_random_walks(columns: &[Column]) -> Vec<Column> {
+    let mut out = columns.to_vec();
+    for c in [Column::B, Column::K] {
+        if !out.contains(&c) {
+            out.push(c);
+        }
+    }
+    out
 }
 
 /// A probe's measured statistic against its simulated spread.

@@ -22,6 +22,10 @@ use std::f64::consts::PI;
 /// Range of the factor by which an effect raises the Allan deviation where it shows.
 pub const RAISE: (f64, f64) = (2.0, 3.5);
 
+/// Least separation of a slow sinusoid from the temperature cycle, in bins of `1 / record
+/// length`, for the two to be told apart (see [`crate::model::clean`]).
+pub const RESOLVED_BINS: f64 = 2.0;
+
 /// What is hidden in a record.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
@@ -40,7 +44,9 @@ pub enum Kind {
     Temperature,
     /// A tone and a ramp.
     ToneAndRamp,
-    /// A slow sinusoid and a temperature coupling.
+    /// A slow sinusoid and a temperature coupling, the sinusoid at least [`RESOLVED_BINS`]
+    /// bins of the record's periodogram from the temperature cycle: closer, a sinusoid is
+    /// indistinguishable from a coupling to the temperature's rate of change.
     SlowSinusoidAndTemperature,
     /// The white noise through a low-pass filter of unknown cutoff (10-30 % of the rate).
     LowPass,
@@ -118,9 +124,11 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
         let sigma = (raise(&mut rng) * baseline_avar(&terms, peak_tau) / unit).sqrt();
         terms.gauss_markov = Some(GaussMarkov { sigma, tau_c });
     }
+    let mut slow_hz: Option<f64> = None;
     if has(Kind::SlowSinusoid) || has(Kind::SlowSinusoidAndTemperature) {
         let period = t_rec * uniform(&mut rng, 0.05, 0.2);
         let freq_hz = 1.0 / period;
+        slow_hz = Some(freq_hz);
         // A sinusoid's Allan variance peaks at tau = 0.371 / f.
         let peak_tau = 0.371 * period;
         let unit = sinusoid_avar(
@@ -167,7 +175,10 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
         let rise = uniform(&mut rng, 2.0, 6.0);
         let warm = uniform(&mut rng, 600.0, 2400.0);
         let swing = uniform(&mut rng, 0.5, 2.0);
-        let cycle = t_rec * uniform(&mut rng, 0.15, 0.4);
+        let mut cycle = t_rec * uniform(&mut rng, 0.15, 0.4);
+        while slow_hz.is_some_and(|f| (f - 1.0 / cycle).abs() * t_rec < RESOLVED_BINS) {
+            cycle = t_rec * uniform(&mut rng, 0.15, 0.4);
+        }
         let start = uniform(&mut rng, 20.0, 30.0);
         let temp = move |t: f64| {
             start + rise * (1.0 - (-t / warm).exp()) + swing * (2.0 * PI * t / cycle).sin()

@@ -17,7 +17,8 @@
 //! of the low-frequency periodogram ([`spectrum`]), the Wald statistic of a regression on
 //! time or on temperature ([`regression`]), the misfit drop of a nested Allan fit
 //! (Gauss-Markov, B, K, Q). Its p-value is taken from the realisations' distribution of the
-//! same statistic. The realisations carry the named lines too (see `realise`).
+//! same statistic. The realisations carry the notched lines too (see `realise`); slow
+//! tones are regressors, removed from both alike ([`clean`]).
 //!
 //! **Naming rule** ([`names`]). A candidate is named when its p-value against the simulated
 //! distribution (a scaled chi-square matched to the realisations' statistics, see
@@ -25,8 +26,11 @@
 //! *and* the measured statistic exceeds every simulated one. Under the model (no missing
 //! effect) the measured statistic is one more draw from the simulated distribution, so a
 //! round names nothing with probability about `1 - FAMILY_ALPHA`. Deterministic
-//! candidates (lines, ramp, temperature) are judged first: a baseline that explains the curve
-//! through K, B or R must not hide what a regressor or a line explains. Among the passing
+//! candidates (lines, ramp, temperature, the sensor's roll-off) are judged first: a baseline
+//! that explains the curve through K, B or R must not hide what a regressor or a line
+//! explains. The roll-off is a candidate like the others, so a wide line near Nyquist, whose
+//! wings or notch can mimic one, is named (and carried by the realisations) before the
+//! roll-off is judged. Among the passing
 //! candidates of the first group that has any, the smallest p is named. Then the model takes
 //! the effect, its stochastic terms are refitted to the cleaned record, and the loop repeats
 //! (at most [`MAX_STEPS`] effects), so a record with two effects gets both. A stochastic
@@ -50,6 +54,7 @@ pub mod evidence;
 pub mod refit;
 pub mod regression;
 pub mod report;
+pub mod restore;
 pub mod spectrum;
 
 use crate::analysis::lines::{self, LineOptions};
@@ -58,19 +63,24 @@ use crate::analysis::pipeline::{self, ChannelResult, LowPassChoice, Options};
 use crate::analysis::{Deviation, Estimator, allan, fit, phase_from_rate};
 use crate::record::{Channel, Quantity, Record};
 use crate::sim::noise::{AxisNoise, NoiseTerms, Sinusoid, add_line};
-use clean::{Notch, Removal, Temperature};
+use clean::{Notch, Removal, Temperature, Tone};
 use evidence::{Context, Evidence, Probe, View};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use refit::Column;
 use serde::Serialize;
-use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::f64::consts::PI;
 
 /// Chance, per round, that pure noise gets some candidate named: split evenly over the
 /// candidates of the round (Bonferroni).
 pub const FAMILY_ALPHA: f64 = 0.01;
+/// The regressor tests draw this many times the round's realisations: each costs only a
+/// synthesis and a least-squares pass, and Hotelling's penalty for a covariance estimated
+/// from R draws is steep at the naming level — at p = 1.4e-3 a two-coefficient statistic
+/// must reach 18.4 with R = 24 and 15.4 with R = 48, against chi-square's 13.1 (one
+/// coefficient: 13.0, 11.4, 10.2).
+pub const REGRESSION_REALISATIONS: usize = 2;
 /// Most effects named.
 pub const MAX_STEPS: usize = 4;
 /// |z| above this marks a disagreeing tau of the Allan curve.
@@ -489,35 +499,13 @@ pub fn run(
         settings: settings.clone(),
         lines: &detect_lines,
     };
-    // A filter known from the sensor's settings is part of the baseline; one fitted to the
-    // record's roll-off is named as the first step, with the detection's evidence.
+    // A filter known from the sensor's settings is part of the baseline; one the record's
+    // roll-off shows is a candidate like any other effect (`Probe::RollOff`), judged after
+    // the lines whose removal or wings could mimic it.
     let known = fitted
         .low_pass
         .clone()
         .filter(|lp| lp.source == LowPassSource::Settings);
-    let mut pending = fitted
-        .low_pass
-        .clone()
-        .filter(|lp| lp.source == LowPassSource::Fitted)
-        .map(|lp| {
-            let statistic =
-                low_pass::detect(&line_free, data.rate_hz, 0.683).map_or(0.0, |d| d.statistic);
-            let p_value = ChiSquared::new(1.0).map_or(0.0, |c| c.sf(statistic));
-            let effect = Effect::LowPass {
-                cutoff_hz: lp.cutoff_hz,
-            };
-            (
-                lp,
-                Evidence::with_p(
-                    "low_pass",
-                    View::RollOff,
-                    (statistic, Some(effect)),
-                    &[],
-                    p_value,
-                    1,
-                ),
-            )
-        });
     let baseline = Model {
         terms: NoiseTerms {
             q: fitted.q.value,
@@ -565,25 +553,6 @@ pub fn run(
                 round
             }
         };
-        if let Some((lp, evidence)) = pending.take() {
-            let effect = evidence.effect.unwrap_or(Effect::LowPass {
-                cutoff_hz: lp.cutoff_hz,
-            });
-            model.low_pass = Some(lp);
-            let mut shown = vec![evidence.clone()];
-            shown.extend(round.evidence.iter().cloned());
-            steps.push(Step {
-                description: effect.describe(channel.unit()),
-                effect,
-                view: View::RollOff,
-                gap_before: round.comparison.gap,
-                gap_after: f64::NAN,
-                evidence: shown,
-                model: model.clone(),
-                comparison: round.comparison.clone(),
-            });
-            continue;
-        }
         let Some(chosen) = choose(&round, &taken_back) else {
             if !taken_back.is_empty() {
                 break (
@@ -644,7 +613,9 @@ pub fn run(
 
 /// The candidate to name: the smallest p-value (the largest z, which is clamped where p
 /// underflows) among the passing deterministic candidates, else among the passing
-/// stochastic ones, leaving out those `taken_back` in this round.
+/// stochastic ones, leaving out those `taken_back` in this round. Ties (p = 0 when no
+/// realisation shows the view's effect at all) go to the earlier probe: lines first, whose
+/// removal can change what the roll-off and the regressions see.
 fn choose(round: &Round, taken_back: &[Probe]) -> Option<usize> {
     let best = |deterministic: bool| {
         round
@@ -680,6 +651,9 @@ fn probes(data: &Data, model: &Model, removal: &Removal) -> Vec<Probe> {
     if t.q == 0.0 {
         out.push(Probe::Term(Column::Q));
     }
+    if model.low_pass.is_none() && matches!(data.settings.low_pass, LowPassChoice::Detect) {
+        out.push(Probe::RollOff);
+    }
     out
 }
 
@@ -695,9 +669,45 @@ fn add(
     let (probe, effect) = chosen;
     let mut out = model.clone();
     let mut columns = refit::columns_of(&model.stochastic());
+    // A pure line in the low-frequency view's band, whichever view found it, is a slow tone.
+    let slow_tone = match effect {
+        Effect::Sinusoid {
+            freq_hz, width_hz, ..
+        } => {
+            width_hz == 0.0
+                && freq_hz <= spectrum::highest_hz(data.rate_hz, model.low_pass.as_ref())
+        }
+        _ => false,
+    };
     match (probe, effect) {
         (
             Probe::Line | Probe::SlowLine,
+            Effect::Sinusoid {
+                freq_hz, amplitude, ..
+            },
+        ) if slow_tone => {
+            // A slow pure tone is regressed out jointly with the ramp and the temperature
+            // (see `clean`): a notch would take its bins from the series but not from the
+            // time and temperature columns. Its guard is the periodogram's main lobe, +-2 bins.
+            let (freq_hz, amplitude) = if probe == Probe::Line {
+                lines::tone_near(data.rate, data.rate_hz, freq_hz).unwrap_or((freq_hz, amplitude))
+            } else {
+                (freq_hz, amplitude)
+            };
+            let df = data.rate_hz / data.rate.len() as f64;
+            removal.tones.push(Tone {
+                freq_hz,
+                guard_hz: 2.0 * df,
+            });
+            out.lines.push(Line {
+                freq_hz,
+                amplitude,
+                width_hz: 0.0,
+                statistic: 0.0,
+            });
+        }
+        (
+            Probe::Line,
             Effect::Sinusoid {
                 freq_hz,
                 amplitude,
@@ -723,9 +733,17 @@ fn add(
                 width_hz,
                 statistic: 0.0,
             });
-            if out.terms.sinusoid.is_none() {
-                out.terms.sinusoid = Some(Sinusoid { amplitude, freq_hz });
-            }
+        }
+        (Probe::RollOff, Effect::LowPass { cutoff_hz }) => {
+            // The detection on the record with the named effects removed gives the cutoff's
+            // interval; the candidate's own cutoff stands if it no longer passes alone.
+            let (clean, _) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
+            let background = |f: f64| model.one_sided_psd(f, 1.0 / data.rate_hz);
+            let near = |f: f64| evidence::outside_roll_off(f, removal, &model.lines, &background);
+            out.low_pass = low_pass::detect_outside(&clean, data.rate_hz, 0.683, &near)
+                .ok()
+                .and_then(|d| d.low_pass)
+                .or_else(|| LowPass::two_pole(cutoff_hz, data.rate_hz).ok());
         }
         (Probe::Ramp, _) => removal.ramp = true,
         (Probe::Temperature, _) => removal.temperature = true,
@@ -735,28 +753,42 @@ fn add(
         (Probe::Term(c), _) => columns.push(c),
         _ => {}
     }
-    if probe.view().is_deterministic() {
-        // With a deterministic effect gone, the random terms are refitted from scratch: the
-        // baseline may have put K at 0 or raised B to absorb it.
-        for c in [Column::B, Column::K] {
-            if !columns.contains(&c) {
-                columns.push(c);
-            }
-        }
+    if probe.view().is_deterministic() || probe == Probe::GaussMarkov {
+        // With a deterministic effect gone, or a Gauss-Markov term in (whose test frees them
+        // too), the random terms are refitted from scratch: the baseline may have put K at 0
+        // or raised B to absorb the effect.
+        columns = evidence::with_random_walks(&columns);
     }
     // The deterministic coefficients, jointly estimated on the record.
     let (clean, c) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
     out.terms.r = c.slope.unwrap_or(0.0);
     out.temp_coeff = c.temp;
     out.temp_rate_coeff = c.temp_rate;
+    for (tone, amplitude) in removal.tones.iter().zip(&c.tone_amplitudes) {
+        if let Some(line) = out.lines.iter_mut().find(|l| l.freq_hz == tone.freq_hz) {
+            line.amplitude = *amplitude;
+        }
+    }
+    out.terms.sinusoid = out.lines.first().map(|l| Sinusoid {
+        amplitude: l.amplitude,
+        freq_hz: l.freq_hz,
+    });
     let avar = evidence::allan_avar(clean, data.rate_hz, &data.measured.m);
     let curve = refit::Curve {
         tau: &data.measured.tau,
         avar: &avar,
         sd_ln,
     };
-    let white = |tau: f64| model.white_shape(tau);
-    let terms = refit::refit(curve, &columns, &white);
+    let shaped = out.clone();
+    let white = |tau: f64| shaped.white_shape(tau);
+    let shape = restore::Record {
+        len: data.rate.len(),
+        rate_hz: data.rate_hz,
+        m: &data.measured.m,
+        temperature: data.temperature.as_ref(),
+    };
+    let lost = restore::loss(removal, &shape);
+    let terms = refit::refit_cleaned(curve, &columns, &white, lost.as_ref());
     out.terms = NoiseTerms {
         r: out.terms.r,
         sinusoid: out.terms.sinusoid,
@@ -827,15 +859,22 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
     let longest = data.measured.tau.last().copied().unwrap_or(tau0);
     let m = &data.measured.m;
     let r = data.settings.realisations.max(2);
-    // The regressors as estimated from the record; the lines are simulated (see `realise`).
+    // The regressors (slow tones among them) as estimated jointly from the record; the
+    // notched lines are simulated (see `realise`).
     let regressors = Removal {
         notches: Vec::new(),
         ..removal.clone()
     };
+    let simulated_lines: Vec<Line> = model
+        .lines
+        .iter()
+        .filter(|l| !removal.is_tone(l.freq_hz))
+        .copied()
+        .collect();
     let (clean, _) = regressors.apply(data.rate, data.rate_hz, data.temperature.as_ref());
     let deterministic: Vec<f64> = data.rate.iter().zip(&clean).map(|(x, c)| x - c).collect();
     let realise = |terms: &NoiseTerms, i: usize| {
-        realise(data, terms, model.low_pass.as_ref(), &model.lines, i)
+        realise(data, terms, model.low_pass.as_ref(), &simulated_lines, i)
     };
     let logs: Vec<Vec<f64>> = (0..r)
         .into_par_iter()
@@ -852,6 +891,7 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
     let sd_ln: Vec<f64> = comparison.band.std_log.iter().map(|s| 2.0 * s).collect();
     let stochastic = model.stochastic();
     let white = |tau: f64| model.white_shape(tau);
+    let background = |f: f64| model.one_sided_psd(f, tau0);
     let ctx = Context {
         rate_hz: data.rate_hz,
         m,
@@ -864,6 +904,8 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         low_pass: model.low_pass.as_ref(),
         gauss_markov_range: (GAUSS_MARKOV_MIN_SAMPLES * tau0, longest / 2.0),
         lines: data.lines,
+        named_lines: &model.lines,
+        background: &background,
     };
     let on_sims: Vec<Probe> = probes
         .iter()
@@ -882,16 +924,11 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         .collect();
     // The alternative's noise model has every IEEE-952 random term free: a baseline that put
     // K at 0 (a short record, an absorbed effect) must not make the test's noise too small.
-    let mut columns = refit::columns_of(&stochastic);
-    for c in [Column::B, Column::K] {
-        if !columns.contains(&c) {
-            columns.push(c);
-        }
-    }
+    let columns = evidence::with_random_walks(&refit::columns_of(&stochastic));
     let setup = regression::Setup {
         view: &ctx,
         columns: &columns,
-        realisations: r,
+        realisations: REGRESSION_REALISATIONS * r,
         realise: &realise,
         candidates: probes.len(),
     };

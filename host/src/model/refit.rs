@@ -102,44 +102,93 @@ const REWEIGHTS: usize = 6;
 /// symmetric in ln(a / m), so a model far below the curve costs as much as one far above
 /// (plain relative error, `(a - m) / a`, caps the cost of a model that is too low at 1).
 pub fn refit(curve: Curve, columns: &[Column], white: WhiteShape) -> NoiseTerms {
+    refit_cleaned(curve, columns, white, None)
+}
+
+/// Expected Allan variance a removal of regressors takes from unit random walk (K = 1) and
+/// unit flicker (B = 1), per point of the curve, u^2 per unit level squared
+/// ([`super::restore`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loss {
+    pub k: Vec<f64>,
+    pub b: Vec<f64>,
+}
+
+/// [`refit`] to a curve from which regressors were removed: the K and B columns are their
+/// bases less what the removal takes from them (`loss`), so K and B are estimated at the
+/// level the raw noise had.
+pub fn refit_cleaned(
+    curve: Curve,
+    columns: &[Column],
+    white: WhiteShape,
+    loss: Option<&Loss>,
+) -> NoiseTerms {
     let mut terms = NoiseTerms::default();
     for round in 0..REWEIGHTS {
         let reference: Vec<f64> = curve
-            .tau
+            .avar
             .iter()
-            .zip(curve.avar)
-            .map(|(&tau, &a)| {
+            .enumerate()
+            .map(|(i, &a)| {
                 if round == 0 {
                     a
                 } else {
-                    (a * avar(&terms, tau, white)).sqrt().max(a * 1e-6)
+                    (a * point(&terms, curve, i, white, loss))
+                        .sqrt()
+                        .max(a * 1e-6)
                 }
             })
             .collect();
-        terms = solve(curve, columns, white, &reference);
+        terms = solve(curve, columns, white, &reference, loss);
     }
     terms
 }
 
+/// The model's AVAR at point `i` of a curve cleaned with `loss`.
+fn point(
+    terms: &NoiseTerms,
+    curve: Curve,
+    i: usize,
+    white: WhiteShape,
+    loss: Option<&Loss>,
+) -> f64 {
+    let lost = loss.map_or(0.0, |l| {
+        terms.k * terms.k * l.k[i] + terms.b * terms.b * l.b[i]
+    });
+    avar(terms, curve.tau[i], white) - lost
+}
+
 /// One weighted NNLS solve with rows scaled by `1 / (s_i reference_i)`.
-fn solve(curve: Curve, columns: &[Column], white: WhiteShape, reference: &[f64]) -> NoiseTerms {
+fn solve(
+    curve: Curve,
+    columns: &[Column],
+    white: WhiteShape,
+    reference: &[f64],
+    loss: Option<&Loss>,
+) -> NoiseTerms {
     let mut g = Vec::with_capacity(curve.tau.len());
     let mut b = Vec::with_capacity(curve.tau.len());
-    for (((&tau, &avar), &sd), &r) in curve
+    for (i, (((&tau, &avar), &sd), &r)) in curve
         .tau
         .iter()
         .zip(curve.avar)
         .zip(curve.sd_ln)
         .zip(reference)
+        .enumerate()
     {
         if !(avar > 0.0 && r > 0.0) {
             continue;
         }
         let w = 1.0 / (sd.max(SD_FLOOR) * r);
+        let lost = |c: &Column| match (c, loss) {
+            (Column::K, Some(l)) => l.k[i],
+            (Column::B, Some(l)) => l.b[i],
+            _ => 0.0,
+        };
         g.push(
             columns
                 .iter()
-                .map(|c| c.at(tau, white) * w)
+                .map(|c| (c.at(tau, white) - lost(c)) * w)
                 .collect::<Vec<f64>>(),
         );
         b.push(avar * w);

@@ -628,3 +628,40 @@ fn background_calibration() {
         );
     }
 }
+
+/// A slow tone (4 to 20 cycles per record) on a red background, started from its nearest
+/// bin: `tone_near` finds its frequency within 0.15 bin and its amplitude within 15 %. Regressed
+/// out at a frequency off by `e` bins, a tone leaves about `(pi e)^2 / 3` of its power: 7 % at
+/// 0.15 bin, 60 % at the half bin a fit stuck on the grid can miss by. The least-squares bound
+/// `sqrt(3 / d) / (2 pi)` bins (Rife & Boorstyn 1974; d the tone's power over the
+/// background's in one bin, 100 to 1000 here) holds for a flat background only: the random
+/// walk's leakage across the few lowest bins tilts the periodogram, and 0.09 bin (4.7 of those
+/// standard deviations) was the largest error measured over these seeds.
+#[test]
+fn tone_near_finds_a_slow_tone_off_its_bin() {
+    let (rate, n) = (10.0, 100_000);
+    let df = rate / n as f64;
+    for seed in 0..20 {
+        let mut rng = ChaCha8Rng::seed_from_u64(900 + seed);
+        let terms = draw_terms(&mut rng);
+        let bins = 4.0 + 16.0 * rng.random::<f64>();
+        let freq = bins * df;
+        let d = log_uniform(&mut rng, 100.0, 1000.0);
+        let amplitude = (2.0 * d * one_sided(&terms, freq) * df).sqrt();
+        let mut y = noise(terms, rate, n, &mut rng);
+        add_tone(
+            &mut y,
+            rate,
+            amplitude,
+            freq,
+            2.0 * PI * rng.random::<f64>(),
+        );
+        let (got, amp) = tone_near(&y, rate, bins.round() * df).expect("a tone");
+        let err_bins = (got - freq) / df;
+        assert!(err_bins.abs() < 0.15, "seed {seed}: {err_bins} bins");
+        assert!(
+            (amp / amplitude - 1.0).abs() < 0.15,
+            "seed {seed}: {amp} vs {amplitude}"
+        );
+    }
+}
