@@ -30,7 +30,10 @@
 //! that explains the curve through K, B or R must not hide what a regressor or a line
 //! explains. The roll-off is a candidate like the others, so a wide line near Nyquist, whose
 //! wings or notch can mimic one, is named (and carried by the realisations) before the
-//! roll-off is judged. Among the passing
+//! roll-off is judged. The regressors and the slow line are judged against realisations of
+//! the round's open noise model (`open_noise`: the random terms refitted with every
+//! deterministic candidate removed), so two effects the baseline put into K do not hide
+//! each other. Among the passing
 //! candidates of the first group that has any, the smallest p is named. Then the model takes
 //! the effect, its stochastic terms are refitted to the cleaned record, and the loop repeats
 //! (at most [`MAX_STEPS`] effects), so a record with two effects gets both. A stochastic
@@ -797,6 +800,43 @@ fn add(
     out
 }
 
+/// The round's open noise model: the random terms refitted to the record with every
+/// deterministic candidate removed — the regressors in `regressors_out` and the strongest
+/// slow line (`slow_hz`) as a tone — with what that removal takes from K and B given back
+/// ([`restore`]). A baseline fitted with an effect in the record has put its power into K;
+/// tests against realisations of that K would let each effect hide the other.
+fn open_noise(
+    data: &Data,
+    regressors_out: &Removal,
+    slow_hz: Option<f64>,
+    ctx: &Context,
+    columns: &[Column],
+) -> NoiseTerms {
+    let mut open = regressors_out.clone();
+    if let Some(freq_hz) = slow_hz {
+        let df = data.rate_hz / data.rate.len() as f64;
+        open.tones.push(Tone {
+            freq_hz,
+            guard_hz: 2.0 * df,
+        });
+    }
+    let (clean, _) = open.apply(data.rate, data.rate_hz, data.temperature.as_ref());
+    let avar = evidence::allan_avar(clean, data.rate_hz, ctx.m);
+    let curve = refit::Curve {
+        tau: ctx.tau,
+        avar: &avar,
+        sd_ln: ctx.sd_ln,
+    };
+    let shape = restore::Record {
+        len: data.rate.len(),
+        rate_hz: data.rate_hz,
+        m: ctx.m,
+        temperature: data.temperature.as_ref(),
+    };
+    let loss = restore::loss(&open, &shape);
+    refit::refit_cleaned(curve, columns, ctx.white, loss.as_ref())
+}
+
 /// One round: the current model simulated, compared with the record, and every candidate's
 /// evidence.
 #[derive(Clone)]
@@ -910,7 +950,7 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
     let on_sims: Vec<Probe> = probes
         .iter()
         .copied()
-        .filter(|p| !matches!(p, Probe::Ramp | Probe::Temperature))
+        .filter(|p| !matches!(p, Probe::Ramp | Probe::Temperature | Probe::SlowLine))
         .collect();
     let measured = evidence::statistics(data.rate, &on_sims, &ctx, true);
     let sims: Vec<Vec<f64>> = (0..r)
@@ -925,9 +965,33 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
     // The alternative's noise model has every IEEE-952 random term free: a baseline that put
     // K at 0 (a short record, an absorbed effect) must not make the test's noise too small.
     let columns = evidence::with_random_walks(&refit::columns_of(&stochastic));
+    // The slow line is looked for with the regressor candidates out, against realisations of
+    // the open noise model: a temperature cycle is not a slow line, and neither effect's
+    // power, absorbed into the baseline's K, widens the spread the other is judged against.
+    let regressors_out = Removal {
+        ramp: true,
+        temperature: data.temperature.is_some(),
+        ..removal.clone()
+    };
+    let open_ctx = Context {
+        removal: &regressors_out,
+        ..ctx
+    };
+    let slow = evidence::statistics(data.rate, &[Probe::SlowLine], &open_ctx, true)[0];
+    let slow_hz = match slow.1 {
+        Some(Effect::Sinusoid { freq_hz, .. }) => Some(freq_hz),
+        _ => None,
+    };
+    let open = open_noise(data, &regressors_out, slow_hz, &ctx, &columns);
+    let slow_sims: Vec<f64> = (0..r)
+        .into_par_iter()
+        .map(|i| {
+            evidence::statistics(&realise(&open, i), &[Probe::SlowLine], &open_ctx, false)[0].0
+        })
+        .collect();
     let setup = regression::Setup {
         view: &ctx,
-        columns: &columns,
+        open: &open,
         realisations: REGRESSION_REALISATIONS * r,
         realise: &realise,
         candidates: probes.len(),
@@ -937,19 +1001,17 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
         .map(|p| match on_sims.iter().position(|q| q == p) {
             Some(j) => {
                 let simulated: Vec<f64> = sims.iter().map(|s| s[j]).collect();
-                match p {
-                    // A maximum over bins: its tail is Gumbel, not a scaled chi-square.
-                    Probe::SlowLine => Evidence::with_p(
-                        p.name(),
-                        p.view(),
-                        measured[j],
-                        &simulated,
-                        spectrum::gumbel_p_value(measured[j].0, &simulated),
-                        probes.len(),
-                    ),
-                    _ => Evidence::new(p.name(), p.view(), measured[j], &simulated, probes.len()),
-                }
+                Evidence::new(p.name(), p.view(), measured[j], &simulated, probes.len())
             }
+            // A maximum over bins: its tail is Gumbel, not a scaled chi-square.
+            None if *p == Probe::SlowLine => Evidence::with_p(
+                p.name(),
+                p.view(),
+                slow,
+                &slow_sims,
+                spectrum::gumbel_p_value(slow.0, &slow_sims),
+                probes.len(),
+            ),
             None => regression::test(*p, data.rate, &setup),
         })
         .collect();

@@ -3,8 +3,9 @@
 //!
 //! The coefficients `c` (one for a ramp, two for temperature) are estimated by least squares
 //! with the effects already named ([`super::clean`]). Their covariance under noise alone is
-//! estimated from `R` realisations of the stochastic model **refitted to the record with the
-//! regressor removed** (the alternative's noise model, as a Wald test takes it), each
+//! estimated from `R` realisations of the round's **open noise model**: the random terms
+//! refitted to the record with every deterministic candidate removed — ramp, temperature and
+//! the strongest slow line (the alternative's noise model, as a Wald test takes it) — each
 //! regressed in the same way: `S = (1/R) sum_i c_i c_i^T` (the coefficients of pure noise
 //! have mean 0). The statistic is `T^2 = c^T S^-1 c`; with S estimated from R draws,
 //! `(R - p + 1) / (p R) T^2` follows F(p, R - p + 1) (Hotelling, 1931; p the number of
@@ -12,10 +13,12 @@
 //! round's realisations: a regression realisation costs only a synthesis and a least-squares
 //! pass, and Hotelling's penalty shrinks with R.
 //!
-//! Why the refitted model: a baseline fitted to the raw record has absorbed the effect —
-//! a temperature cycle or a ramp inflates K — and realisations of that inflated random walk
-//! project onto any smooth regressor as strongly as the effect itself, so the test would
-//! have almost no power exactly when the effect is large. The refit gives back what the
+//! Why the open model: a baseline fitted to the raw record has absorbed the effects — a
+//! temperature cycle, a ramp or a slow sinusoid inflates K — and realisations of that
+//! inflated random walk project onto any smooth regressor as strongly as the effect itself,
+//! so the test would have almost no power exactly when the effect is large, and one effect
+//! would hide another (a slow sinusoid beside a temperature coupling: 3 of 10 records named
+//! nothing when each regressor was removed alone). The refit gives back what the
 //! regressors take from the random walk and flicker ([`super::restore`]); without that K
 //! comes out low once a ramp is removed, and pure noise shows a ramp.
 //!
@@ -27,9 +30,7 @@
 
 use super::Effect;
 use super::clean::{Coefficients, Removal};
-use super::evidence::{self, Context, Evidence, Probe};
-use super::refit::{self, Column, Curve};
-use super::restore;
+use super::evidence::{Context, Evidence, Probe};
 use crate::sim::noise::NoiseTerms;
 use rayon::prelude::*;
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
@@ -38,8 +39,10 @@ use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 pub struct Setup<'a> {
     /// The round's record, taus, spread, removal and white shape, as the other views see them.
     pub view: &'a Context<'a>,
-    pub columns: &'a [Column],
     pub realisations: usize,
+    /// The noise model H1: the round's random terms refitted with every deterministic
+    /// candidate removed (see `super::open_noise`).
+    pub open: &'a NoiseTerms,
     /// Realisation `i` of a stochastic model, as long as the record.
     pub realise: &'a (dyn Fn(&NoiseTerms, usize) -> Vec<f64> + Sync),
     /// Candidates in the round (for the Bonferroni share).
@@ -94,7 +97,7 @@ fn quadratic(c: &[f64], s: &[[f64; 2]; 2]) -> Option<f64> {
 /// The Wald test of `probe` (a ramp or a temperature coupling) on the record `x`.
 pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
     let more = with_regressor(s.view.removal, probe);
-    let (clean, c) = more.apply(x, s.view.rate_hz, s.view.temperature);
+    let (_, c) = more.apply(x, s.view.rate_hz, s.view.temperature);
     let measured = of_probe(probe, &c);
     let effect = match probe {
         Probe::Ramp => Effect::RateRamp { slope: measured[0] },
@@ -103,24 +106,11 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
             rate_coeff: measured[1],
         },
     };
-    let avar = evidence::allan_avar(clean, s.view.rate_hz, s.view.m);
-    let curve = Curve {
-        tau: s.view.tau,
-        avar: &avar,
-        sd_ln: s.view.sd_ln,
-    };
-    let shape = restore::Record {
-        len: x.len(),
-        rate_hz: s.view.rate_hz,
-        m: s.view.m,
-        temperature: s.view.temperature,
-    };
-    let loss = restore::loss(&more, &shape);
-    let h1 = refit::refit_cleaned(curve, s.columns, s.view.white, loss.as_ref());
+    let h1 = s.open;
     let r = s.realisations.max(3);
     let sims: Vec<Vec<f64>> = (0..r)
         .into_par_iter()
-        .map(|i| coefficients(probe, &(s.realise)(&h1, i), &more, s))
+        .map(|i| coefficients(probe, &(s.realise)(h1, i), &more, s))
         .collect();
     let p = measured.len();
     let mut cov = [[0.0; 2]; 2];
