@@ -225,15 +225,21 @@ pub fn remove(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Removed,
     })
 }
 
-/// A line's excess one-sided PSD at `f` Hz, u^2/Hz: a Lorentzian of power `power` (u^2) and
-/// full width at half maximum `width_hz` around `freq_hz`, `(2 P / (pi w)) / (1 + (2 (f -
-/// f0) / w)^2)`; 0 for a pure tone (`width_hz` 0), whose power lies in its own bins.
-pub fn lorentzian_excess(freq_hz: f64, width_hz: f64, power: f64, f: f64) -> f64 {
+/// Share of the background a removed line's wing may still add where a roll-off is fitted.
+pub const WING_SHARE: f64 = 0.05;
+
+/// Whether a line's wings still stand out at `f` Hz: its Lorentzian excess (power `power`
+/// u^2, full width at half maximum `width_hz` around `freq_hz`) above [`WING_SHARE`] of the
+/// one-sided `background` PSD there. The excess is `(2 P / (pi w)) / (1 + (2 (f - f0) / w)^2)`;
+/// a pure tone (`width_hz` 0) has none, its power lying in its own bins. A line's removal
+/// scales only its core down to the background, and wings that rise towards a line near
+/// Nyquist read as quantization over a roll-off.
+pub fn wings_stand_out(freq_hz: f64, width_hz: f64, power: f64, f: f64, background: f64) -> bool {
     if width_hz <= 0.0 {
-        return 0.0;
+        return false;
     }
     let peak = 2.0 * power / (PI * width_hz);
-    peak / (1.0 + (2.0 * (f - freq_hz) / width_hz).powi(2))
+    peak / (1.0 + (2.0 * (f - freq_hz) / width_hz).powi(2)) > WING_SHARE * background
 }
 
 /// A line's Allan variance at `tau` (s). The line is taken as a sinusoid whose phase diffuses

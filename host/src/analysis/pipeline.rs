@@ -338,20 +338,13 @@ fn channel_low_pass(
     }
 }
 
-/// Share of the background a removed line's wing may still add where the roll-off detection
-/// fits the spectrum.
-pub const LINE_WING_SHARE: f64 = 0.05;
-
-/// Whether `freq_hz` lies where `line`'s wings still add more than [`LINE_WING_SHARE`] of the
-/// `background` one-sided PSD (u^2/Hz), or within four of the detection's PSD bins of it (a
-/// pure tone's leakage). Its removal scales only the line's core down to the background,
-/// and a Lorentzian's wings ([`lines::lorentzian_excess`]) that rise towards a line near
-/// Nyquist read as quantization over a roll-off.
+/// Whether the roll-off detection leaves `freq_hz` out for `line`: within four of its PSD
+/// bins (a pure tone's leakage), or where the line's wings still stand out of the
+/// `background` one-sided PSD ([`lines::wings_stand_out`]).
 fn near_line(line: &lines::Line, freq_hz: f64, rate_hz: f64, background: f64) -> bool {
     let bins = 4.0 * rate_hz / low_pass::DETECT_SEGMENT as f64;
     (freq_hz - line.freq_hz).abs() <= bins
-        || lines::lorentzian_excess(line.freq_hz, line.width_hz, line.power, freq_hz)
-            > LINE_WING_SHARE * background
+        || lines::wings_stand_out(line.freq_hz, line.width_hz, line.power, freq_hz, background)
 }
 
 /// The background level of a rate record, one-sided u^2/Hz: the median of its Welch PSD

@@ -24,7 +24,7 @@ use super::refit::{self, Column, Curve, WhiteShape};
 use super::spectrum;
 use super::{Effect, Line};
 use crate::analysis::low_pass::{self, LowPass};
-use crate::analysis::{Estimator, allan, into_phase, lines, pipeline};
+use crate::analysis::{Estimator, allan, into_phase, lines};
 use crate::sim::noise::NoiseTerms;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
@@ -251,9 +251,8 @@ pub fn statistics(
 }
 
 /// Whether the roll-off detection leaves `f` Hz out: near a removed line, or where a named
-/// line's wings still add more than [`pipeline::LINE_WING_SHARE`] of the model's one-sided
-/// PSD `background` (a Lorentzian's wings rising towards a line near Nyquist read as
-/// quantization over a roll-off).
+/// line's wings still stand out of the model's one-sided PSD `background`
+/// ([`lines::wings_stand_out`]).
 pub fn outside_roll_off(
     f: f64,
     removal: &Removal,
@@ -263,8 +262,7 @@ pub fn outside_roll_off(
     removal.near_removed(f)
         || named_lines.iter().any(|l| {
             let power = l.amplitude * l.amplitude / 2.0;
-            lines::lorentzian_excess(l.freq_hz, l.width_hz, power, f)
-                > pipeline::LINE_WING_SHARE * background(f)
+            lines::wings_stand_out(l.freq_hz, l.width_hz, power, f, background(f))
         })
 }
 

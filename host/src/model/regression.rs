@@ -106,11 +106,10 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
             rate_coeff: measured[1],
         },
     };
-    let h1 = s.open;
     let r = s.realisations.max(3);
     let sims: Vec<Vec<f64>> = (0..r)
         .into_par_iter()
-        .map(|i| coefficients(probe, &(s.realise)(h1, i), &more, s))
+        .map(|i| coefficients(probe, &(s.realise)(s.open, i), &more, s))
         .collect();
     let p = measured.len();
     let mut cov = [[0.0; 2]; 2];
