@@ -208,3 +208,31 @@ fn issue_targets_on_two_hour_records() {
         assert!(t.k_bias.abs() < 0.1, "{t:?}");
     }
 }
+
+/// Calibration of the goodness-of-fit p-value on 100 records of 30 min (white + rate random
+/// walk, the CI test's draws; about 20 s). Measured on seeds 0..100: 1 below 0.01, 9 below
+/// 0.05, 12 below 0.1, 52 below 0.5. Bounds (binomial, +-2 s.d., rounded outwards): below
+/// 0.01 at most 3; below 0.5 within 40 ..= 60. With a flicker floor added (B at 0.3 times
+/// the CI flicker test's) 9 fall below 0.01 and 67 below 0.5: the correlation model
+/// understates the scatter of a curve with flicker, a limit stated in the README. Run with
+/// `cargo test --release -p imunoise-tests --test fit_support goodness -- --ignored --nocapture`.
+#[test]
+#[ignore = "100 records; run with --release"]
+fn goodness_calibration_study() {
+    let results = analyse_all(0..100, 1800.0, |s| white_and_random_walk(s, 5.0, 50.0));
+    let p: Vec<f64> = results
+        .iter()
+        .map(|(_, r)| fit_of(r).goodness.p_value)
+        .collect();
+    let below = |a: f64| p.iter().filter(|&&v| v < a).count();
+    println!(
+        "p < 0.01: {}, < 0.05: {}, < 0.1: {}, < 0.5: {} of {}",
+        below(0.01),
+        below(0.05),
+        below(0.1),
+        below(0.5),
+        p.len()
+    );
+    assert!(below(0.01) <= 3, "{p:?}");
+    assert!((40..=60).contains(&below(0.5)), "{p:?}");
+}
