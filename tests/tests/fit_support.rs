@@ -210,15 +210,13 @@ fn issue_targets_on_two_hour_records() {
 }
 
 /// Calibration of the goodness-of-fit p-value on 100 records of 30 min (white + rate random
-/// walk, the CI test's draws; about 20 s). Measured on seeds 0..100: 1 below 0.01, 9 below
+/// walk, the CI test's draws; about 8 s). Measured on seeds 0..100: 1 below 0.01, 9 below
 /// 0.05, 12 below 0.1, 52 below 0.5. Bounds (binomial, +-2 s.d., rounded outwards): below
 /// 0.01 at most 3; below 0.5 within 40 ..= 60. With a flicker floor added (B at 0.3 times
 /// the CI flicker test's) 9 fall below 0.01 and 67 below 0.5, most of it the
 /// simulator's flicker lying 4 % below the textbook level the fit assumes (README,
-/// "Simulating a sensor"); with a flicker at that level, 4 and 60. Run with
-/// `cargo test --release -p imunoise-tests --test fit_support goodness -- --ignored --nocapture`.
+/// "Simulating a sensor"); with a flicker at that level, 4 and 60.
 #[test]
-#[ignore = "100 records; run with --release"]
 fn goodness_calibration_study() {
     let results = analyse_all(0..100, 1800.0, |s| white_and_random_walk(s, 5.0, 50.0));
     let p: Vec<f64> = results

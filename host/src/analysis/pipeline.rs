@@ -233,10 +233,11 @@ fn analyze_channel(
     };
     let curves: Vec<Deviation> = options.estimators.par_iter().map(|&e| curve(e)).collect();
     // Spectral lines leave the record before the fit's curve and the roll-off search.
-    let removed = options
+    let searched = options
         .lines
-        .and_then(|opts| lines::remove(&rate, rate_hz, &opts).ok())
-        .filter(|r| !r.lines.is_empty());
+        .and_then(|opts| lines::remove(&rate, rate_hz, &opts).ok());
+    let low_pass = channel_low_pass(channel.quantity, &rate, searched.as_ref(), rate_hz, options);
+    let removed = searched.filter(|r| !r.lines.is_empty());
     let fit_deviation = match &removed {
         // The fit's curve from the record without its lines, on the same taus.
         Some(r) => {
@@ -253,8 +254,6 @@ fn analyze_channel(
             .cloned()
             .unwrap_or_else(|| curve(Estimator::Oadev)),
     };
-    let without: &[f64] = removed.as_ref().map_or(&rate, |r| &r.rate);
-    let low_pass = channel_low_pass(channel.quantity, without, rate_hz, options);
     let lines = removed.map(|r| r.lines).unwrap_or_default();
     let (fit, readouts) = fit_noise(&fit_deviation, phase.len(), low_pass, options);
     // The intervals take the noise type from the fit where it has one (ci::intervals_with_model).
@@ -312,9 +311,13 @@ pub fn sensor_kind(quantity: Quantity) -> SensorKind {
 
 /// The low-pass filter `options` give for a channel of `quantity` (module documentation of
 /// [`low_pass`]); the settings route has no filter for channels the DLPF does not filter.
+/// A detected filter is looked for in `rate` with its lines removed, as `searched` (the
+/// channel's own line search) found them, or as a search with the default options finds
+/// them when the channel's was off.
 fn channel_low_pass(
     quantity: Quantity,
     rate: &[f64],
+    searched: Option<&lines::Removed>,
     rate_hz: f64,
     options: &Options,
 ) -> Option<LowPass> {
@@ -325,13 +328,17 @@ fn channel_low_pass(
         // Validated in `analyze`, so the error branch is not reached.
         LowPassChoice::Bandwidth(hz) => LowPass::for_bandwidth(hz, rate_hz, sensor?).ok().flatten(),
         LowPassChoice::Detect => {
-            let (series, found) = match lines::remove(rate, rate_hz, &LineOptions::default()) {
-                Ok(removed) => (removed.rate, removed.lines),
-                Err(_) => (rate.to_vec(), Vec::new()),
+            let own = match searched {
+                Some(_) => None,
+                None => lines::remove(rate, rate_hz, &LineOptions::default()).ok(),
+            };
+            let (series, found): (&[f64], &[Line]) = match searched.or(own.as_ref()) {
+                Some(removed) => (&removed.rate, &removed.lines),
+                None => (rate, &[]),
             };
             let background = white_level(rate, rate_hz);
             let near = |f: f64| found.iter().any(|l| near_line(l, f, rate_hz, background));
-            low_pass::detect_outside(&series, rate_hz, options.confidence, &near)
+            low_pass::detect_outside(series, rate_hz, options.confidence, &near)
                 .ok()
                 .and_then(|d| d.low_pass)
         }
@@ -443,8 +450,18 @@ mod tests {
                         .collect()
                 };
                 add_line(&mut y, rate_hz, freq, width, (2.0 * power).sqrt(), &mut rng);
-                let found =
-                    channel_low_pass(Quantity::AngularRate, &y, rate_hz, &Options::default());
+                // As `analyze_channel` calls it: with the channel's own line search.
+                let options = Options::default();
+                let searched = options
+                    .lines
+                    .and_then(|opts| lines::remove(&y, rate_hz, &opts).ok());
+                let found = channel_low_pass(
+                    Quantity::AngularRate,
+                    &y,
+                    searched.as_ref(),
+                    rate_hz,
+                    &options,
+                );
                 match (filtered, found) {
                     (false, Some(lp)) => panic!("seed {seed}: roll-off at {} Hz", lp.cutoff_hz),
                     (true, None) => panic!("seed {seed}: the 10 Hz filter was missed"),

@@ -465,7 +465,7 @@ pub fn run(
         source: record.source.clone(),
         rate_hz: record.rate_hz,
         channels: vec![Channel {
-            values: line_free.clone(),
+            values: line_free,
             ..channel.clone()
         }],
     };
