@@ -33,8 +33,10 @@ const TERMS: usize = 5;
 /// Order of the terms in every 5-array of this module.
 const Q: usize = 0;
 const N: usize = 1;
-const B: usize = 2;
-const K: usize = 3;
+/// Index of bias instability in [`basis`] and every 5-array here.
+pub const B: usize = 2;
+/// Index of rate random walk in [`basis`] and every 5-array here.
+pub const K: usize = 3;
 const R: usize = 4;
 
 /// `2 ln2 / pi`: AVAR of bias instability per B^2 (IEEE 952 Table C.1).

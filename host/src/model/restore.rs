@@ -14,7 +14,8 @@
 //! **Loss.** The expected Allan variance a removal takes from unit-level random walk and
 //! flicker noise, `l_K(tau)` and `l_B(tau)`, is measured on [`LOSS_REALISATIONS`] paired
 //! simulations (each series' Allan variance before and after the same removal, so the
-//! scatter of the series themselves cancels). White noise and short Gauss-Markov processes
+//! scatter of the series themselves cancels), capped at [`MAX_SHARE`] of the column's basis.
+//! White noise and short Gauss-Markov processes
 //! lose a share of order `p / n` (p regressors, n samples) and are left as they are.
 //!
 //! **Refit** ([`super::refit::refit_cleaned`]). The K and B columns of a cleaned curve are
@@ -26,6 +27,7 @@
 use super::clean::{Removal, Temperature};
 use super::evidence::allan_avar;
 use super::refit::Loss;
+use crate::analysis::fit;
 use crate::sim::noise::{AxisNoise, NoiseTerms};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -34,6 +36,11 @@ use rayon::prelude::*;
 /// Paired simulations per loss: the loss is a mean difference whose relative scatter is
 /// about `1 / sqrt(LOSS_REALISATIONS)` of the (already minor) correction.
 pub const LOSS_REALISATIONS: usize = 16;
+/// Largest share of a column's basis a removal is taken to remove, so the column stays
+/// positive: at the longest taus of a 3 h record 16 pairs put the mean difference of a
+/// random walk's Allan variance at 1.7 times the basis (a few clusters make it
+/// heavy-tailed), the K column went negative there and the refit set K to 0.
+const MAX_SHARE: f64 = 0.95;
 /// Seeds of the loss simulations, apart from the model's realisations.
 const LOSS_SEED: u64 = 0x1055;
 
@@ -71,17 +78,25 @@ pub fn loss(removal: &Removal, record: &Record) -> Option<Loss> {
             );
         sums.iter()
             .map(|s| (s / LOSS_REALISATIONS as f64).max(0.0))
+            .collect::<Vec<f64>>()
+    };
+    // A removal cannot take more than the noise had: where the longest taus' few clusters
+    // make the mean difference of 16 pairs exceed the basis, it is capped below it.
+    let tau0 = 1.0 / record.rate_hz;
+    let capped = |loss: Vec<f64>, column: usize| -> Vec<f64> {
+        loss.iter()
+            .zip(record.m)
+            .map(|(l, &m)| l.min(MAX_SHARE * fit::basis(m as f64 * tau0)[column]))
             .collect()
     };
+    let unit = |k: f64, b: f64| NoiseTerms {
+        k,
+        b,
+        ..NoiseTerms::default()
+    };
     Some(Loss {
-        k: mean(NoiseTerms {
-            k: 1.0,
-            ..NoiseTerms::default()
-        }),
-        b: mean(NoiseTerms {
-            b: 1.0,
-            ..NoiseTerms::default()
-        }),
+        k: capped(mean(unit(1.0, 0.0)), fit::K),
+        b: capped(mean(unit(0.0, 1.0)), fit::B),
     })
 }
 
