@@ -169,7 +169,7 @@ fn random_walk_loss(columns: &[Vec<f64>], tau0: f64, m: &[usize]) -> Vec<f64> {
     let gsg = mat_mul(&mat_mul(&g, &s), &g);
     m.par_iter()
         .map(|&m| {
-            if n + 1 <= 2 * m {
+            if n < 2 * m {
                 return 0.0;
             }
             let l = n + 1 - 2 * m;
