@@ -1151,7 +1151,7 @@ fn sandwich_sd(
 /// Inverse of a small symmetric positive definite matrix by Cholesky; None when singular.
 // Dense small-matrix algebra reads best with explicit indices.
 #[allow(clippy::needless_range_loop)]
-fn invert_spd(h: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+pub(crate) fn invert_spd(h: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
     let k = h.len();
     let mut l = vec![vec![0.0; k]; k];
     for i in 0..k {

@@ -150,6 +150,35 @@ impl Removal {
         (y, coefficients)
     }
 
+    /// The regressor columns, each centred, in the order of the regression: the ramp, the
+    /// temperature and its derivative, then each tone's sine and cosine. Empty when the
+    /// removal regresses on nothing but the constant.
+    pub fn design(
+        &self,
+        n: usize,
+        rate_hz: f64,
+        temperature: Option<&Temperature>,
+    ) -> Vec<Vec<f64>> {
+        let mut columns: Vec<Vec<f64>> = Vec::new();
+        if self.ramp {
+            columns.push((0..n).map(|i| i as f64 / rate_hz).collect());
+        }
+        if let Some(t) = temperature.filter(|_| self.temperature) {
+            columns.push(t.centred.clone());
+            columns.push(t.derivative.clone());
+        }
+        for tone in &self.tones {
+            let omega = 2.0 * std::f64::consts::PI * tone.freq_hz / rate_hz;
+            columns.push((0..n).map(|i| (omega * i as f64).sin()).collect());
+            columns.push((0..n).map(|i| (omega * i as f64).cos()).collect());
+        }
+        for c in &mut columns {
+            let mean = c.iter().sum::<f64>() / n.max(1) as f64;
+            c.iter_mut().for_each(|v| *v -= mean);
+        }
+        columns
+    }
+
     /// Remove the constant and the chosen regressors from `y` in place.
     fn regress_out(
         &self,
@@ -160,47 +189,27 @@ impl Removal {
         // Dense small-matrix algebra reads best with explicit indices.
         #![allow(clippy::needless_range_loop)]
         let n = y.len();
-        let mut owned: Vec<Vec<f64>> = Vec::new();
-        if self.ramp {
-            owned.push((0..n).map(|i| i as f64 / rate_hz).collect());
-        }
-        for tone in &self.tones {
-            let omega = 2.0 * std::f64::consts::PI * tone.freq_hz / rate_hz;
-            owned.push((0..n).map(|i| (omega * i as f64).sin()).collect());
-            owned.push((0..n).map(|i| (omega * i as f64).cos()).collect());
-        }
-        let (time, sines) = owned.split_at(usize::from(self.ramp));
-        let mut columns: Vec<&[f64]> = time.iter().map(Vec::as_slice).collect();
+        let columns = self.design(n, rate_hz, temperature);
         let temp = temperature.filter(|_| self.temperature);
-        if let Some(t) = temp {
-            columns.push(&t.centred);
-            columns.push(&t.derivative);
-        }
-        columns.extend(sines.iter().map(Vec::as_slice));
         let mean_y = y.iter().sum::<f64>() / n.max(1) as f64;
         y.iter_mut().for_each(|v| *v -= mean_y);
         if columns.is_empty() {
             return Coefficients::default();
         }
-        // Centred columns scaled to unit norm: the normal equations stay well conditioned
-        // whatever the units (seconds against degrees).
-        let means: Vec<f64> = columns
-            .iter()
-            .map(|c| c.iter().sum::<f64>() / n as f64)
-            .collect();
+        // Columns scaled to unit norm: the normal equations stay well conditioned whatever
+        // the units (seconds against degrees).
         let norms: Vec<f64> = columns
             .iter()
-            .zip(&means)
-            .map(|(c, m)| {
+            .map(|c| {
                 c.iter()
-                    .map(|v| (v - m) * (v - m))
+                    .map(|v| v * v)
                     .sum::<f64>()
                     .sqrt()
                     .max(f64::MIN_POSITIVE)
             })
             .collect();
         let p = columns.len();
-        let scaled = |j: usize, i: usize| (columns[j][i] - means[j]) / norms[j];
+        let scaled = |j: usize, i: usize| columns[j][i] / norms[j];
         let mut gram = vec![vec![0.0; p]; p];
         let mut rhs = vec![0.0; p];
         for i in 0..n {

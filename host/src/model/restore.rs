@@ -12,10 +12,14 @@
 //! Gauss-Markov bump to fill the gap the low K left.
 //!
 //! **Loss.** The expected Allan variance a removal takes from unit-level random walk and
-//! flicker noise, `l_K(tau)` and `l_B(tau)`, is measured on [`LOSS_REALISATIONS`] paired
-//! simulations (each series' Allan variance before and after the same removal, so the
-//! scatter of the series themselves cancels), capped at [`MAX_SHARE`] of the column's basis.
-//! White noise and short Gauss-Markov processes
+//! flicker noise, `l_K(tau)` and `l_B(tau)`. The random walk's is computed exactly from its
+//! covariance (`random_walk_loss`): a mean over simulated pairs is heavy-tailed at the
+//! longest taus, where 16 pairs of a 3 h record put it at 1.7 times the K basis at T / 2.7,
+//! the K column went negative there, and the refit set K to 0 (the simulations then too
+//! quiet, a Gauss-Markov or Q term named to fill the hole). Flicker's, far smaller, is
+//! measured on [`LOSS_REALISATIONS`] paired simulations (each series' Allan variance before
+//! and after the same removal, so the scatter of the series themselves cancels), capped at
+//! [`MAX_SHARE`] of its basis. White noise and short Gauss-Markov processes
 //! lose a share of order `p / n` (p regressors, n samples) and are left as they are.
 //!
 //! **Refit** ([`super::refit::refit_cleaned`]). The K and B columns of a cleaned curve are
@@ -33,13 +37,11 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-/// Paired simulations per loss: the loss is a mean difference whose relative scatter is
-/// about `1 / sqrt(LOSS_REALISATIONS)` of the (already minor) correction.
+/// Paired simulations of flicker's loss: a mean difference whose relative scatter is about
+/// `1 / sqrt(LOSS_REALISATIONS)` of the (already minor) correction.
 pub const LOSS_REALISATIONS: usize = 16;
-/// Largest share of a column's basis a removal is taken to remove, so the column stays
-/// positive: at the longest taus of a 3 h record 16 pairs put the mean difference of a
-/// random walk's Allan variance at 1.7 times the basis (a few clusters make it
-/// heavy-tailed), the K column went negative there and the refit set K to 0.
+/// Largest share of flicker's basis a removal is taken to remove, so the B column stays
+/// positive where the longest taus' few clusters make a mean of 16 pairs heavy-tailed.
 const MAX_SHARE: f64 = 0.95;
 /// Seeds of the loss simulations, apart from the model's realisations.
 const LOSS_SEED: u64 = 0x1055;
@@ -59,51 +61,191 @@ pub fn loss(removal: &Removal, record: &Record) -> Option<Loss> {
         return None;
     }
     let duration = record.len as f64 / record.rate_hz;
-    let one = |terms: NoiseTerms, i: usize| -> Vec<f64> {
+    let tau0 = 1.0 / record.rate_hz;
+    let columns = removal.design(record.len, record.rate_hz, record.temperature);
+    let k = random_walk_loss(&columns, tau0, record.m);
+    // Flicker's loss by paired simulation: each series' Allan variance before and after the
+    // same removal, so the scatter of the series themselves cancels.
+    let one = |i: usize| -> Vec<f64> {
         let mut rng = ChaCha8Rng::seed_from_u64(LOSS_SEED + i as u64);
+        let unit = NoiseTerms {
+            b: 1.0,
+            ..NoiseTerms::default()
+        };
         let raw =
-            AxisNoise::new(terms, record.rate_hz, duration, &mut rng).take(record.len, &mut rng);
+            AxisNoise::new(unit, record.rate_hz, duration, &mut rng).take(record.len, &mut rng);
         let (clean, _) = removal.apply(&raw, record.rate_hz, record.temperature);
         let before = allan_avar(raw, record.rate_hz, record.m);
         let after = allan_avar(clean, record.rate_hz, record.m);
         before.iter().zip(after).map(|(b, a)| b - a).collect()
     };
-    let mean = |terms: NoiseTerms| -> Vec<f64> {
-        let sums = (0..LOSS_REALISATIONS)
-            .into_par_iter()
-            .map(|i| one(terms, i))
-            .reduce(
-                || vec![0.0; record.m.len()],
-                |a, b| a.iter().zip(b).map(|(x, y)| x + y).collect(),
-            );
-        sums.iter()
-            .map(|s| (s / LOSS_REALISATIONS as f64).max(0.0))
-            .collect::<Vec<f64>>()
+    let sums = (0..LOSS_REALISATIONS).into_par_iter().map(one).reduce(
+        || vec![0.0; record.m.len()],
+        |a, b| a.iter().zip(b).map(|(x, y)| x + y).collect(),
+    );
+    // A removal cannot take more than the noise had.
+    let b = sums
+        .iter()
+        .map(|s| (s / LOSS_REALISATIONS as f64).clamp(0.0, MAX_SHARE * fit::FLICKER_AVAR_FACTOR))
+        .collect();
+    Some(Loss { k, b })
+}
+
+/// The expected overlapping Allan variance that regressing out the centred `columns` takes
+/// from a unit random walk (K = 1, `y_k = sqrt(tau0) sum_{j<k} w_j`, so `Cov(y_a, y_b) =
+/// tau0 min(a, b)`), at each averaging factor in `m`, u^2 per K^2: exact, not simulated.
+///
+/// With `d = D y` the second differences of phase over m samples (`d_i = P_(i+2m) - 2
+/// P_(i+m) + P_i`, P the prefix sums of y), the Allan variance is `c |D y|^2`, `c = 1 / (2
+/// m^2 L)`, L the number of differences. Least squares leaves `(I - H) y`, `H = X G X^T`,
+/// `G = (X^T X)^-1`, so the expected loss is `c (2 tr(D H Sigma D^T) - tr(D H Sigma H D^T))
+/// = c (2 tr(G W^T U) - tr(G S G U^T U))` with `U = D X`, `W = D Sigma X` and `S = X^T Sigma
+/// X` (expectations of quadratic forms, `E[y^T A y] = tr(A Sigma)`). Sigma times a vector
+/// is two running sums, so each averaging factor costs O(n p^2).
+fn random_walk_loss(columns: &[Vec<f64>], tau0: f64, m: &[usize]) -> Vec<f64> {
+    let p = columns.len();
+    let n = columns.first().map_or(0, Vec::len);
+    if p == 0 || n < 4 {
+        return vec![0.0; m.len()];
+    }
+    // Unit-norm columns: H does not depend on their scale, and G stays well conditioned.
+    let x: Vec<Vec<f64>> = columns
+        .iter()
+        .map(|c| {
+            let norm = c
+                .iter()
+                .map(|v| v * v)
+                .sum::<f64>()
+                .sqrt()
+                .max(f64::MIN_POSITIVE);
+            c.iter().map(|v| v / norm).collect()
+        })
+        .collect();
+    // Sigma v with Sigma_ab = min(a, b) (the factor tau0 is applied to the result).
+    let sigma_times = |v: &[f64]| -> Vec<f64> {
+        let mut out = vec![0.0; n];
+        let mut weighted = 0.0;
+        let mut tail: f64 = v.iter().sum();
+        for a in 0..n {
+            weighted += a as f64 * v[a];
+            tail -= v[a];
+            out[a] = weighted + a as f64 * tail;
+        }
+        out
     };
-    // A removal cannot take more than the noise had: where the longest taus' few clusters
-    // make the mean difference of 16 pairs exceed the basis, it is capped below it.
-    let tau0 = 1.0 / record.rate_hz;
-    let capped = |loss: Vec<f64>, column: usize| -> Vec<f64> {
-        loss.iter()
-            .zip(record.m)
-            .map(|(l, &m)| l.min(MAX_SHARE * fit::basis(m as f64 * tau0)[column]))
+    let sx: Vec<Vec<f64>> = x.iter().map(|c| sigma_times(c)).collect();
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
+    let gram: Vec<Vec<f64>> = (0..p)
+        .map(|j| (0..p).map(|k| dot(&x[j], &x[k])).collect())
+        .collect();
+    let s: Vec<Vec<f64>> = (0..p)
+        .map(|j| (0..p).map(|k| dot(&x[j], &sx[k])).collect())
+        .collect();
+    let Some(g) = fit::invert_spd(&gram) else {
+        return vec![0.0; m.len()];
+    };
+    let prefix = |c: &[f64]| -> Vec<f64> {
+        let mut out = Vec::with_capacity(n + 1);
+        let mut acc = 0.0;
+        out.push(0.0);
+        for v in c {
+            acc += v;
+            out.push(acc);
+        }
+        out
+    };
+    let px: Vec<Vec<f64>> = x.iter().map(|c| prefix(c)).collect();
+    let psx: Vec<Vec<f64>> = sx.iter().map(|c| prefix(c)).collect();
+    let mat_mul = |a: &[Vec<f64>], b: &[Vec<f64>]| -> Vec<Vec<f64>> {
+        (0..p)
+            .map(|i| {
+                (0..p)
+                    .map(|j| (0..p).map(|k| a[i][k] * b[k][j]).sum())
+                    .collect()
+            })
             .collect()
     };
-    let unit = |k: f64, b: f64| NoiseTerms {
-        k,
-        b,
-        ..NoiseTerms::default()
-    };
-    Some(Loss {
-        k: capped(mean(unit(1.0, 0.0)), fit::K),
-        b: capped(mean(unit(0.0, 1.0)), fit::B),
-    })
+    let trace = |a: &[Vec<f64>]| (0..p).map(|i| a[i][i]).sum::<f64>();
+    let gsg = mat_mul(&mat_mul(&g, &s), &g);
+    m.par_iter()
+        .map(|&m| {
+            if n < 2 * m {
+                return 0.0;
+            }
+            let l = n + 1 - 2 * m;
+            let mut utu = vec![vec![0.0; p]; p];
+            let mut wtu = vec![vec![0.0; p]; p];
+            let mut u = vec![0.0; p];
+            let mut w = vec![0.0; p];
+            for i in 0..l {
+                for j in 0..p {
+                    u[j] = px[j][i + 2 * m] - 2.0 * px[j][i + m] + px[j][i];
+                    w[j] = psx[j][i + 2 * m] - 2.0 * psx[j][i + m] + psx[j][i];
+                }
+                for j in 0..p {
+                    for k in 0..p {
+                        utu[j][k] += u[j] * u[k];
+                        wtu[j][k] += w[j] * u[k];
+                    }
+                }
+            }
+            let term1 = trace(&mat_mul(&g, &wtu));
+            let term2 = trace(&mat_mul(&gsg, &utu));
+            let c = 1.0 / (2.0 * (m * m) as f64 * l as f64);
+            // Sigma above is min(a, b); the random walk's is tau0 times that.
+            (tau0 * c * (2.0 * term1 - term2)).max(0.0)
+        })
+        .collect()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::model::refit::{self, Column, Curve};
+
+    /// The exact random-walk loss against paired simulations of a ramp and a tone removed
+    /// from 200 s at 10 Hz, out to a quarter of the record where a few clusters remain: the
+    /// mean difference of 3000 pairs within four of its standard errors at every tau.
+    #[test]
+    fn the_exact_random_walk_loss_matches_simulation() {
+        let (rate_hz, len) = (10.0, 2000);
+        let m = [1, 10, 40, 160, 500];
+        let removal = Removal {
+            ramp: true,
+            tones: vec![crate::model::clean::Tone {
+                freq_hz: 0.031,
+                guard_hz: 0.01,
+            }],
+            ..Removal::default()
+        };
+        let exact = random_walk_loss(&removal.design(len, rate_hz, None), 1.0 / rate_hz, &m);
+        let pairs = 3000;
+        let diffs: Vec<Vec<f64>> = (0..pairs)
+            .map(|i| {
+                let mut rng = ChaCha8Rng::seed_from_u64(50_000 + i);
+                let unit = NoiseTerms {
+                    k: 1.0,
+                    ..NoiseTerms::default()
+                };
+                let raw = AxisNoise::new(unit, rate_hz, 200.0, &mut rng).take(len, &mut rng);
+                let (clean, _) = removal.apply(&raw, rate_hz, None);
+                let before = allan_avar(raw, rate_hz, &m);
+                let after = allan_avar(clean, rate_hz, &m);
+                before.iter().zip(after).map(|(b, a)| b - a).collect()
+            })
+            .collect();
+        for (j, e) in exact.iter().enumerate() {
+            let mean = diffs.iter().map(|d| d[j]).sum::<f64>() / pairs as f64;
+            let var = diffs.iter().map(|d| (d[j] - mean).powi(2)).sum::<f64>() / (pairs - 1) as f64;
+            let se = (var / pairs as f64).sqrt();
+            assert!(
+                (e - mean).abs() < 4.0 * se,
+                "m {}: exact {e}, simulated {mean} +- {se}",
+                m[j]
+            );
+            assert!(*e > 0.0, "m {}: {e}", m[j]);
+        }
+    }
 
     /// A random walk's Allan variance after detrending: the measured loss grows as tau^2 with
     /// the coefficient `(1 - 3/5) K^2 / T` to first order, less the overlapping estimator's end
