@@ -295,9 +295,12 @@ pub struct Evidence {
     /// The effect the measured record's statistic estimates (none when the view found none).
     pub effect: Option<Effect>,
     pub statistic: f64,
+    /// Mean and standard deviation of the statistic under the model: over the realisations,
+    /// or of its exact law (chi-square's `k` and `sqrt(2 k)`).
     pub sim_mean: f64,
     pub sim_sd: f64,
-    pub sim_max: f64,
+    /// The largest simulated statistic; None when the law is exact (no realisations).
+    pub sim_max: Option<f64>,
     pub p_value: f64,
     pub z: f64,
     /// The p-value a candidate must be below to be named in its round:
@@ -351,11 +354,7 @@ impl Evidence {
             / (simulated.len().max(2) - 1) as f64;
         let max = simulated.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let (statistic, effect) = measured;
-        // Clamped where the normal quantile runs out of double precision (p below 1e-300)
-        // and, symmetrically, where p is 1.
-        let z = Normal::standard()
-            .inverse_cdf((1.0 - p_value).clamp(1e-300, 1.0 - 1e-300))
-            .clamp(-40.0, 40.0);
+        let z = z_of(p_value);
         let p_needed = super::FAMILY_ALPHA / candidates.max(1) as f64;
         Evidence {
             candidate,
@@ -364,11 +363,47 @@ impl Evidence {
             statistic,
             sim_mean: mean,
             sim_sd: var.sqrt(),
-            sim_max: max,
+            sim_max: Some(max),
             p_value,
             z,
             p_needed,
-            passes: super::names(statistic, p_value, p_needed, max) && effect.is_some(),
+            passes: super::names(statistic, p_value, p_needed, Some(max)) && effect.is_some(),
         }
     }
+
+    /// Evidence whose statistic follows chi-square with `dof` degrees of freedom under the
+    /// model, with that law's `p_value`.
+    pub fn exact(
+        candidate: &'static str,
+        view: View,
+        measured: (f64, Option<Effect>),
+        dof: usize,
+        p_value: f64,
+        candidates: usize,
+    ) -> Evidence {
+        let (statistic, effect) = measured;
+        let z = z_of(p_value);
+        let p_needed = super::FAMILY_ALPHA / candidates.max(1) as f64;
+        Evidence {
+            candidate,
+            view,
+            effect,
+            statistic,
+            sim_mean: dof as f64,
+            sim_sd: (2.0 * dof as f64).sqrt(),
+            sim_max: None,
+            p_value,
+            z,
+            p_needed,
+            passes: super::names(statistic, p_value, p_needed, None) && effect.is_some(),
+        }
+    }
+}
+
+/// The standard normal quantile of `1 - p`, clamped where the quantile runs out of double
+/// precision (p below 1e-300) and, symmetrically, where p is 1.
+fn z_of(p_value: f64) -> f64 {
+    Normal::standard()
+        .inverse_cdf((1.0 - p_value).clamp(1e-300, 1.0 - 1e-300))
+        .clamp(-40.0, 40.0)
 }

@@ -54,6 +54,7 @@
 
 pub mod clean;
 pub mod evidence;
+pub mod gls;
 pub mod refit;
 pub mod regression;
 pub mod report;
@@ -78,12 +79,6 @@ use std::f64::consts::PI;
 /// Chance, per round, that pure noise gets some candidate named: split evenly over the
 /// candidates of the round (Bonferroni).
 pub const FAMILY_ALPHA: f64 = 0.01;
-/// The regressor tests draw this many times the round's realisations: each costs only a
-/// synthesis and a least-squares pass, and Hotelling's penalty for a covariance estimated
-/// from R draws is steep at the naming level — at p = 1.4e-3 a two-coefficient statistic
-/// must reach 18.4 with R = 24 and 15.4 with R = 48, against chi-square's 13.1 (one
-/// coefficient: 13.0, 11.4, 10.2).
-pub const REGRESSION_REALISATIONS: usize = 2;
 /// Most effects named.
 pub const MAX_STEPS: usize = 4;
 /// |z| above this marks a disagreeing tau of the Allan curve.
@@ -92,10 +87,10 @@ pub const Z_DISAGREE: f64 = 2.0;
 /// sensor's own low-pass filter.
 pub const GAUSS_MARKOV_MIN_SAMPLES: f64 = 10.0;
 
-/// The naming rule: the p-value against the simulated distribution below `p_needed`, and the
-/// measured statistic above every simulated one.
-pub fn names(statistic: f64, p_value: f64, p_needed: f64, sim_max: f64) -> bool {
-    p_value < p_needed && statistic > sim_max
+/// The naming rule: the p-value below `p_needed`, and the measured statistic above every
+/// simulated one (`sim_max`, where the law comes from realisations).
+pub fn names(statistic: f64, p_value: f64, p_needed: f64, sim_max: Option<f64>) -> bool {
+    p_value < p_needed && sim_max.is_none_or(|max| statistic > max)
 }
 
 /// Settings of [`run`].
@@ -989,11 +984,15 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
             evidence::statistics(&realise(&open, i), &[Probe::SlowLine], &open_ctx, false)[0].0
         })
         .collect();
+    let regressors = probes
+        .iter()
+        .any(|p| matches!(p, Probe::Ramp | Probe::Temperature));
+    let gls = regressors
+        .then(|| gls::Estimator::new(&open, data.rate_hz, data.rate.len()))
+        .flatten();
     let setup = regression::Setup {
         view: &ctx,
-        open: &open,
-        realisations: REGRESSION_REALISATIONS * r,
-        realise: &realise,
+        gls: gls.as_ref(),
         candidates: probes.len(),
     };
     let evidence = probes

@@ -188,7 +188,7 @@ impl AxisNoise {
     pub fn new(terms: NoiseTerms, rate_hz: f64, duration_s: f64, rng: &mut impl Rng) -> Self {
         let tau0 = 1.0 / rate_hz;
         let flicker = if terms.b > 0.0 {
-            flicker_bank(terms.b, tau0, 10.0 * duration_s.max(tau0), rng)
+            flicker_bank(terms.b, tau0, flicker_tau_max(duration_s, tau0), rng)
         } else {
             Vec::new()
         };
@@ -259,16 +259,28 @@ pub fn flicker_white_density(b: f64, tau0: f64) -> f64 {
     (2.0 * b * b * ratio.ln() / PI * tau0 / (ratio - 1.0)).sqrt()
 }
 
-/// First-order processes with correlation times from `tau0` to `tau_max`, geometrically
-/// spaced, each of variance B^2 ln(r) / pi, started in their stationary state, grouped into
-/// levels by how coarsely they may be stepped.
-fn flicker_bank(b: f64, tau0: f64, tau_max: f64, rng: &mut impl Rng) -> Vec<FlickerLevel> {
+/// The flicker bank's first-order processes as `(sigma, tau_c)`: correlation times from
+/// `tau0` to `tau_max`, [`FLICKER_POLES_PER_DECADE`] per decade, each of variance
+/// `B^2 ln(r) / pi` (r the ratio of neighbouring correlation times). Their summed spectrum
+/// is `B^2 / (2 pi f)` over the band (two-sided, as IEEE 952 Table C.1's flicker).
+pub fn flicker_poles(b: f64, tau0: f64, tau_max: f64) -> impl Iterator<Item = (f64, f64)> {
     let ratio = 10f64.powf(1.0 / FLICKER_POLES_PER_DECADE);
     let sigma = b * (ratio.ln() / PI).sqrt();
     let count = ((tau_max / tau0).log10() * FLICKER_POLES_PER_DECADE).ceil() as i32 + 1;
+    (0..count.max(0)).map(move |i| (sigma, tau0 * ratio.powi(i)))
+}
+
+/// The longest correlation time of the flicker bank synthesised for a record of
+/// `duration_s`: ten record lengths, so the flicker spectrum holds over the whole record.
+pub fn flicker_tau_max(duration_s: f64, tau0: f64) -> f64 {
+    10.0 * duration_s.max(tau0)
+}
+
+/// [`flicker_poles`] grouped into levels by how coarsely they may be stepped, each process
+/// started in its stationary state.
+fn flicker_bank(b: f64, tau0: f64, tau_max: f64, rng: &mut impl Rng) -> Vec<FlickerLevel> {
     let mut levels: Vec<FlickerLevel> = Vec::new();
-    for i in 0..count {
-        let tau_c = tau0 * ratio.powi(i);
+    for (sigma, tau_c) in flicker_poles(b, tau0, tau_max) {
         // Highest level l with FLICKER_KNOT_SPACING * 2^l <= tau_c / tau0.
         let level = (tau_c / tau0 / FLICKER_KNOT_SPACING)
             .log2()
