@@ -353,22 +353,8 @@ impl Evidence {
         let var = simulated.iter().map(|v| (v - mean).powi(2)).sum::<f64>()
             / (simulated.len().max(2) - 1) as f64;
         let max = simulated.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let (statistic, effect) = measured;
-        let z = z_of(p_value);
-        let p_needed = super::FAMILY_ALPHA / candidates.max(1) as f64;
-        Evidence {
-            candidate,
-            view,
-            effect,
-            statistic,
-            sim_mean: mean,
-            sim_sd: var.sqrt(),
-            sim_max: Some(max),
-            p_value,
-            z,
-            p_needed,
-            passes: super::names(statistic, p_value, p_needed, Some(max)) && effect.is_some(),
-        }
+        let null = (mean, var.sqrt(), Some(max));
+        Evidence::under(candidate, view, measured, null, p_value, candidates)
     }
 
     /// Evidence whose statistic follows chi-square with `dof` degrees of freedom under the
@@ -381,21 +367,35 @@ impl Evidence {
         p_value: f64,
         candidates: usize,
     ) -> Evidence {
+        let dof = dof as f64;
+        let null = (dof, (2.0 * dof).sqrt(), None);
+        Evidence::under(candidate, view, measured, null, p_value, candidates)
+    }
+
+    /// Evidence from the statistic's null mean, sd and (simulated) maximum and its p-value.
+    fn under(
+        candidate: &'static str,
+        view: View,
+        measured: (f64, Option<Effect>),
+        null: (f64, f64, Option<f64>),
+        p_value: f64,
+        candidates: usize,
+    ) -> Evidence {
         let (statistic, effect) = measured;
-        let z = z_of(p_value);
+        let (sim_mean, sim_sd, sim_max) = null;
         let p_needed = super::FAMILY_ALPHA / candidates.max(1) as f64;
         Evidence {
             candidate,
             view,
             effect,
             statistic,
-            sim_mean: dof as f64,
-            sim_sd: (2.0 * dof as f64).sqrt(),
-            sim_max: None,
+            sim_mean,
+            sim_sd,
+            sim_max,
             p_value,
-            z,
+            z: z_of(p_value),
             p_needed,
-            passes: super::names(statistic, p_value, p_needed, None) && effect.is_some(),
+            passes: super::names(statistic, p_value, p_needed, sim_max) && effect.is_some(),
         }
     }
 }

@@ -266,6 +266,12 @@ mod tests {
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
+    /// `n` samples of `terms` at `rate` Hz, seed `seed`.
+    fn series(terms: NoiseTerms, rate: f64, n: usize, seed: u64) -> Vec<f64> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        AxisNoise::new(terms, rate, n as f64 / rate, &mut rng).take(n, &mut rng)
+    }
+
     /// The computed covariance of block means against the sample covariance of many
     /// simulated series, every term at once: each entry within 4 standard errors (the
     /// sample covariance of R draws has standard error `sqrt((S_ii S_jj + S_ij^2) / R)`).
@@ -289,9 +295,7 @@ mod tests {
         let r = 20_000;
         let mut sum = vec![0.0; 64];
         for seed in 0..r {
-            let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let mut g = AxisNoise::new(terms, rate, n as f64 / rate, &mut rng);
-            let means = blocks.means(&g.take(n, &mut rng));
+            let means = blocks.means(&series(terms, rate, n, seed));
             for i in 0..8 {
                 for j in 0..8 {
                     sum[i * 8 + j] += means[i] * means[j] / r as f64;
@@ -329,9 +333,12 @@ mod tests {
         let mut walds = Vec::with_capacity(r);
         let mut stated = 0.0;
         for seed in 0..r as u64 {
-            let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let mut g = AxisNoise::new(terms, rate, n as f64 / rate, &mut rng);
-            let f = fit(&whitener, &columns, &blocks.means(&g.take(n, &mut rng))).unwrap();
+            let f = fit(
+                &whitener,
+                &columns,
+                &blocks.means(&series(terms, rate, n, seed)),
+            )
+            .unwrap();
             slopes.push(f.beta[1]);
             walds.push(wald(&f, &[1]).unwrap());
             stated = f.cov[1][1];
