@@ -295,12 +295,9 @@ pub struct Evidence {
     /// The effect the measured record's statistic estimates (none when the view found none).
     pub effect: Option<Effect>,
     pub statistic: f64,
-    /// Mean and standard deviation of the statistic under the model: over the realisations,
-    /// or of its exact law (chi-square's `k` and `sqrt(2 k)`).
     pub sim_mean: f64,
     pub sim_sd: f64,
-    /// The largest simulated statistic; None when the law is exact (no realisations).
-    pub sim_max: Option<f64>,
+    pub sim_max: f64,
     pub p_value: f64,
     pub z: f64,
     /// The p-value a candidate must be below to be named in its round:
@@ -318,24 +315,7 @@ impl Evidence {
         simulated: &[f64],
         candidates: usize,
     ) -> Evidence {
-        let clamped: Vec<f64> = simulated.iter().map(|v| v.max(0.0)).collect();
-        let r = clamped.len().max(1) as f64;
-        let mean = clamped.iter().sum::<f64>() / r;
-        let var = clamped.iter().map(|v| (v - mean).powi(2)).sum::<f64>()
-            / (clamped.len().max(2) - 1) as f64;
-        let statistic = measured.0;
-        let p_value = if mean > 0.0 && var > 0.0 {
-            let k = 2.0 * mean * mean / var;
-            let scale = var / (2.0 * mean);
-            match ChiSquared::new(k) {
-                Ok(chi) => chi.sf(statistic.max(0.0) / scale),
-                Err(_) => 1.0,
-            }
-        } else if statistic > 0.0 {
-            0.0
-        } else {
-            1.0
-        };
+        let p_value = scaled_chi_square_p(measured.0, simulated);
         Evidence::with_p(candidate, view, measured, simulated, p_value, candidates)
     }
 
@@ -353,57 +333,49 @@ impl Evidence {
         let var = simulated.iter().map(|v| (v - mean).powi(2)).sum::<f64>()
             / (simulated.len().max(2) - 1) as f64;
         let max = simulated.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let null = (mean, var.sqrt(), Some(max));
-        Evidence::under(candidate, view, measured, null, p_value, candidates)
-    }
-
-    /// Evidence whose statistic follows chi-square with `dof` degrees of freedom under the
-    /// model, with that law's `p_value`.
-    pub fn exact(
-        candidate: &'static str,
-        view: View,
-        measured: (f64, Option<Effect>),
-        dof: usize,
-        p_value: f64,
-        candidates: usize,
-    ) -> Evidence {
-        let dof = dof as f64;
-        let null = (dof, (2.0 * dof).sqrt(), None);
-        Evidence::under(candidate, view, measured, null, p_value, candidates)
-    }
-
-    /// Evidence from the statistic's null mean, sd and (simulated) maximum and its p-value.
-    fn under(
-        candidate: &'static str,
-        view: View,
-        measured: (f64, Option<Effect>),
-        null: (f64, f64, Option<f64>),
-        p_value: f64,
-        candidates: usize,
-    ) -> Evidence {
         let (statistic, effect) = measured;
-        let (sim_mean, sim_sd, sim_max) = null;
+        // Clamped where the normal quantile runs out of double precision (p below 1e-300)
+        // and, symmetrically, where p is 1.
+        let z = Normal::standard()
+            .inverse_cdf((1.0 - p_value).clamp(1e-300, 1.0 - 1e-300))
+            .clamp(-40.0, 40.0);
         let p_needed = super::FAMILY_ALPHA / candidates.max(1) as f64;
         Evidence {
             candidate,
             view,
             effect,
             statistic,
-            sim_mean,
-            sim_sd,
-            sim_max,
+            sim_mean: mean,
+            sim_sd: var.sqrt(),
+            sim_max: max,
             p_value,
-            z: z_of(p_value),
+            z,
             p_needed,
-            passes: super::names(statistic, p_value, p_needed, sim_max) && effect.is_some(),
+            passes: super::names(statistic, p_value, p_needed, max) && effect.is_some(),
         }
     }
 }
 
-/// The standard normal quantile of `1 - p`, clamped where the quantile runs out of double
-/// precision (p below 1e-300) and, symmetrically, where p is 1.
-fn z_of(p_value: f64) -> f64 {
-    Normal::standard()
-        .inverse_cdf((1.0 - p_value).clamp(1e-300, 1.0 - 1e-300))
-        .clamp(-40.0, 40.0)
+/// `P(s chi2_k > statistic)` for the scaled chi-square with the mean and variance of the
+/// `simulated` values clamped at 0 (Satterthwaite, 1946: `k = 2 mean^2 / var`, `s = var /
+/// (2 mean)`). When every simulated value is 0 the statistic stands on its own: p is 0 if
+/// it is positive, else 1.
+pub fn scaled_chi_square_p(statistic: f64, simulated: &[f64]) -> f64 {
+    let clamped: Vec<f64> = simulated.iter().map(|v| v.max(0.0)).collect();
+    let r = clamped.len().max(1) as f64;
+    let mean = clamped.iter().sum::<f64>() / r;
+    let var =
+        clamped.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (clamped.len().max(2) - 1) as f64;
+    if mean > 0.0 && var > 0.0 {
+        let k = 2.0 * mean * mean / var;
+        let scale = var / (2.0 * mean);
+        match ChiSquared::new(k) {
+            Ok(chi) => chi.sf(statistic.max(0.0) / scale),
+            Err(_) => 1.0,
+        }
+    } else if statistic > 0.0 {
+        0.0
+    } else {
+        1.0
+    }
 }

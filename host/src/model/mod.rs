@@ -79,6 +79,9 @@ use std::f64::consts::PI;
 /// Chance, per round, that pure noise gets some candidate named: split evenly over the
 /// candidates of the round (Bonferroni).
 pub const FAMILY_ALPHA: f64 = 0.01;
+/// Series drawn under the null for each regressor test: a draw is a few hundred block
+/// means and a restricted-likelihood fit, not a synthesis of the record.
+pub const REGRESSION_DRAWS: usize = 48;
 /// Most effects named.
 pub const MAX_STEPS: usize = 4;
 /// |z| above this marks a disagreeing tau of the Allan curve.
@@ -87,10 +90,10 @@ pub const Z_DISAGREE: f64 = 2.0;
 /// sensor's own low-pass filter.
 pub const GAUSS_MARKOV_MIN_SAMPLES: f64 = 10.0;
 
-/// The naming rule: the p-value below `p_needed`, and the measured statistic above every
-/// simulated one (`sim_max`, where the law comes from realisations).
-pub fn names(statistic: f64, p_value: f64, p_needed: f64, sim_max: Option<f64>) -> bool {
-    p_value < p_needed && sim_max.is_none_or(|max| statistic > max)
+/// The naming rule: the p-value against the simulated distribution below `p_needed`, and the
+/// measured statistic above every simulated one.
+pub fn names(statistic: f64, p_value: f64, p_needed: f64, sim_max: f64) -> bool {
+    p_value < p_needed && statistic > sim_max
 }
 
 /// Settings of [`run`].
@@ -984,15 +987,12 @@ fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
             evidence::statistics(&realise(&open, i), &[Probe::SlowLine], &open_ctx, false)[0].0
         })
         .collect();
-    let regressors = probes
-        .iter()
-        .any(|p| matches!(p, Probe::Ramp | Probe::Temperature));
-    let gls = regressors
-        .then(|| gls::Estimator::new(&open, data.rate_hz, data.rate.len()))
-        .flatten();
+    let gls = gls::Estimator::new(&open, data.rate_hz, data.rate.len());
     let setup = regression::Setup {
         view: &ctx,
-        gls: gls.as_ref(),
+        gls: &gls,
+        draws: REGRESSION_DRAWS,
+        seed: data.settings.seed,
         candidates: probes.len(),
     };
     let evidence = probes

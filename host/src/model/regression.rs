@@ -1,43 +1,43 @@
 //! Whether the rate follows a regressor — time (a ramp) or the temperature channel and its
-//! derivative — tested by a Wald statistic under the round's open noise model.
+//! derivative — tested by a likelihood ratio calibrated by a parametric bootstrap
+//! ([`super::gls`]).
 //!
-//! The coefficients (one for a ramp, two for temperature) are estimated jointly with the
-//! constant and the effects already named ([`super::clean`]) by generalised least squares on
-//! block means ([`super::gls`]), whose covariance comes from the **open noise model**: the
-//! random terms refitted to the record with every deterministic candidate removed — ramp,
-//! temperature and the strongest slow line (the alternative's noise model, as a Wald test
-//! takes it). With that covariance `C` of the tested coefficients `c`, `T^2 = c^T C^-1 c`
-//! follows chi-square with as many degrees of freedom as coefficients when the regressor
-//! plays no part, which gives the p-value exactly: no covariance is estimated from
-//! realisations, so there is no Hotelling penalty (at the naming level, p = 1.4e-3, two
-//! coefficients from 48 draws need 15.4 where chi-square needs 13.1). The effect shown is
-//! the least-squares coefficient, the one the removal takes out of the record.
+//! The record, with the lines already named notched out, is cut into block means; the fixed
+//! effects are a constant, the regressors already named ([`super::clean`]) and the
+//! candidate's (one column for a ramp, two for temperature). The noise is the round's **open
+//! noise model** — the random terms refitted to the record with every deterministic
+//! candidate removed (ramp, temperature, the strongest slow line) — for its white noise,
+//! quantization and Gauss-Markov terms; its flicker and random-walk levels are re-estimated
+//! from the block means on each side of the ratio, and the bootstrap draws come from the
+//! levels the record shows without the candidate. The p-value is the scaled chi-square
+//! matched to [`super::REGRESSION_DRAWS`] draws, as for the other simulated views
+//! ([`super::evidence::Evidence::new`]). The effect shown is the least-squares coefficient,
+//! the one the removal takes out of the record.
 //!
-//! Why the open model: a baseline fitted to the raw record has absorbed the effects — a
-//! temperature cycle, a ramp or a slow sinusoid inflates K — and that inflated random walk
-//! projects onto any smooth regressor as strongly as the effect itself, so the test would
-//! have almost no power exactly when the effect is large, and one effect would hide another
-//! (a slow sinusoid beside a temperature coupling: 3 of 10 records named nothing when each
-//! regressor was removed alone). The refit gives back what the regressors take from the
-//! random walk and flicker ([`super::restore`]).
+//! Why the open model's short-tau terms: a baseline fitted to the raw record has absorbed
+//! the effects — a temperature cycle, a ramp or a slow sinusoid inflates K — and it is K and
+//! B, the terms an absorbed effect moves, that each likelihood estimates afresh.
 //!
-//! **Limit.** K is taken as the refit gives it, not as uncertain: a record whose random walk
-//! came out low can still show a ramp. Its GLS statistic leans on the frequencies where the
-//! white noise dominates, which makes it less sensitive to K than least squares.
+//! **Limit.** A ramp and a random walk's own trend differ only in the wander the random walk
+//! adds at minutes, and a record gives the random walk's level only roughly: ramps that raise
+//! the Allan deviation at a quarter of the record three times are found in about a quarter
+//! of records, six times in nearly all (see [`super::gls`]).
 
 use super::Effect;
 use super::clean::{Removal, notch};
 use super::evidence::{Context, Evidence, Probe};
-use super::gls::{Estimator, wald};
-use statrs::distribution::{ChiSquared, ContinuousCDF};
+use super::gls::{Estimator, Studentised};
 
 /// What a regressor test needs besides the record.
 pub struct Setup<'a> {
     /// The round's record, removal and temperature, as the other views see them.
     pub view: &'a Context<'a>,
-    /// GLS under the round's open noise model (see `super::open_noise`); None when that
-    /// model has no noise at all.
-    pub gls: Option<&'a Estimator>,
+    /// GLS under the round's open noise model (see `super::open_noise`): its white noise,
+    /// quantization and Gauss-Markov terms, its flicker and random-walk levels re-estimated.
+    pub gls: &'a Estimator,
+    /// Series drawn under the null, and the seed of the first.
+    pub draws: usize,
+    pub seed: u64,
     /// Candidates in the round (for the Bonferroni share).
     pub candidates: usize,
 }
@@ -79,26 +79,28 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
         },
     };
     let indices = positions(probe, &more);
-    let dof = indices.len();
-    let statistic = s.gls.and_then(|gls| {
-        let notched = if more.notches.is_empty() {
-            x.to_vec()
-        } else {
-            notch(x, view.rate_hz, &more.notches)
-        };
-        let mut columns = vec![vec![1.0; x.len()]];
-        columns.extend(more.design(x.len(), view.rate_hz, view.temperature));
-        let shifted: Vec<usize> = indices.iter().map(|i| i + 1).collect();
-        wald(&gls.fit(&columns, &notched)?, &shifted)
-    });
-    let statistic = statistic.unwrap_or(0.0);
-    let p_value = ChiSquared::new(dof as f64).map_or(1.0, |chi| chi.sf(statistic));
-    Evidence::exact(
+    let null = studentised(x, &more, &indices, s);
+    let (statistic, simulated) = null.map_or((0.0, Vec::new()), |t| (t.statistic, t.null));
+    Evidence::new(
         probe.name(),
         probe.view(),
         (statistic, Some(effect)),
-        dof,
-        p_value,
+        &simulated,
         s.candidates,
     )
+}
+
+/// The studentised test ([`Estimator::test`]) of the regressors at `indices` of
+/// `removal`'s design, on the notched record `x`, with a constant beside them.
+fn studentised(x: &[f64], removal: &Removal, indices: &[usize], s: &Setup) -> Option<Studentised> {
+    let view = s.view;
+    let notched = if removal.notches.is_empty() {
+        x.to_vec()
+    } else {
+        notch(x, view.rate_hz, &removal.notches)
+    };
+    let mut columns = vec![vec![1.0; x.len()]];
+    columns.extend(removal.design(x.len(), view.rate_hz, view.temperature));
+    let shifted: Vec<usize> = indices.iter().map(|i| i + 1).collect();
+    s.gls.test(&columns, &shifted, &notched, s.draws, s.seed)
 }
