@@ -6,8 +6,8 @@
 //! |---|---|---|
 //! | spectral line | line detector on the cleaned series | the strongest line's detection statistic |
 //! | slow line | low-frequency periodogram ([`super::spectrum`]) | the largest bin over the fitted background |
-//! | rate ramp | regression on time | Wald statistic of the slope ([`super::regression`]) |
-//! | temperature | regression on temperature and its derivative | Wald statistic of both coefficients |
+//! | rate ramp | regression on time | likelihood ratio of the block means with and without the slope ([`super::regression`]) |
+//! | temperature | regression on temperature and its derivative | likelihood ratio with and without both coefficients |
 //! | Gauss-Markov | nested fit of the Allan curve | misfit(model') - misfit(model' + term), model' the model with B and K free, both refitted |
 //! | B, K, Q | nested fit of the Allan curve | misfit(model) - misfit(model + term), both refitted |
 //! | the sensor's low-pass | PSD roll-off ([`crate::analysis::low_pass::detect_outside`]) | likelihood ratio of a filter against none, the removed lines' bands left out |
@@ -35,9 +35,9 @@ use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
 pub enum View {
     /// The spectral-line detector.
     Lines,
-    /// Wald test of the regression of the rate on time.
+    /// Likelihood-ratio test of the regression of the rate on time.
     RegressionOnTime,
-    /// Wald test of the regression of the rate on temperature and its derivative.
+    /// Likelihood-ratio test of the regression of the rate on temperature and its derivative.
     RegressionOnTemperature,
     /// Misfit drop of the Allan curve when the term joins the model.
     NestedFit,

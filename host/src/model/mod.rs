@@ -14,10 +14,11 @@
 //! **Evidence** ([`evidence`]). Every candidate effect has a statistic computed by one
 //! function on the measured record and on each realisation, after the effects already named
 //! are removed from both ([`clean`]): the strongest spectral line, the strongest slow line
-//! of the low-frequency periodogram ([`spectrum`]), the Wald statistic of a regression on
+//! of the low-frequency periodogram ([`spectrum`]), the likelihood ratio of a regression on
 //! time or on temperature ([`regression`]), the misfit drop of a nested Allan fit
 //! (Gauss-Markov, B, K, Q). Its p-value is taken from the realisations' distribution of the
-//! same statistic. The realisations carry the notched lines too (see `realise`); slow
+//! same statistic (for the regressors, from series drawn from the block-mean covariance of
+//! the noise without the regressor: [`gls`]). The realisations carry the notched lines too (see `realise`); slow
 //! tones are regressors, removed from both alike ([`clean`]).
 //!
 //! **Naming rule** ([`names`]). A candidate is named when its p-value against the simulated

@@ -64,7 +64,7 @@ fn with_regressor(removal: &Removal, probe: Probe) -> Removal {
     more
 }
 
-/// The Wald test of `probe` (a ramp or a temperature coupling) on the record `x`.
+/// The likelihood-ratio test of `probe` (a ramp or a temperature coupling) on the record `x`.
 pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
     let view = s.view;
     let more = with_regressor(view.removal, probe);
