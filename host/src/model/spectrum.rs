@@ -168,6 +168,9 @@ pub struct Banded<'a> {
     bands: Vec<(usize, usize)>,
     /// Mean power per band.
     mean: Vec<f64>,
+    /// Each [`NOISE`] shape's band means: they depend on the bins and the filter alone, and
+    /// every fit of the series uses them (the filter's folded gain is costly to evaluate).
+    columns: Vec<(Shape, Vec<f64>)>,
 }
 
 /// A fitted background: coefficients per shape, the band expectations and the deviance.
@@ -187,12 +190,15 @@ impl<'a> Banded<'a> {
             .iter()
             .map(|&(k, m)| pgram.power[k..k + m].iter().sum::<f64>() / m as f64)
             .collect();
-        Banded {
+        let mut banded = Banded {
             pgram,
             low_pass,
             bands,
             mean,
-        }
+            columns: Vec::new(),
+        };
+        banded.columns = NOISE.iter().map(|&s| (s, banded.column(s))).collect();
+        banded
     }
 
     /// Bands enough for a background of a handful of shapes.
@@ -214,7 +220,15 @@ impl<'a> Banded<'a> {
 
     /// The Whittle fit of `shapes` to the bands not `left_out`.
     pub fn fit(&self, shapes: &[Shape], left_out: &[bool]) -> Background {
-        let columns: Vec<Vec<f64>> = shapes.iter().map(|&s| self.column(s)).collect();
+        let columns: Vec<Vec<f64>> = shapes
+            .iter()
+            .map(|&s| {
+                self.columns
+                    .iter()
+                    .find(|(c, _)| *c == s)
+                    .map_or_else(|| self.column(s), |(_, v)| v.clone())
+            })
+            .collect();
         let keep: Vec<usize> = (0..self.bands.len())
             .filter(|&j| !left_out.get(j).copied().unwrap_or(false) && self.mean[j] > 0.0)
             .collect();
