@@ -26,7 +26,7 @@
 use super::Effect;
 use super::clean::{Removal, notch};
 use super::evidence::{Context, Evidence, Probe};
-use super::gls::{Estimator, Studentised};
+use super::gls::{Bootstrap, Estimator};
 
 /// What a regressor test needs besides the record.
 pub struct Setup<'a> {
@@ -68,7 +68,17 @@ fn with_regressor(removal: &Removal, probe: Probe) -> Removal {
 pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
     let view = s.view;
     let more = with_regressor(view.removal, probe);
-    let (_, c) = more.apply(x, view.rate_hz, view.temperature);
+    // Notched once: the least-squares coefficients and the likelihoods both start there.
+    let notched = if more.notches.is_empty() {
+        x.to_vec()
+    } else {
+        notch(x, view.rate_hz, &more.notches)
+    };
+    let regressors = Removal {
+        notches: Vec::new(),
+        ..more.clone()
+    };
+    let (_, c) = regressors.apply(&notched, view.rate_hz, view.temperature);
     let effect = match probe {
         Probe::Ramp => Effect::RateRamp {
             slope: c.slope.unwrap_or(0.0),
@@ -79,7 +89,7 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
         },
     };
     let indices = positions(probe, &more);
-    let null = studentised(x, &more, &indices, s);
+    let null = bootstrap(&notched, &more, &indices, s);
     let (statistic, simulated) = null.map_or((0.0, Vec::new()), |t| (t.statistic, t.null));
     Evidence::new(
         probe.name(),
@@ -90,17 +100,18 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
     )
 }
 
-/// The studentised test ([`Estimator::test`]) of the regressors at `indices` of
-/// `removal`'s design, on the notched record `x`, with a constant beside them.
-fn studentised(x: &[f64], removal: &Removal, indices: &[usize], s: &Setup) -> Option<Studentised> {
+/// The bootstrap test ([`Estimator::test`]) of the regressors at `indices` of `removal`'s
+/// design, on the notched record, with a constant beside them.
+fn bootstrap(
+    notched: &[f64],
+    removal: &Removal,
+    indices: &[usize],
+    s: &Setup,
+) -> Option<Bootstrap> {
     let view = s.view;
-    let notched = if removal.notches.is_empty() {
-        x.to_vec()
-    } else {
-        notch(x, view.rate_hz, &removal.notches)
-    };
+    let x = notched;
     let mut columns = vec![vec![1.0; x.len()]];
     columns.extend(removal.design(x.len(), view.rate_hz, view.temperature));
     let shifted: Vec<usize> = indices.iter().map(|i| i + 1).collect();
-    s.gls.test(&columns, &shifted, &notched, s.draws, s.seed)
+    s.gls.test(&columns, &shifted, x, s.draws, s.seed)
 }
