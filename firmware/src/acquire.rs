@@ -17,27 +17,35 @@
 //! internal) exceed what 400 kHz can carry (8 kHz needs 2.5x the bus) and are refused by
 //! [`check_supported`].
 //!
-//! **Overflow and the loss count.** A FIFO_COUNT that is not a multiple of 14 (after an
-//! overflow it reads 1024 = 73 * 14 + 2, the head mid-sample) or FIFO_OFLOW in INT_STATUS
-//! after the burst means the bytes are not trustworthy: the burst is discarded, the FIFO reset
-//! and the run resynchronised. After the reset the next drain reads `n` whole samples and
-//! asks the [`SampleGrid`] how many samples the sensor had produced in total by then
-//! (`N`); those `n` samples are indices `N - n .. N` and everything between the last index
-//! delivered and `N - n` is lost, counted in [`Status::samples_lost`]. This is exact because
-//! (1) the FIFO count after a reset counts exactly the samples made since, (2) every drain
-//! before the stall bounded the grid's phase to an interval far shorter than a period, and
-//! (3) the period is the nominal integer period or, if the sensor's oscillator is off, one
-//! re-measured over the whole run; the residual error over a stall of `G` seconds is
-//! `G / run length` periods, far below half a period for any stall the run survives.
-//! [`SampleGrid::produced`] also says whether the bounds make the answer certain.
+//! **Whole samples.** A drain pops `floor(FIFO_COUNT / 14)` samples, as InvenSense's and
+//! ArduPilot's drivers do: a count that is not a multiple of 14 is a sample being written
+//! while the count was read, and its bytes wait for the next drain.
+//!
+//! **Overflow and the loss count.** Only FIFO_OFLOW in INT_STATUS after the burst, or a full
+//! FIFO (a count at the chip's capacity: its head may then be mid-sample), means the bytes
+//! are not trustworthy: the burst is discarded, the FIFO reset and the run resynchronised.
+//! After the reset the next drain reads `n` whole samples and asks the [`SampleGrid`] how
+//! many samples the sensor had produced in total by then (`N`); those `n` samples are
+//! indices `N - n .. N` and everything between the last index delivered and `N - n` is lost,
+//! counted in [`Status::samples_lost`]. This is exact because (1) the FIFO count after a
+//! reset counts exactly the samples made since, (2) every drain before the stall bounded the
+//! grid's phase to an interval far shorter than a period, and (3) the period is the nominal
+//! integer period or, if the sensor's oscillator is off, one re-measured over the whole run;
+//! the residual error over a stall of `G` seconds is `G / run length` periods, far below half
+//! a period for any stall the run survives. [`SampleGrid::produced`] also says whether the
+//! bounds make the answer certain ([`Status::loss_certain`]).
 //!
 //! **Faults.** I2C errors are retried by the driver and counted; a drain that fails is
-//! tried again at the next poll, and after [`GIVE_UP_US`] of failures the sensor is reported
-//! ([`ErrorCode::SensorNotResponding`] or [`ErrorCode::I2cFailure`]) rather than waited on.
-//! A count that contradicts the clock (more samples than the sensor can have made, or far
-//! fewer) is checked against PWR_MGMT_1: a sensor that reset itself reads asleep
-//! ([`ErrorCode::VerifyFailed`] on register 0x6B); otherwise the count itself is at fault
-//! ([`ErrorCode::FifoCountImplausible`]).
+//! tried again at the next poll, and after [`FAILING_FOR_US`] of failures the run ends with
+//! the error ([`ErrorCode::SensorNotResponding`] or [`ErrorCode::I2cFailure`]) for
+//! [`crate::recovery`] to set the sensor up again. A count that contradicts the clock (more
+//! samples than the sensor can have made, or far fewer) is checked against PWR_MGMT_1: a
+//! sensor that reset itself reads asleep ([`ErrorCode::SensorReset`]); otherwise the count
+//! itself is at fault ([`ErrorCode::FifoCountImplausible`]).
+//!
+//! **Resumed runs.** A run started after a fault ([`Resume`]) numbers its samples from the
+//! index the old run's grid gives for the restart time, so the time lost shows as a gap the
+//! host counts, and it starts from the period the old run measured.
 
 use crate::driver::{INT_FIFO_OFLOW, Mpu6050};
 use crate::timing::{Clock, MAX_RATE_ERROR_PERCENT, SampleGrid};
@@ -54,8 +62,8 @@ pub const MAX_RATE_HZ: f64 = 1000.0;
 pub const DRAIN_INTERVAL_MAX_US: u64 = 20_000;
 /// Drain after at most this many sample periods.
 pub const DRAIN_INTERVAL_SAMPLES: u64 = 24;
-/// How long drains may keep failing before the sensor is reported.
-pub const GIVE_UP_US: u64 = 500_000;
+/// How long drains may keep failing before the run ends and recovery takes over.
+pub const FAILING_FOR_US: u64 = 500_000;
 /// Slack, in samples, when checking a count against the clock.
 const COUNT_SLACK: u64 = 2;
 
@@ -78,10 +86,60 @@ pub fn period_us(settings: &SensorSettings) -> u32 {
     internal_period * (1 + u32::from(settings.smplrt_div))
 }
 
+/// Where a run resumed after a fault starts: its first index and the period measured so far.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Resume {
+    pub first_index: u64,
+    /// [`SampleGrid::period_scaled`] of the run before.
+    pub period_scaled: i128,
+}
+
+/// What is left of a run that ended: where its samples stood on the sensor's grid, to count
+/// the loss up to any later moment and resume the numbering from there.
+#[derive(Debug, Clone)]
+pub struct Timeline {
+    grid: SampleGrid,
+    base: u64,
+    next_index: u64,
+}
+
+impl Timeline {
+    /// Index of the next sample that reached a batch.
+    pub fn next_index(&self) -> u64 {
+        self.next_index
+    }
+
+    /// The index the sensor's next sample after `now_us` has, had the run gone on: (index,
+    /// whether the grid makes it certain). Never below [`Timeline::next_index`].
+    pub fn index_at(&self, now_us: u64) -> (u64, bool) {
+        let (produced, certain) = self.grid.produced(now_us, now_us);
+        let index = self.base.saturating_add(produced);
+        (index.max(self.next_index), certain)
+    }
+
+    /// The sensor's sample period the run measured, nanoseconds.
+    pub fn period_ns(&self) -> u32 {
+        self.grid.period_ns()
+    }
+
+    /// Where a run started at `now_us` resumes.
+    pub fn resume_at(&self, now_us: u64) -> Resume {
+        Resume {
+            first_index: self.index_at(now_us).0,
+            period_scaled: self.grid.period_scaled(),
+        }
+    }
+}
+
 /// One run: from [`Acquisition::start`] to stop or fault.
 #[derive(Debug, Clone)]
 pub struct Acquisition {
     grid: SampleGrid,
+    /// Index of the grid's sample 1 minus one: 0 for a fresh run, the resume index after a
+    /// fault.
+    base: u64,
+    /// The chip's FIFO size, bytes: a count this large means the FIFO is full.
+    fifo_capacity: usize,
     period_us: u32,
     /// Index of the next sample read from the FIFO.
     next_index: u64,
@@ -107,22 +165,32 @@ pub struct DrainReport {
 }
 
 impl Acquisition {
-    /// Reset the FIFO and start counting from index 0.
+    /// Reset the FIFO and start counting from index 0, or from where `resume` says.
     pub fn start<I2C: I2c>(
         dev: &mut Mpu6050<I2C>,
         clock: &mut impl Clock,
         settings: &SensorSettings,
+        resume: Option<Resume>,
     ) -> Result<Self, ErrorCode> {
         check_supported(settings)?;
         let period_us = period_us(settings);
         let before = clock.now_us();
         dev.reset_fifo()?;
         let after = clock.now_us();
+        let (grid, base) = match resume {
+            Some(r) => (
+                SampleGrid::with_period(before, after, period_us, r.period_scaled),
+                r.first_index,
+            ),
+            None => (SampleGrid::new(before, after, period_us), 0),
+        };
         Ok(Acquisition {
-            grid: SampleGrid::new(before, after, period_us),
+            grid,
+            base,
+            fifo_capacity: dev.fifo_capacity(),
             period_us,
-            next_index: 0,
-            produced: 0,
+            next_index: base,
+            produced: base,
             known_at_us: before,
             last_drain_us: after,
             resync: false,
@@ -150,6 +218,15 @@ impl Acquisition {
         &self.grid
     }
 
+    /// The run's place on the sensor's grid, kept when the run ends.
+    pub fn timeline(&self) -> Timeline {
+        Timeline {
+            grid: self.grid.clone(),
+            base: self.base,
+            next_index: self.next_index,
+        }
+    }
+
     /// Read what the FIFO holds, hand it to `emit` as batches of consecutive samples and
     /// update `status`. `Err` is a fault that ends the run.
     pub fn drain<I2C: I2c>(
@@ -173,7 +250,7 @@ impl Acquisition {
         let after = clock.now_us();
         let n = u64::from(count) / SAMPLE_BYTES as u64;
         self.check_count(dev, count, n, after)?;
-        if usize::from(count) % SAMPLE_BYTES != 0 {
+        if usize::from(count) >= self.fifo_capacity {
             report.overflowed = true;
             status.fifo_overflows = status.fifo_overflows.saturating_add(1);
             self.reset_fifo(dev, before)?;
@@ -185,7 +262,7 @@ impl Acquisition {
             self.failing_since_us = None;
             return Ok(report);
         }
-        let bytes = &mut self.buf[..usize::from(count)];
+        let bytes = &mut self.buf[..n as usize * SAMPLE_BYTES];
         if let Err(e) = dev.read_fifo(bytes) {
             // Some bytes may have been popped: the FIFO is no longer aligned.
             self.reset_fifo(dev, before)?;
@@ -208,8 +285,9 @@ impl Acquisition {
         self.failing_since_us = None;
         let first_index = if self.resync {
             self.resync = false;
-            let (total, _certain) = self.grid.produced(before, after);
-            let first = total.saturating_sub(n).max(self.next_index);
+            let (total, certain) = self.grid.produced(before, after);
+            status.loss_certain &= certain;
+            let first = (self.base + total).saturating_sub(n).max(self.next_index);
             report.lost = first - self.next_index;
             status.samples_lost = status.samples_lost.saturating_add(report.lost);
             first
@@ -217,7 +295,11 @@ impl Acquisition {
             self.next_index
         };
         self.produced = first_index + n;
-        if self.grid.observe(before, after, self.produced).is_err() {
+        if self
+            .grid
+            .observe(before, after, self.produced - self.base)
+            .is_err()
+        {
             return Err(self.diagnose(dev, count));
         }
         self.known_at_us = before;
@@ -238,12 +320,13 @@ impl Acquisition {
         after: u64,
     ) -> Result<(), ErrorCode> {
         let elapsed = after.saturating_sub(self.known_at_us);
+        let capacity = self.fifo_capacity;
         let period = u64::from(self.period_us);
         let pct = MAX_RATE_ERROR_PERCENT as u64;
         let most = elapsed * (100 + pct) / (100 * period) + COUNT_SLACK;
         let fewest = (elapsed * (100 - pct) / (100 * period)).saturating_sub(COUNT_SLACK);
-        let full = usize::from(count) >= FIFO_SIZE;
-        if usize::from(count) > FIFO_SIZE || (n > most && !full) || (n < fewest && !full) {
+        let full = usize::from(count) >= capacity;
+        if usize::from(count) > capacity || (n > most && !full) || (n < fewest && !full) {
             return Err(self.diagnose(dev, count));
         }
         Ok(())
@@ -252,6 +335,7 @@ impl Acquisition {
     /// Why the count disagrees with the clock: a sensor that reset itself, or a bad count.
     fn diagnose<I2C: I2c>(&mut self, dev: &mut Mpu6050<I2C>, count: u16) -> ErrorCode {
         match dev.check_awake() {
+            Err(ErrorCode::VerifyFailed { .. }) => ErrorCode::SensorReset,
             Err(e) => e,
             Ok(()) => ErrorCode::FifoCountImplausible { count },
         }
@@ -277,10 +361,11 @@ impl Acquisition {
         }
     }
 
-    /// A failed transaction: try again at the next drain, give up after [`GIVE_UP_US`].
+    /// A failed transaction: try again at the next drain, end the run after
+    /// [`FAILING_FOR_US`].
     fn failed(&mut self, now_us: u64, error: ErrorCode) -> Result<(), ErrorCode> {
         let since = *self.failing_since_us.get_or_insert(now_us);
-        if now_us.saturating_sub(since) >= GIVE_UP_US {
+        if now_us.saturating_sub(since) >= FAILING_FOR_US {
             return Err(error);
         }
         Ok(())
@@ -293,7 +378,7 @@ impl Acquisition {
         for chunk in chunks {
             let mut batch = SampleBatch {
                 first_index: index,
-                first_timestamp_us: self.grid.time_of(index),
+                first_timestamp_us: self.grid.time_of(index - self.base),
                 samples: heapless::Vec::new(),
             };
             for bytes in chunk.chunks_exact(SAMPLE_BYTES) {

@@ -18,12 +18,18 @@
 //! with Info, Ping with Pong, GetStatus with Status, the others with Ack or Nack and the
 //! reason ([`ErrorCode`]). Frames that fail COBS or CRC are counted
 //! ([`Status::frames_rejected`]) and otherwise ignored; an intact frame that is no known
-//! command is counted too and refused by its `seq` ([`ErrorCode::UnknownCommand`]). A fault while streaming (the sensor
-//! stops answering, resets itself, or reports an impossible FIFO count) sends
-//! [`DeviceMessage::Fault`] and stops; the next Configure or Start sets the sensor up again.
+//! command is counted too and refused by its `seq` ([`ErrorCode::UnknownCommand`]). A fault
+//! while streaming (the sensor stops answering, resets itself, or reports an impossible FIFO
+//! count) sends [`DeviceMessage::Fault`] and the board sets the sensor up again by itself
+//! ([`crate::recovery`]); while it tries, it still counts as streaming. Every
+//! [`HEALTH_INTERVAL_US`] a streaming board also reads the sensor's configuration back, so a
+//! sensor that reset to its power-on defaults is found even if its FIFO count looks sane.
+//! A reply that finds the reply queue full is dropped and counted
+//! ([`Status::replies_dropped`]).
 
-use crate::acquire::{Acquisition, check_supported};
-use crate::driver::Mpu6050;
+use crate::acquire::{Acquisition, Timeline, check_supported};
+use crate::driver::{BusClear, Mpu6050};
+use crate::recovery::{Recovery, STABLE_RUN_US};
 use crate::timing::Clock;
 use embedded_hal::delay::DelayNs;
 use embedded_hal::i2c::I2c;
@@ -35,6 +41,9 @@ use protocol::{
 
 /// Replies waiting for room on the link.
 const REPLY_QUEUE: usize = 8;
+
+/// How often a streaming board reads the sensor's configuration back.
+pub const HEALTH_INTERVAL_US: u64 = 1_000_000;
 
 /// Board facts the portable code cannot find out itself.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,11 +58,22 @@ pub struct BoardConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Reply {
     Info(DeviceInfo),
-    Ack { seq: u16 },
-    Nack { seq: u16, error: ErrorCode },
+    Ack {
+        seq: u16,
+    },
+    Nack {
+        seq: u16,
+        error: ErrorCode,
+    },
     Status(Status),
-    Pong { seq: u16 },
+    Pong {
+        seq: u16,
+    },
     Fault(ErrorCode),
+    Recovered {
+        attempts: u16,
+        resumed_at_index: u64,
+    },
 }
 
 impl From<Reply> for DeviceMessage {
@@ -65,6 +85,13 @@ impl From<Reply> for DeviceMessage {
             Reply::Status(s) => DeviceMessage::Status(s),
             Reply::Pong { seq } => DeviceMessage::Pong { seq },
             Reply::Fault(e) => DeviceMessage::Fault(e),
+            Reply::Recovered {
+                attempts,
+                resumed_at_index,
+            } => DeviceMessage::Recovered {
+                attempts,
+                resumed_at_index,
+            },
         }
     }
 }
@@ -80,13 +107,20 @@ pub struct Firmware<I2C, C> {
     /// The sensor holds `settings`, awake, FIFO channels selected.
     ready: bool,
     run: Option<Acquisition>,
+    /// A run that ended with a fault and is being brought back.
+    recovery: Option<Recovery>,
+    /// The last recovery and when its run resumed, until the run has been stable for
+    /// [`crate::recovery::STABLE_RUN_US`].
+    resumed: Option<(Recovery, u64)>,
+    /// When the streaming sensor's configuration is next read back.
+    next_health_us: u64,
     /// Counters kept here; uptime, I2C errors and rejected frames are filled in on report.
     counters: Status,
     decoder: FrameDecoder,
     replies: heapless::Deque<Reply, REPLY_QUEUE>,
 }
 
-impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
+impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
     pub fn new(i2c: I2C, clock: C, config: BoardConfig) -> Self {
         Firmware {
             dev: Mpu6050::new(i2c, config.address),
@@ -96,7 +130,13 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
             settings: SensorSettings::default(),
             ready: false,
             run: None,
-            counters: Status::default(),
+            recovery: None,
+            resumed: None,
+            next_health_us: 0,
+            counters: Status {
+                loss_certain: true,
+                ..Status::default()
+            },
             decoder: FrameDecoder::new(),
             replies: heapless::Deque::new(),
         }
@@ -121,8 +161,9 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
         &mut self.clock
     }
 
+    /// Streaming as the host sees it: a run, or a run being recovered.
     pub fn streaming(&self) -> bool {
-        self.run.is_some()
+        self.run.is_some() || self.recovery.is_some()
     }
 
     pub fn settings(&self) -> SensorSettings {
@@ -136,6 +177,11 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
             uptime_us: self.clock.now_us(),
             i2c_errors: self.dev.i2c_errors(),
             frames_rejected: u32::try_from(self.decoder.stats().rejected()).unwrap_or(u32::MAX),
+            sample_period_ns: match (&self.run, &self.recovery) {
+                (Some(run), _) => run.grid().period_ns(),
+                (None, Some(r)) => r.timeline.period_ns(),
+                (None, None) => self.counters.sample_period_ns,
+            },
             ..self.counters
         }
     }
@@ -178,8 +224,18 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
             if let Err(error) = self.drain(out) {
                 self.fault(error);
             }
-            self.flush_replies(out);
         }
+        if self.run.is_some() && now >= self.next_health_us {
+            self.next_health_us = now.saturating_add(HEALTH_INTERVAL_US);
+            // A read that fails is the drains' business (they end the run if it persists).
+            if self.dev.check_streaming(&self.settings) == Err(ErrorCode::SensorReset) {
+                self.fault(ErrorCode::SensorReset);
+            }
+        }
+        if self.recovery.as_ref().is_some_and(|r| r.due(now)) {
+            self.attempt_recovery();
+        }
+        self.flush_replies(out);
     }
 
     /// One drain; batches the link refuses are dropped and counted.
@@ -207,19 +263,81 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
         result.map(|_| ())
     }
 
+    /// The run ended with `error`: report it and start bringing the sensor back.
     fn fault(&mut self, error: ErrorCode) {
-        // The samples the sensor made since the last drain will never be read: count them
-        // lost (by the run's sample grid), so the run's end is accounted like any gap.
-        if let Some(run) = self.run.take() {
-            let now = self.clock.now_us();
-            let (produced, _) = run.grid().produced(now, now);
-            let lost = produced.saturating_sub(run.next_index());
-            self.counters.samples_lost = self.counters.samples_lost.saturating_add(lost);
-        }
+        let now = self.clock.now_us();
+        let Some(run) = self.run.take() else {
+            return;
+        };
+        self.counters.sample_period_ns = run.grid().period_ns();
         self.ready = false;
-        // Best effort: the sensor may be the problem.
-        let _ = self.dev.disable_fifo();
-        self.reply(Reply::Fault(error));
+        let relapse = self
+            .resumed
+            .take()
+            .filter(|(_, at)| now.saturating_sub(*at) < STABLE_RUN_US);
+        self.recovery = Some(match relapse {
+            Some((episode, _)) => episode.relapse(run.timeline(), error, now),
+            None => {
+                self.reply(Reply::Fault(error));
+                Recovery::new(run.timeline(), error, now)
+            }
+        });
+    }
+
+    /// One recovery attempt: clear the bus, probe, set up, restart the FIFO numbering from
+    /// where the old run's grid says the sensor is. A failure waits for the next attempt or,
+    /// after [`protocol::GAVE_UP_AFTER_S`], stops streaming.
+    fn attempt_recovery(&mut self) {
+        let Some(mut recovery) = self.recovery.take() else {
+            return;
+        };
+        recovery.attempts = recovery.attempts.saturating_add(1);
+        self.dev.i2c_mut().clear_bus();
+        let settings = self.settings;
+        let started = self
+            .probe()
+            .and_then(|()| self.set_up(settings))
+            .and_then(|()| self.dev.check_awake())
+            .and_then(|()| {
+                let resume = recovery.timeline.resume_at(self.clock.now_us());
+                Acquisition::start(&mut self.dev, &mut self.clock, &settings, Some(resume))
+            });
+        let now = self.clock.now_us();
+        match started {
+            Ok(run) => {
+                self.count_loss(&recovery.timeline, now, Some(run.next_index()));
+                self.reply(Reply::Recovered {
+                    attempts: recovery.attempts,
+                    resumed_at_index: run.next_index(),
+                });
+                self.counters.recoveries = self.counters.recoveries.saturating_add(1);
+                self.next_health_us = now.saturating_add(HEALTH_INTERVAL_US);
+                self.run = Some(run);
+                self.resumed = Some((recovery, now));
+            }
+            Err(error) => {
+                if recovery.failed(error, now) {
+                    self.recovery = Some(recovery);
+                    return;
+                }
+                self.count_loss(&recovery.timeline, now, None);
+                let _ = self.dev.disable_fifo();
+                self.reply(Reply::Fault(ErrorCode::GaveUp {
+                    attempts: recovery.attempts,
+                    last: error.into(),
+                }));
+            }
+        }
+    }
+
+    /// Count as lost every sample between the ended run's last delivered one and `now_us`
+    /// (or `resumed_at`, the index a resumed run starts at).
+    fn count_loss(&mut self, timeline: &Timeline, now_us: u64, resumed_at: Option<u64>) {
+        let (at_now, certain) = timeline.index_at(now_us);
+        let until = resumed_at.unwrap_or(at_now);
+        let lost = until.saturating_sub(timeline.next_index());
+        self.counters.samples_lost = self.counters.samples_lost.saturating_add(lost);
+        self.counters.loss_certain &= certain || lost == 0;
     }
 
     fn handle(&mut self, Request { seq, command }: Request, out: &mut impl FnMut(&[u8]) -> bool) {
@@ -277,13 +395,15 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
         if self.streaming() {
             return Err(ErrorCode::Busy);
         }
+        self.resumed = None;
         if !self.ready {
             self.probe()?;
             self.set_up(self.settings)?;
         }
         self.dev.check_awake()?;
-        let run = Acquisition::start(&mut self.dev, &mut self.clock, &self.settings);
+        let run = Acquisition::start(&mut self.dev, &mut self.clock, &self.settings, None);
         self.run = Some(run?);
+        self.next_health_us = self.clock.now_us().saturating_add(HEALTH_INTERVAL_US);
         Ok(())
     }
 
@@ -292,6 +412,13 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
     fn stop(&mut self, out: &mut impl FnMut(&[u8]) -> bool) -> Result<(), ErrorCode> {
         if !self.streaming() {
             return Err(ErrorCode::NotStreaming);
+        }
+        if let Some(recovery) = self.recovery.take() {
+            let now = self.clock.now_us();
+            self.count_loss(&recovery.timeline, now, None);
+            // Best effort: the sensor is the problem.
+            let _ = self.dev.disable_fifo();
+            return Ok(());
         }
         self.flush_replies(out);
         if let Err(error) = self.drain(out) {
@@ -304,8 +431,8 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
     fn probe(&mut self) -> Result<(), ErrorCode> {
         self.who_am_i = 0;
         match self.dev.probe() {
-            Ok(who) => {
-                self.who_am_i = who;
+            Ok(chip) => {
+                self.who_am_i = chip.who_am_i;
                 Ok(())
             }
             Err(e) => {
@@ -331,8 +458,10 @@ impl<I2C: I2c, C: Clock> Firmware<I2C, C> {
     }
 
     fn reply(&mut self, reply: Reply) {
-        // A host that sends commands without reading replies loses the newest ones.
-        let _ = self.replies.push_back(reply);
+        // A host that sends commands without reading replies loses the newest ones, counted.
+        if self.replies.push_back(reply).is_err() {
+            self.counters.replies_dropped = self.counters.replies_dropped.saturating_add(1);
+        }
     }
 
     fn flush_replies(&mut self, out: &mut impl FnMut(&[u8]) -> bool) {

@@ -16,7 +16,7 @@
 use embedded_hal::delay::DelayNs;
 use embedded_hal::i2c::{Error as _, ErrorKind, I2c, NoAcknowledgeSource};
 use protocol::ErrorCode;
-use protocol::mpu6050::{SensorSettings, WHO_AM_I_VALUE, reg};
+use protocol::mpu6050::{Chip, FIFO_SIZE, SensorSettings, chip, reg};
 
 /// Attempts per idempotent transaction before the error is reported.
 pub const ATTEMPTS: u32 = 3;
@@ -42,12 +42,29 @@ pub const INT_FIFO_OFLOW: u8 = 1 << 4;
 /// How long the chip needs after DEVICE_RESET before it answers reliably [RM, reg 107].
 pub const RESET_DELAY_MS: u32 = 100;
 
+/// Freeing an I2C bus that a slave holds: a sensor reset or a glitch in the middle of a read
+/// can leave it driving SDA low, waiting for clocks that never come, and no transaction can
+/// start. The cure (NXP UM10204 rev. 7, 3.1.16 "Bus clear") is up to nine SCL pulses until
+/// SDA is released, then a STOP. Only the board can drive the pins, so the bus type does it.
+pub trait BusClear {
+    /// Pulse SCL (up to nine times) and send a STOP; the bus is usable afterwards.
+    fn clear_bus(&mut self);
+}
+
+impl<T: BusClear + ?Sized> BusClear for &mut T {
+    fn clear_bus(&mut self) {
+        (**self).clear_bus()
+    }
+}
+
 /// The MPU-6050 on an I2C bus.
 #[derive(Debug)]
 pub struct Mpu6050<I2C> {
     i2c: I2C,
     address: u8,
     i2c_errors: u32,
+    /// FIFO size of the chip that answered the last probe.
+    fifo_capacity: usize,
 }
 
 impl<I2C: I2c> Mpu6050<I2C> {
@@ -56,6 +73,7 @@ impl<I2C: I2c> Mpu6050<I2C> {
             i2c,
             address,
             i2c_errors: 0,
+            fifo_capacity: FIFO_SIZE,
         }
     }
 
@@ -73,13 +91,18 @@ impl<I2C: I2c> Mpu6050<I2C> {
         self.i2c_errors
     }
 
-    /// WHO_AM_I, checked: [`ErrorCode::WrongSensor`] unless it is an MPU-6050's 0x68.
-    pub fn probe(&mut self) -> Result<u8, ErrorCode> {
+    /// WHO_AM_I, checked: [`ErrorCode::WrongSensor`] unless it names an MPU-6050 or a chip
+    /// known to share its registers ([`protocol::mpu6050::KNOWN_CHIPS`]).
+    pub fn probe(&mut self) -> Result<Chip, ErrorCode> {
         let who_am_i = self.read_reg(reg::WHO_AM_I)?;
-        if who_am_i != WHO_AM_I_VALUE {
-            return Err(ErrorCode::WrongSensor { who_am_i });
-        }
-        Ok(who_am_i)
+        let found = chip(who_am_i).ok_or(ErrorCode::WrongSensor { who_am_i })?;
+        self.fifo_capacity = found.fifo_size;
+        Ok(found)
+    }
+
+    /// FIFO size of the chip found by the last probe, bytes.
+    pub fn fifo_capacity(&self) -> usize {
+        self.fifo_capacity
     }
 
     /// Device reset, then signal-path reset: every register at its reset value, asleep.
@@ -107,6 +130,28 @@ impl<I2C: I2c> Mpu6050<I2C> {
                 wrote: PWR_MGMT_1_RUN,
                 read,
             });
+        }
+        Ok(())
+    }
+
+    /// Whether the sensor still holds what streaming set up: awake on our clock, `settings`
+    /// in registers 25-28, the FIFO enabled and fed every channel. One burst of four and
+    /// three single reads. [`ErrorCode::SensorReset`] if anything differs (a chip that reset
+    /// itself reads its power-on defaults), the I2C error if a read fails.
+    pub fn check_streaming(&mut self, settings: &SensorSettings) -> Result<(), ErrorCode> {
+        let r = settings.registers();
+        let mut held = [0u8; 4];
+        self.read_regs(reg::SMPLRT_DIV, &mut held)?;
+        let expected = [r.smplrt_div, r.config, r.gyro_config, r.accel_config];
+        let power = self.read_reg(reg::PWR_MGMT_1)?;
+        let user = self.read_reg(reg::USER_CTRL)?;
+        let fifo_en = self.read_reg(reg::FIFO_EN)?;
+        if held != expected
+            || power != PWR_MGMT_1_RUN
+            || user & USER_FIFO_EN == 0
+            || fifo_en != FIFO_EN_ALL
+        {
+            return Err(ErrorCode::SensorReset);
         }
         Ok(())
     }
@@ -260,6 +305,7 @@ pub(crate) mod mock {
         /// Writes to this register are ignored (a stuck bit, a read-only register).
         pub ignore_writes_to: Option<u8>,
         pub transactions: u32,
+        pub bus_clears: u32,
     }
 
     impl MockBus {
@@ -272,12 +318,19 @@ pub(crate) mod mock {
                 fail_kind: ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address),
                 ignore_writes_to: None,
                 transactions: 0,
+                bus_clears: 0,
             }
         }
     }
 
     impl ErrorType for MockBus {
         type Error = MockError;
+    }
+
+    impl super::BusClear for MockBus {
+        fn clear_bus(&mut self) {
+            self.bus_clears += 1;
+        }
     }
 
     impl I2c for MockBus {
@@ -367,7 +420,7 @@ mod tests {
         let mut bus = MockBus::new();
         bus.fail_next = ATTEMPTS - 1;
         let mut dev = Mpu6050::new(bus, 0x68);
-        assert_eq!(dev.probe(), Ok(0x68));
+        assert_eq!(dev.probe().map(|c| c.who_am_i), Ok(0x68));
         assert_eq!(dev.i2c_errors(), ATTEMPTS - 1);
         dev.i2c_mut().fail_next = ATTEMPTS;
         assert_eq!(dev.probe(), Err(ErrorCode::SensorNotResponding));
@@ -383,11 +436,19 @@ mod tests {
     }
 
     #[test]
-    fn wrong_sensor_and_init_sequence() {
+    fn clones_are_accepted_unknown_chips_named_and_init_sequence() {
         let mut bus = MockBus::new();
-        bus.regs[usize::from(reg::WHO_AM_I)] = 0x70; // an MPU-6500
+        bus.regs[usize::from(reg::WHO_AM_I)] = 0x70; // an MPU-6500: a 512-byte FIFO
         let mut dev = Mpu6050::new(bus, 0x68);
-        assert_eq!(dev.probe(), Err(ErrorCode::WrongSensor { who_am_i: 0x70 }));
+        assert_eq!(dev.probe().map(|c| c.fifo_size), Ok(512));
+        assert_eq!(dev.fifo_capacity(), 512);
+        for clone in [0x72, 0x98] {
+            dev.i2c_mut().regs[usize::from(reg::WHO_AM_I)] = clone;
+            assert_eq!(dev.probe().map(|c| c.who_am_i), Ok(clone));
+            assert_eq!(dev.fifo_capacity(), 1024);
+        }
+        dev.i2c_mut().regs[usize::from(reg::WHO_AM_I)] = 0x71; // an MPU-9250
+        assert_eq!(dev.probe(), Err(ErrorCode::WrongSensor { who_am_i: 0x71 }));
         dev.reset(&mut NoDelay).unwrap();
         dev.wake().unwrap();
         dev.enable_fifo().unwrap();

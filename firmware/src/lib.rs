@@ -12,9 +12,11 @@
 pub mod acquire;
 pub mod control;
 pub mod driver;
+pub mod recovery;
 pub mod timing;
 
 pub use control::{BoardConfig, Firmware};
+pub use driver::BusClear;
 pub use timing::Clock;
 
 use protocol::FirmwareVersion;

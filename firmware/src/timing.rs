@@ -71,6 +71,25 @@ impl SampleGrid {
         }
     }
 
+    /// A grid like [`SampleGrid::new`] whose period starts at one already measured (a run
+    /// resumed after a fault on the same sensor), if it is within the clock tolerance.
+    pub fn with_period(t0_us: u64, reset_done_us: u64, period_us: u32, measured: i128) -> Self {
+        let mut grid = SampleGrid::new(t0_us, reset_done_us, period_us);
+        let tolerance = grid.nominal * MAX_RATE_ERROR_PERCENT / 100;
+        if measured > 0 && (measured - grid.nominal).abs() <= tolerance {
+            let reset_len = grid.hi - grid.period;
+            grid.period = measured;
+            grid.hi = measured + reset_len;
+        }
+        grid
+    }
+
+    /// The period in use, nanoseconds (rounded).
+    pub fn period_ns(&self) -> u32 {
+        u32::try_from((self.period * 1000 + (1 << (SCALE_BITS - 1))) >> SCALE_BITS)
+            .unwrap_or(u32::MAX)
+    }
+
     fn scaled(&self, t_us: u64) -> i128 {
         (i128::from(t_us) - i128::from(self.t0_us)) << SCALE_BITS
     }

@@ -82,6 +82,27 @@ pub struct Capture {
     pub trailing_bytes: usize,
     /// What the board said went wrong: commands it refused and faults it reported.
     pub board_errors: Vec<BoardReport>,
+    /// Faults the board recovered from, where streaming resumed.
+    pub recoveries: Vec<RecoveryReport>,
+}
+
+/// The board brought its sensor back after a fault (protocol `Recovered`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct RecoveryReport {
+    /// Session index of the first sample after the recovery; the gap before it is the loss.
+    pub resumed_at_index: u64,
+    /// Set-up attempts the board made (1: the first worked).
+    pub attempts: u16,
+}
+
+impl std::fmt::Display for RecoveryReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "recovered after {} attempt(s); samples resume at index {}",
+            self.attempts, self.resumed_at_index
+        )
+    }
 }
 
 /// A refusal or fault the board sent, at the session index reached when it arrived (not to
@@ -90,7 +111,8 @@ pub struct Capture {
 pub struct BoardReport {
     /// Samples the session had accounted for (received or lost) when it came.
     pub at_index: u64,
-    /// The refused command's `seq`, or `None` for a fault (streaming then stopped).
+    /// The refused command's `seq`, or `None` for a fault (the board recovers from it by
+    /// itself, see [`RecoveryReport`], unless the error is `GaveUp`).
     pub refused_seq: Option<u16>,
     pub error: ErrorCode,
 }
@@ -156,6 +178,7 @@ pub struct StreamDecoder {
     new_run: bool,
     keep_samples: bool,
     board_errors: Vec<BoardReport>,
+    recoveries: Vec<RecoveryReport>,
 }
 
 impl Default for StreamDecoder {
@@ -182,6 +205,7 @@ impl StreamDecoder {
             new_run: true,
             keep_samples,
             board_errors: Vec::new(),
+            recoveries: Vec::new(),
         }
     }
 
@@ -189,7 +213,8 @@ impl StreamDecoder {
     pub fn feed(&mut self, bytes: &[u8]) -> usize {
         let mut decoder = std::mem::take(&mut self.decoder);
         let mut infos = 0;
-        decoder.feed::<DeviceMessage>(bytes, |message| match message {
+        let v2_status = |body: &[u8]| Status::decode_v2(body).map(DeviceMessage::Status);
+        decoder.feed_with_fallback(bytes, v2_status, |message| match message {
             Ok(DeviceMessage::Info(i)) => {
                 infos += 1;
                 self.info(i);
@@ -198,6 +223,10 @@ impl StreamDecoder {
             Ok(DeviceMessage::Samples(batch)) => self.batch(&batch),
             Ok(DeviceMessage::Nack { seq, error }) => self.board_error(Some(seq), error),
             Ok(DeviceMessage::Fault(error)) => self.board_error(None, error),
+            Ok(DeviceMessage::Recovered {
+                attempts,
+                resumed_at_index,
+            }) => self.recovered(attempts, resumed_at_index),
             // Acks and pongs carry nothing to keep; damaged frames are in the decoder's stats.
             Ok(_) | Err(_) => {}
         });
@@ -218,6 +247,13 @@ impl StreamDecoder {
             at_index: self.accounting.expected(),
             refused_seq,
             error,
+        });
+    }
+
+    fn recovered(&mut self, attempts: u16, resumed_at_index: u64) {
+        self.recoveries.push(RecoveryReport {
+            resumed_at_index: self.segment_base.saturating_add(resumed_at_index),
+            attempts,
         });
     }
 
@@ -287,6 +323,10 @@ impl StreamDecoder {
     pub fn board_errors(&self) -> &[BoardReport] {
         &self.board_errors
     }
+    /// Recoveries so far.
+    pub fn recoveries(&self) -> &[RecoveryReport] {
+        &self.recoveries
+    }
     /// Bytes of a frame not yet closed by its delimiter.
     pub fn pending(&self) -> usize {
         self.decoder.pending()
@@ -306,6 +346,7 @@ impl StreamDecoder {
             decoder: self.decoder.stats(),
             trailing_bytes: self.decoder.pending(),
             board_errors: self.board_errors,
+            recoveries: self.recoveries,
         })
     }
 }

@@ -3,7 +3,7 @@
 //! samples and losses live. It ends when the source ends, the duration is reached, the user
 //! stops it (Ctrl-C: `complete`), or the link fails (`incomplete`, with the reason).
 
-use crate::capture::{BoardReport, Capture, StreamDecoder};
+use crate::capture::{BoardReport, Capture, RecoveryReport, StreamDecoder};
 use crate::link::Link;
 use crate::store::{Counts, End, SessionWriter, Store, StoreError};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -47,6 +47,8 @@ pub struct Progress {
     pub rate_hz: Option<f64>,
     /// Refusals and faults the board sent since the previous progress report.
     pub new_board_errors: Vec<BoardReport>,
+    /// Faults the board recovered from since the previous progress report.
+    pub new_recoveries: Vec<RecoveryReport>,
 }
 
 pub struct Outcome {
@@ -113,6 +115,7 @@ fn run(
     let mut buf = vec![0u8; 1 << 16];
     let mut catalog_warned = false;
     let mut board_errors_shown = 0;
+    let mut recoveries_shown = 0;
     let ending = loop {
         if stop.load(Ordering::Relaxed) {
             break Ending::Stopped;
@@ -148,6 +151,8 @@ fn run(
         let expected = decoder.accounting().expected();
         let new_board_errors = decoder.board_errors()[board_errors_shown..].to_vec();
         board_errors_shown += new_board_errors.len();
+        let new_recoveries = decoder.recoveries()[recoveries_shown..].to_vec();
+        recoveries_shown += new_recoveries.len();
         progress(&Progress {
             elapsed: started.elapsed(),
             counts,
@@ -155,6 +160,7 @@ fn run(
             samples_wanted: wanted,
             rate_hz,
             new_board_errors,
+            new_recoveries,
         });
         if wanted.is_some_and(|w| expected >= w) {
             break Ending::DurationReached;

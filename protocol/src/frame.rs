@@ -233,6 +233,18 @@ impl FrameDecoder {
     pub fn feed_salvaging<T: DeserializeOwned>(
         &mut self,
         bytes: &[u8],
+        on_message: impl FnMut(Result<T, (FrameError, &[u8])>),
+    ) {
+        self.feed_with_fallback(bytes, |_| None, on_message);
+    }
+
+    /// [`FrameDecoder::feed_salvaging`], with a second reading for bodies that are not a
+    /// `T`: `older(body)` (a message of an older protocol version that still has a meaning)
+    /// makes the frame a good one.
+    pub fn feed_with_fallback<T: DeserializeOwned>(
+        &mut self,
+        bytes: &[u8],
+        older: impl Fn(&[u8]) -> Option<T>,
         mut on_message: impl FnMut(Result<T, (FrameError, &[u8])>),
     ) {
         for &byte in bytes {
@@ -244,6 +256,10 @@ impl FrameDecoder {
                 Ok(body) => match postcard::from_bytes::<T>(body) {
                     Ok(message) => on_message(Ok(message)),
                     Err(_) => {
+                        if let Some(message) = older(body) {
+                            on_message(Ok(message));
+                            continue;
+                        }
                         let len = body.len() + CRC_LEN;
                         // push() counted it as a good frame; it is not one after all.
                         self.stats.frames_ok -= 1;

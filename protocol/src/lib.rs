@@ -30,8 +30,12 @@ pub use mpu6050::SensorSettings;
 /// and `protocol_version` is the first field of [`DeviceInfo`] (see [`peek_info_version`]).
 ///
 /// History: 1, the first; 2 added [`ErrorCode::UnknownCommand`] (the board now refuses an
-/// intact frame it cannot read instead of only counting it).
-pub const PROTOCOL_VERSION: u16 = 2;
+/// intact frame it cannot read instead of only counting it); 3 made a fault something the
+/// board recovers from ([`DeviceMessage::Recovered`], [`ErrorCode::GaveUp`],
+/// [`ErrorCode::SensorReset`]), accepted clone chips ([`mpu6050::KNOWN_CHIPS`]) and appended
+/// the recovery counters to [`Status`] (a version-2 Status still decodes:
+/// [`Status::decode_v2`]).
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// Most samples one [`SampleBatch`] carries: 32 samples are 32 ms at 1 kHz, so a batch
 /// leaves the board at least every 32 ms at the top rate while one frame stays well under
@@ -94,9 +98,19 @@ pub enum DeviceMessage {
     Pong {
         seq: u16,
     },
-    /// Something went wrong that no command asked about (e.g. the sensor stopped answering
-    /// while streaming). Streaming stops; counters in the next [`Status`] say how much.
+    /// Something went wrong that no command asked about (the sensor stopped answering,
+    /// reset itself, reported an impossible FIFO count). The board clears the bus and sets
+    /// the sensor up again by itself, with backoff, and says [`DeviceMessage::Recovered`]
+    /// when samples flow again; only [`ErrorCode::GaveUp`] means streaming has stopped.
     Fault(ErrorCode),
+    /// Streaming resumed after a fault. Sample indices kept counting through the time lost,
+    /// so the gap before `resumed_at_index` is the loss (also in [`Status::samples_lost`]).
+    Recovered {
+        /// Set-up attempts it took (1: the first worked).
+        attempts: u16,
+        /// Index of the first sample of the resumed run.
+        resumed_at_index: u64,
+    },
 }
 
 /// Who the board is and what it is doing.
@@ -189,7 +203,8 @@ impl RawSample {
 }
 
 /// Cumulative counters since the board powered up (they never reset, so the host can take
-/// differences between any two reports).
+/// differences between any two reports). The fields version 3 appended default when missing
+/// from a self-describing format (a stored JSON copy of a version-2 Status).
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Status {
     pub streaming: bool,
@@ -210,6 +225,64 @@ pub struct Status {
     pub samples_dropped: u64,
     /// Frames from the host that were rejected (bad COBS, CRC or content).
     pub frames_rejected: u32,
+    /// Replies (Ack, Nack, Status, Pong, Fault, Recovered) dropped because the reply queue
+    /// was full: a host that sends commands without reading.
+    #[serde(default)]
+    pub replies_dropped: u32,
+    /// Faults the board recovered from while streaming.
+    #[serde(default)]
+    pub recoveries: u32,
+    /// Whether every loss counted so far is exact: a loss is measured on the sensor's
+    /// sample grid, which is certain unless a gap was long and the sensor's clock not yet
+    /// measured (see the firmware's timing module).
+    #[serde(default)]
+    pub loss_certain: bool,
+    /// The sensor's sample period as measured on the board's clock during the current or
+    /// last run, nanoseconds (0: not measured yet).
+    #[serde(default)]
+    pub sample_period_ns: u32,
+}
+
+/// [`Status`] as protocol version 2 sent it (the first nine fields), kept so that stored
+/// version-2 captures still decode.
+#[derive(Deserialize)]
+struct StatusV2 {
+    streaming: bool,
+    uptime_us: u64,
+    samples_acquired: u64,
+    fifo_overflows: u32,
+    samples_lost: u64,
+    i2c_errors: u32,
+    batches_dropped: u32,
+    samples_dropped: u64,
+    frames_rejected: u32,
+}
+
+impl Status {
+    /// The variant index of [`DeviceMessage::Status`] in a frame body.
+    const VARIANT: u8 = 4;
+
+    /// A version-2 Status message body (variant index, then nine fields), or `None`. The
+    /// fields version 3 appended are unknown: zero, and `loss_certain` false.
+    pub fn decode_v2(body: &[u8]) -> Option<Status> {
+        let (&variant, rest) = body.split_first()?;
+        if variant != Self::VARIANT {
+            return None;
+        }
+        let v2: StatusV2 = postcard::from_bytes(rest).ok()?;
+        Some(Status {
+            streaming: v2.streaming,
+            uptime_us: v2.uptime_us,
+            samples_acquired: v2.samples_acquired,
+            fifo_overflows: v2.fifo_overflows,
+            samples_lost: v2.samples_lost,
+            i2c_errors: v2.i2c_errors,
+            batches_dropped: v2.batches_dropped,
+            samples_dropped: v2.samples_dropped,
+            frames_rejected: v2.frames_rejected,
+            ..Status::default()
+        })
+    }
 }
 
 /// Why a command was refused or what fault occurred.
@@ -237,6 +310,44 @@ pub enum ErrorCode {
     /// host speaking another protocol version, or a bug. Refused by its `seq`. Appended
     /// last, like the one before.
     UnknownCommand,
+    /// The sensor's configuration read back as its power-on defaults (or otherwise not as
+    /// written) while streaming: it reset itself, and the board sets it up again.
+    SensorReset,
+    /// Recovery failed `attempts` times in a row over [`GAVE_UP_AFTER_S`] seconds, the last
+    /// time with `last`'s reason (a code of its own, so only its name is kept): streaming
+    /// has stopped until the host starts it again.
+    GaveUp { attempts: u16, last: FaultKind },
+}
+
+/// How long the board keeps trying to bring a failed sensor back before it stops streaming
+/// and says [`ErrorCode::GaveUp`].
+pub const GAVE_UP_AFTER_S: u32 = 600;
+
+/// The reason of the last failed recovery attempt, inside [`ErrorCode::GaveUp`] (an
+/// [`ErrorCode`] cannot hold itself).
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaultKind {
+    SensorNotResponding,
+    WrongSensor,
+    VerifyFailed,
+    I2cFailure,
+    FifoCountImplausible,
+    SensorReset,
+    Other,
+}
+
+impl From<ErrorCode> for FaultKind {
+    fn from(e: ErrorCode) -> Self {
+        match e {
+            ErrorCode::SensorNotResponding => FaultKind::SensorNotResponding,
+            ErrorCode::WrongSensor { .. } => FaultKind::WrongSensor,
+            ErrorCode::VerifyFailed { .. } => FaultKind::VerifyFailed,
+            ErrorCode::I2cFailure => FaultKind::I2cFailure,
+            ErrorCode::FifoCountImplausible { .. } => FaultKind::FifoCountImplausible,
+            ErrorCode::SensorReset => FaultKind::SensorReset,
+            _ => FaultKind::Other,
+        }
+    }
 }
 
 impl core::fmt::Display for ErrorCode {
@@ -248,8 +359,8 @@ impl core::fmt::Display for ErrorCode {
             ErrorCode::SensorNotResponding => f.write_str("the sensor does not answer on I2C"),
             ErrorCode::WrongSensor { who_am_i } => write!(
                 f,
-                "WHO_AM_I is {who_am_i:#04x}, not an MPU-6050's {:#04x}",
-                mpu6050::WHO_AM_I_VALUE
+                "WHO_AM_I is {who_am_i:#04x}, which is no MPU-6050 or known compatible chip \
+                 (0x68, 0x70, 0x72, 0x98)"
             ),
             ErrorCode::VerifyFailed {
                 register,
@@ -267,6 +378,14 @@ impl core::fmt::Display for ErrorCode {
             ErrorCode::UnknownCommand => {
                 f.write_str("an intact frame that is no command this firmware knows")
             }
+            ErrorCode::SensorReset => f.write_str(
+                "the sensor reset itself (its registers read back as power-on defaults)",
+            ),
+            ErrorCode::GaveUp { attempts, last } => write!(
+                f,
+                "gave up after {attempts} recovery attempts over {GAVE_UP_AFTER_S} s \
+                 (last: {last:?}); streaming stopped"
+            ),
         }
     }
 }
@@ -310,6 +429,46 @@ mod tests {
         assert_eq!(s.temp, -3504);
         assert_eq!(s.gyro, [131, i16::MIN, i16::MAX]);
         assert_eq!(s.to_fifo_bytes(), bytes);
+    }
+
+    #[test]
+    fn a_version_2_status_still_decodes() {
+        // Variant 4 and the nine fields version 2 sent, in order.
+        let v2 = (
+            4u8,
+            true,
+            1_000_000u64,
+            5u64,
+            1u32,
+            7u64,
+            2u32,
+            3u32,
+            96u64,
+            4u32,
+        );
+        let mut buf = [0u8; 64];
+        let body = postcard::to_slice(&v2, &mut buf).unwrap();
+        let status = Status::decode_v2(body).unwrap();
+        assert_eq!(
+            status,
+            Status {
+                streaming: true,
+                uptime_us: 1_000_000,
+                samples_acquired: 5,
+                fifo_overflows: 1,
+                samples_lost: 7,
+                i2c_errors: 2,
+                batches_dropped: 3,
+                samples_dropped: 96,
+                frames_rejected: 4,
+                ..Status::default()
+            }
+        );
+        // A version-3 Status is longer; decode_v2 is only the fallback for what does not
+        // decode as version 3, and another variant is not a Status at all.
+        assert!(postcard::from_bytes::<DeviceMessage>(body).is_err());
+        let pong = postcard::to_slice(&DeviceMessage::Pong { seq: 3 }, &mut buf).unwrap();
+        assert_eq!(Status::decode_v2(pong), None);
     }
 
     #[test]

@@ -15,6 +15,48 @@ use serde::{Deserialize, Serialize};
 
 /// WHO_AM_I reads 0x68 on every MPU-6050, whatever its AD0 pin [RM, reg 117].
 pub const WHO_AM_I_VALUE: u8 = 0x68;
+
+/// A chip that answers at the MPU-6050's address with the MPU-6050's register map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Chip {
+    pub who_am_i: u8,
+    pub name: &'static str,
+    /// FIFO size in bytes: the MPU-6500 family has 512 [PS-MPU-6500A rev 1.1, 6.6].
+    pub fifo_size: usize,
+}
+
+/// Chips sold on MPU-6050 breakouts (GY-521 and kin) whose registers 25-28, 35, 56-58,
+/// 59-72, 106-107 and 114-116 behave as the MPU-6050's: the genuine part, the MPU-6500
+/// (0x70) that many boards carry today, and two clone identities reported by users of
+/// widely used Arduino drivers (0x98, accepted by ElectronicCats/mpu6050; 0x72). Any other
+/// WHO_AM_I is refused with its value named.
+pub const KNOWN_CHIPS: [Chip; 4] = [
+    Chip {
+        who_am_i: WHO_AM_I_VALUE,
+        name: "MPU-6050",
+        fifo_size: FIFO_SIZE,
+    },
+    Chip {
+        who_am_i: 0x70,
+        name: "MPU-6500 (sold as MPU-6050)",
+        fifo_size: 512,
+    },
+    Chip {
+        who_am_i: 0x72,
+        name: "MPU-6050 clone (WHO_AM_I 0x72)",
+        fifo_size: FIFO_SIZE,
+    },
+    Chip {
+        who_am_i: 0x98,
+        name: "MPU-6050 clone (WHO_AM_I 0x98)",
+        fifo_size: FIFO_SIZE,
+    },
+];
+
+/// The chip a WHO_AM_I value names, if it is one this project drives.
+pub fn chip(who_am_i: u8) -> Option<Chip> {
+    KNOWN_CHIPS.iter().copied().find(|c| c.who_am_i == who_am_i)
+}
 /// 7-bit I2C address with AD0 low; [`ALT_ADDRESS`] with AD0 high.
 pub const DEFAULT_ADDRESS: u8 = 0x68;
 pub const ALT_ADDRESS: u8 = 0x69;

@@ -3,8 +3,8 @@
 use proptest::prelude::*;
 use protocol::mpu6050::{AccelRange, DlpfCfg, GyroRange, SensorSettings};
 use protocol::{
-    Command, DeviceInfo, DeviceMessage, ErrorCode, FirmwareVersion, MAX_SAMPLES_PER_BATCH,
-    RawSample, Request, SampleBatch, Status,
+    Command, DeviceInfo, DeviceMessage, ErrorCode, FaultKind, FirmwareVersion,
+    MAX_SAMPLES_PER_BATCH, RawSample, Request, SampleBatch, Status,
 };
 
 pub fn settings() -> impl Strategy<Value = SensorSettings> {
@@ -101,6 +101,7 @@ pub fn status() -> impl Strategy<Value = Status> {
         any::<(u64, u64, u64)>(),
         any::<(u32, u32, u32, u32)>(),
         any::<u64>(),
+        any::<(u32, u32, bool, u32)>(),
     )
         .prop_map(
             |(
@@ -108,6 +109,7 @@ pub fn status() -> impl Strategy<Value = Status> {
                 (uptime_us, samples_acquired, samples_lost),
                 (fifo_overflows, i2c_errors, batches_dropped, frames_rejected),
                 samples_dropped,
+                (replies_dropped, recoveries, loss_certain, sample_period_ns),
             )| Status {
                 streaming,
                 uptime_us,
@@ -118,6 +120,10 @@ pub fn status() -> impl Strategy<Value = Status> {
                 batches_dropped,
                 samples_dropped,
                 frames_rejected,
+                replies_dropped,
+                recoveries,
+                loss_certain,
+                sample_period_ns,
             },
         )
 }
@@ -136,6 +142,20 @@ pub fn error_code() -> impl Strategy<Value = ErrorCode> {
         }),
         Just(ErrorCode::I2cFailure),
         any::<u16>().prop_map(|count| ErrorCode::FifoCountImplausible { count }),
+        Just(ErrorCode::UnknownCommand),
+        Just(ErrorCode::SensorReset),
+        (any::<u16>(), 0..7u8).prop_map(|(attempts, k)| ErrorCode::GaveUp {
+            attempts,
+            last: [
+                FaultKind::SensorNotResponding,
+                FaultKind::WrongSensor,
+                FaultKind::VerifyFailed,
+                FaultKind::I2cFailure,
+                FaultKind::FifoCountImplausible,
+                FaultKind::SensorReset,
+                FaultKind::Other,
+            ][usize::from(k)],
+        }),
     ]
 }
 
@@ -148,5 +168,9 @@ pub fn device_message() -> impl Strategy<Value = DeviceMessage> {
         status().prop_map(DeviceMessage::Status),
         any::<u16>().prop_map(|seq| DeviceMessage::Pong { seq }),
         error_code().prop_map(DeviceMessage::Fault),
+        any::<(u16, u64)>().prop_map(|(attempts, resumed_at_index)| DeviceMessage::Recovered {
+            attempts,
+            resumed_at_index
+        }),
     ]
 }

@@ -424,7 +424,8 @@ fn transient_i2c_errors_are_retried_counted_and_lose_nothing() {
     assert_eq!(delivered, oracle.samples.len() as u64);
 }
 
-/// Stream at 100 Hz for a while, then let `fault` happen; return the replies after it.
+/// Stream at the default settings for a second, then let `fault` happen and poll for
+/// another two seconds; return the replies after the fault.
 fn fault_after(fault: impl FnOnce(&mut SimMpu6050, u64)) -> (Board, Vec<DeviceMessage>) {
     let mut board = Board::new(6);
     board.ack(Command::Start);
@@ -443,20 +444,105 @@ fn fault_after(fault: impl FnOnce(&mut SimMpu6050, u64)) -> (Board, Vec<DeviceMe
     (board, faults)
 }
 
+/// Poll every 20 ms for `us` microseconds.
+fn poll_for(board: &mut Board, us: u64) {
+    let end = board.now() + us;
+    let mut t = board.now();
+    while t < end {
+        t += 20_000;
+        board.poll_at(t);
+    }
+}
+
+fn delivered(board: &Board) -> u64 {
+    board.batches.iter().map(|b| b.samples.len() as u64).sum()
+}
+
+fn next_index(board: &Board) -> u64 {
+    board
+        .batches
+        .last()
+        .map_or(0, |b| b.first_index + b.samples.len() as u64)
+}
+
 #[test]
-fn a_sensor_that_stops_answering_is_reported_not_waited_on() {
+fn an_i2c_outage_is_ridden_through_and_its_loss_counted_exactly() {
+    let mut board = Board::new(6);
+    board.ack(Command::Start);
+    let mut oracle = Oracle::at_start(&board);
+    poll_for(&mut board, 1_000_000);
+    let before = next_index(&board);
+    // Two seconds in which every transfer is refused at the address.
+    board.sim().faults_mut().nack_address = u32::MAX;
+    poll_for(&mut board, 2_000_000);
+    assert_eq!(
+        board.replies.drain(..).collect::<Vec<_>>(),
+        [DeviceMessage::Fault(ErrorCode::SensorNotResponding)]
+    );
+    assert!(board.fw.streaming(), "still streaming while it recovers");
+    board.sim().faults_mut().nack_address = 0;
+    poll_for(&mut board, 2_000_000);
+    let resumed = match board.replies.drain(..).collect::<Vec<_>>()[..] {
+        [
+            DeviceMessage::Recovered {
+                attempts,
+                resumed_at_index,
+            },
+        ] => {
+            assert!(attempts > 1, "the first attempts met the outage");
+            resumed_at_index
+        }
+        ref other => panic!("{other:?}"),
+    };
+    board.ack(Command::Stop);
+    oracle.run_to(board.now());
+    let status = board.status();
+    assert_eq!(status.recoveries, 1);
+    assert!(status.loss_certain);
+    // The resumed samples sit at their true indices: the values line up with the oracle,
+    // and the only gap is the outage, counted exactly.
+    let outage = before..resumed;
+    check_against(&board.batches, &oracle, std::slice::from_ref(&outage));
+    assert_eq!(
+        delivered(&board) + status.samples_lost,
+        oracle.samples.len() as u64
+    );
+    // At most the outage plus a second is lost.
+    let rate = SensorSettings::default().output_rate_hz();
+    assert!(
+        ((resumed - before) as f64) < rate * 3.0,
+        "{before}..{resumed}"
+    );
+    assert_eq!(status.sample_period_ns, 1_000_000_000 / rate as u32);
+}
+
+#[test]
+fn a_sensor_gone_for_good_is_given_up_on_after_ten_minutes() {
     let (mut board, replies) = fault_after(|sim, _| sim.faults_mut().nack_address = u32::MAX);
     assert_eq!(
         replies,
         [DeviceMessage::Fault(ErrorCode::SensorNotResponding)]
     );
+    let mut t = board.now();
+    let end = t + u64::from(protocol::GAVE_UP_AFTER_S) * 1_000_000;
+    while t < end + 2_000_000 && board.fw.streaming() {
+        t += 100_000;
+        board.poll_at(t);
+    }
     assert!(!board.fw.streaming());
-    // The samples made between the last drain and the fault are counted lost, never
-    // silently dropped: at most the firmware's 0.5 s patience plus a drain interval.
+    match board.replies.drain(..).collect::<Vec<_>>()[..] {
+        [DeviceMessage::Fault(ErrorCode::GaveUp { attempts, last })] => {
+            // A second apart once the backoff is at its cap.
+            assert!((590..=620).contains(&attempts), "{attempts}");
+            assert_eq!(last, protocol::FaultKind::SensorNotResponding);
+        }
+        ref other => panic!("{other:?}"),
+    }
+    // Everything the sensor made in those ten minutes is counted lost.
     let lost = board.status().samples_lost;
     let rate = SensorSettings::default().output_rate_hz();
     assert!(
-        lost > 0 && (lost as f64) < 0.6 * rate,
+        (lost as f64 - rate * 601.0).abs() < rate * 2.0,
         "lost {lost} at {rate} Hz"
     );
     // Start is refused with the reason while it stays away, and works once it is back.
@@ -473,61 +559,110 @@ fn a_sensor_that_stops_answering_is_reported_not_waited_on() {
 }
 
 #[test]
-fn a_sensor_reset_mid_run_is_reported_and_recovered() {
+fn a_sensor_reset_mid_run_is_found_and_set_up_again() {
     let (mut board, replies) =
         fault_after(|sim, now| sim.faults_mut().reset_at_us = Some(now + 5_000));
-    assert_eq!(
-        replies,
-        [DeviceMessage::Fault(ErrorCode::VerifyFailed {
-            register: reg::PWR_MGMT_1,
-            wrote: 0x01,
-            read: 0x40
-        })]
-    );
-    // The next Start sets the sensor up again with the settings the host chose.
-    board.ack(Command::Start);
+    let resumed = match replies[..] {
+        [
+            DeviceMessage::Fault(ErrorCode::SensorReset),
+            DeviceMessage::Recovered {
+                attempts: 1,
+                resumed_at_index,
+            },
+        ] => resumed_at_index,
+        ref other => panic!("{other:?}"),
+    };
+    // The sensor holds the host's settings again and samples flow, numbered on from where
+    // the board's clock says the sensor would be.
     assert_eq!(board.sim().settings(), SensorSettings::default());
-    let t = board.now();
-    board.poll_at(t + 100_000);
-    assert!(!board.batches.is_empty());
+    let mut acc = SampleAccounting::new();
+    for b in &board.batches {
+        acc.batch(b.first_index, b.samples.len()).unwrap();
+    }
+    assert_eq!(acc.gaps().len(), 1);
+    assert_eq!(acc.gaps()[0].end, resumed);
+    let status = board.status();
+    assert_eq!(acc.lost(), status.samples_lost);
+    // Three seconds of streaming with one fault: received + lost is three seconds of samples.
+    let rate = SensorSettings::default().output_rate_hz();
+    let accounted = (acc.received() + acc.lost()) as f64;
+    assert!((accounted - 3.0 * rate).abs() <= 2.0, "{accounted}");
 }
 
 #[test]
-fn a_stuck_fifo_count_is_reported() {
-    let (_, replies) = fault_after(|sim, _| sim.faults_mut().stuck_fifo_count = Some(0x1C0));
-    assert_eq!(
-        replies,
-        [DeviceMessage::Fault(ErrorCode::FifoCountImplausible {
-            count: 0x1C0
-        })]
+fn a_config_read_back_finds_a_sensor_that_reset_and_kept_sampling() {
+    let mut board = Board::new(9);
+    board.ack(Command::Start);
+    poll_for(&mut board, 500_000);
+    // The sensor lost its accelerometer range but is awake and its FIFO runs at the same
+    // rate (as after a glitch in one register): only the read-back can tell.
+    let held = board.sim().peek(reg::ACCEL_CONFIG);
+    board
+        .sim()
+        .write(DEFAULT_ADDRESS, &[reg::ACCEL_CONFIG, held ^ 0x08])
+        .unwrap();
+    poll_for(&mut board, 1_500_000);
+    assert!(
+        matches!(
+            board.replies[..],
+            [
+                DeviceMessage::Fault(ErrorCode::SensorReset),
+                DeviceMessage::Recovered { attempts: 1, .. }
+            ]
+        ),
+        "{:?}",
+        board.replies
     );
-    let (_, replies) = fault_after(|sim, _| sim.faults_mut().stuck_fifo_count = Some(0));
-    assert_eq!(
-        replies,
-        [DeviceMessage::Fault(ErrorCode::FifoCountImplausible {
-            count: 0
-        })]
-    );
+    assert_eq!(board.sim().settings(), SensorSettings::default());
 }
 
 #[test]
-fn wrong_sensor_is_named() {
+fn a_stuck_fifo_count_is_reported_once_and_retried_with_backoff() {
+    for count in [0x1C0, 0] {
+        let (board, replies) =
+            fault_after(|sim, _| sim.faults_mut().stuck_fifo_count = Some(count));
+        assert_eq!(
+            replies[0],
+            DeviceMessage::Fault(ErrorCode::FifoCountImplausible { count })
+        );
+        // Each restart fails at once: one episode, no second Fault, restarts spaced by the
+        // backoff (50, 100, 200, 400, 800 ms ... in two seconds: at most six).
+        let restarts = replies[1..]
+            .iter()
+            .filter(|m| matches!(m, DeviceMessage::Recovered { .. }))
+            .count();
+        assert_eq!(restarts, replies.len() - 1, "{replies:?}");
+        assert!((3..=6).contains(&restarts), "{restarts}");
+        assert!(board.fw.streaming());
+    }
+}
+
+#[test]
+fn wrong_sensor_is_named_and_clones_are_accepted() {
     let mut board = Board::new(8);
-    board.sim().faults_mut().who_am_i = Some(0x70);
+    board.sim().faults_mut().who_am_i = Some(0x71); // an MPU-9250
     let r = board.command(Command::Configure(SensorSettings::default()));
     assert!(matches!(
         r[..],
         [DeviceMessage::Nack {
-            error: ErrorCode::WrongSensor { who_am_i: 0x70 },
+            error: ErrorCode::WrongSensor { who_am_i: 0x71 },
             ..
         }]
     ));
     match board.command(Command::GetInfo).as_slice() {
         [DeviceMessage::Info(info)] => {
-            assert_eq!(info.who_am_i, 0x70);
+            assert_eq!(info.who_am_i, 0x71);
             assert_eq!(info.board_id, 0xB0A4D);
         }
         other => panic!("{other:?}"),
+    }
+    for clone in [0x70, 0x72, 0x98] {
+        board.sim().faults_mut().who_am_i = Some(clone);
+        board.ack(Command::Configure(SensorSettings::default()));
+        match board.command(Command::GetInfo).as_slice() {
+            [DeviceMessage::Info(info)] => assert_eq!(info.who_am_i, clone),
+            other => panic!("{other:?}"),
+        }
     }
 }
 

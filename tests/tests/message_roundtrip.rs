@@ -87,6 +87,10 @@ fn the_largest_messages_fit_one_frame() {
         batches_dropped: u32::MAX,
         samples_dropped: u64::MAX,
         frames_rejected: u32::MAX,
+        replies_dropped: u32::MAX,
+        recoveries: u32::MAX,
+        loss_certain: true,
+        sample_period_ns: u32::MAX,
     };
     let messages = [
         DeviceMessage::Samples(batch),

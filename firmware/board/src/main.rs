@@ -12,6 +12,7 @@
 #![no_std]
 #![no_main]
 
+mod bus;
 mod flash;
 mod link;
 
@@ -23,7 +24,8 @@ use rp2040_hal as hal;
 
 use embedded_hal::digital::OutputPin;
 use hal::fugit::RateExtU32;
-use hal::{Sio, Timer, Watchdog, clocks::init_clocks_and_plls, gpio, pac};
+use hal::clocks::{Clock as _, init_clocks_and_plls};
+use hal::{Sio, Timer, Watchdog, gpio, pac};
 use usb_device::class_prelude::UsbBusAllocator;
 use usb_device::prelude::{StringDescriptors, UsbDeviceBuilder, UsbVidPid};
 use usbd_serial::SerialPort;
@@ -82,14 +84,6 @@ fn main() -> ! {
 
     let sda = pins.gpio4.reconfigure::<gpio::FunctionI2C, gpio::PullUp>();
     let scl = pins.gpio5.reconfigure::<gpio::FunctionI2C, gpio::PullUp>();
-    let i2c = hal::I2C::i2c0(
-        pac.I2C0,
-        sda,
-        scl,
-        400.kHz(),
-        &mut pac.RESETS,
-        &clocks.system_clock,
-    );
 
     let usb_bus = UsbBusAllocator::new(hal::usb::UsbBus::new(
         pac.USBCTRL_REGS,
@@ -111,6 +105,17 @@ fn main() -> ! {
         panic!("USB packet size");
     };
     let mut usb = builder.device_class(usbd_serial::USB_CLASS_CDC).build();
+
+    // The bus owns RESETS from here on: clearing it re-creates the I2C peripheral.
+    let i2c = bus::Bus::new(
+        pac.I2C0,
+        sda,
+        scl,
+        400.kHz(),
+        pac.RESETS,
+        clocks.system_clock.freq(),
+        timer,
+    );
 
     let mut fw = Firmware::new(
         i2c,

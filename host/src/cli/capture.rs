@@ -198,9 +198,10 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         session.file.display()
     );
     let board_errors = outcome.capture.as_ref().map_or(0, |c| c.board_errors.len());
+    let recoveries = outcome.capture.as_ref().map_or(0, |c| c.recoveries.len());
     if board_errors > 0 {
         println!(
-            "the board reported {board_errors} error(s): `imunoise show {}` lists them",
+            "the board reported {board_errors} error(s) and recovered {recoveries} time(s): `imunoise show {}` lists them",
             session.id
         );
     }
@@ -228,6 +229,9 @@ pub(crate) fn progress_bar() -> ProgressBar {
 pub(crate) fn show(bar: &ProgressBar, p: &Progress) {
     for e in &p.new_board_errors {
         bar.println(format!("board: {e}"));
+    }
+    for r in &p.new_recoveries {
+        bar.println(format!("board: {r}"));
     }
     if let Some(wanted) = p.samples_wanted {
         bar.set_length(wanted);

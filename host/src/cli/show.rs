@@ -1,7 +1,7 @@
 //! `imunoise show ID`: everything the store knows about a session: metadata, counts, the
 //! losses with their gap list (from the raw file), the stored analyses.
 
-use crate::capture::{BoardReport, Capture};
+use crate::capture::{BoardReport, Capture, RecoveryReport};
 use crate::cli::sessions::{duration, rate_bandwidth};
 use crate::cli::stored::open_store;
 use crate::store::{Analysis, Kind, Session, State};
@@ -52,6 +52,8 @@ struct Losses {
     trailing_bytes: usize,
     /// Commands the board refused and faults it reported.
     board_errors: Vec<BoardReport>,
+    /// Faults the board recovered from by itself, where samples resumed.
+    recoveries: Vec<RecoveryReport>,
     error: Option<String>,
 }
 
@@ -69,6 +71,7 @@ impl Losses {
                 restarts: c.restarts.clone(),
                 trailing_bytes: c.trailing_bytes,
                 board_errors: c.board_errors.clone(),
+                recoveries: c.recoveries.clone(),
                 error: None,
             },
             Err(e) => Losses {
@@ -155,6 +158,9 @@ fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
     for e in &losses.board_errors {
         kv("board error", e.to_string());
     }
+    for r in &losses.recoveries {
+        kv("recovery", r.to_string());
+    }
     for (start, end) in losses.gaps.iter().take(GAPS_SHOWN) {
         kv(
             "gap",
@@ -194,13 +200,24 @@ fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
 /// A board's cumulative counters (its Status) in one line.
 pub fn board_counters(b: &protocol::Status) -> String {
     format!(
-        "{} acquired, {} lost ({} FIFO overflows), {} dropped in {} batches, {} I2C errors, {} host frames rejected",
+        "{} acquired, {} lost ({} FIFO overflows; loss count {}), {} dropped in {} batches, {} I2C errors, {} recoveries, {} host frames rejected, {} replies dropped{}",
         b.samples_acquired,
         b.samples_lost,
         b.fifo_overflows,
+        if b.loss_certain { "exact" } else { "estimated" },
         b.samples_dropped,
         b.batches_dropped,
         b.i2c_errors,
-        b.frames_rejected
+        b.recoveries,
+        b.frames_rejected,
+        b.replies_dropped,
+        if b.sample_period_ns > 0 {
+            format!(
+                ", sensor sample period {:.3} us (measured)",
+                f64::from(b.sample_period_ns) / 1e3
+            )
+        } else {
+            String::new()
+        }
     )
 }

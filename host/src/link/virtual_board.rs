@@ -45,6 +45,14 @@ impl I2c for SharedSensor {
     }
 }
 
+/// The simulated device has no pins to hold low: clearing the bus ends any transaction it is
+/// in, which is what nine clocks and a STOP do to a real one.
+impl firmware::BusClear for SharedSensor {
+    fn clear_bus(&mut self) {
+        self.lock().bus_stop();
+    }
+}
+
 impl Clock for SharedSensor {
     fn now_us(&mut self) -> u64 {
         self.lock().time_us()
