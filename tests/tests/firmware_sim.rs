@@ -474,8 +474,7 @@ fn a_sensor_that_stops_answering_is_reported_not_waited_on() {
 
 #[test]
 fn a_sensor_reset_mid_run_is_reported_and_recovered() {
-    let (mut board, replies) =
-        fault_after(|sim, now| sim.faults_mut().reset_at_us = Some(now + 5_000));
+    let (mut board, replies) = fault_after(|sim, now| sim.schedule_reset(now + 5_000));
     assert_eq!(
         replies,
         [DeviceMessage::Fault(ErrorCode::VerifyFailed {
