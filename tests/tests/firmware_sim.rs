@@ -560,8 +560,7 @@ fn a_sensor_gone_for_good_is_given_up_on_after_ten_minutes() {
 
 #[test]
 fn a_sensor_reset_mid_run_is_found_and_set_up_again() {
-    let (mut board, replies) =
-        fault_after(|sim, now| sim.faults_mut().reset_at_us = Some(now + 5_000));
+    let (mut board, replies) = fault_after(|sim, now| sim.schedule_reset(now + 5_000));
     let resumed = match replies[..] {
         [
             DeviceMessage::Fault(ErrorCode::SensorReset),

@@ -92,14 +92,28 @@ pub fn open_port(spec: &PortSpec) -> Result<Box<dyn Link>> {
     Ok(Box::new(virtual_board(spec)?))
 }
 
-/// The virtual board of `spec` (its model file, or the built-in example, and seed).
+/// The virtual board of `spec`: its model file's model and `[faults]` (or the built-in
+/// example, which has none), and seed.
 pub fn virtual_board(spec: &PortSpec) -> Result<VirtualBoard> {
-    let model = match spec.model {
-        Some(path) => model_file::load(path)?,
-        None => model_file::example(),
+    let file = match spec.model {
+        Some(path) => model_file::load_file(path)?,
+        None => model_file::ModelFile {
+            model: model_file::example(),
+            faults: model_file::FaultPlan::default(),
+        },
     };
-    VirtualBoard::new(model, spec.seed, SIMULATED_BOARD_ID | spec.seed, spec.speed)
-        .map_err(|e| anyhow!("the virtual board did not start: {e}"))
+    let board = VirtualBoard::with_faults(
+        file.model,
+        spec.seed,
+        SIMULATED_BOARD_ID | spec.seed,
+        spec.speed,
+        &file.faults,
+    );
+    // As the board's own log would: the firmware goes on, and reports it on Start.
+    if let Some(e) = board.boot_error() {
+        eprintln!("note: the virtual board's sensor did not start: {e}");
+    }
+    Ok(board)
 }
 
 /// The link the arguments name.

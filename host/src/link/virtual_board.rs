@@ -3,9 +3,20 @@
 //! a real board would send over USB. Time is the simulated sensor's clock, which is also the
 //! firmware's clock; it advances with the wall clock times a speed factor, or as fast as the
 //! host reads (`Speed::Max`).
+//!
+//! Faults ([`VirtualBoard::with_faults`], the model file's `[faults]` table): the sensor's
+//! own ([`crate::sim::device::Faults`]: its sample clock's offset and drift, I2C outages,
+//! sensor resets, a clone's WHO_AM_I) and board reboots (watchdog, brown-out) at listed
+//! times. A reboot replaces the firmware with a freshly started one (as at power-up: `init`
+//! resets and sets up the sensor), loses whatever the host had not yet read (the USB
+//! buffers), and leaves the board idle until the host sends Start again; the sensor is not
+//! powered down, so its clock, faults and state go on. A sensor that does not answer at
+//! start-up is not fatal, as on the board: the firmware logs it ([`VirtualBoard::boot_error`])
+//! and reports it on the next Configure or Start.
 
 use crate::sim::device::{SimI2cError, SimMpu6050};
 use crate::sim::imu::ImuModel;
+use crate::sim::model_file::FaultPlan;
 use embedded_hal::i2c::{ErrorType, I2c, Operation};
 use firmware::{BoardConfig, Clock, Firmware};
 use protocol::ErrorCode;
@@ -76,6 +87,12 @@ pub const LINK_BUFFER: usize = 1 << 20;
 pub struct VirtualBoard {
     sensor: SharedSensor,
     firmware: Firmware<SharedSensor, SharedSensor>,
+    board_id: u64,
+    /// What the last start-up's `init` returned.
+    boot_result: Result<(), ErrorCode>,
+    /// Reboot times, us, sorted.
+    reboots_at_us: VecDeque<u64>,
+    reboots: u32,
     outbox: VecDeque<u8>,
     speed: Speed,
     /// Wall time and emulated time at the last speed reference point.
@@ -84,27 +101,66 @@ pub struct VirtualBoard {
 }
 
 impl VirtualBoard {
-    /// A board whose sensor follows `model` (seeded), with the given board id.
+    /// A board whose sensor follows `model` (seeded), with the given board id; an error if
+    /// the sensor does not start.
     pub fn new(model: ImuModel, seed: u64, board_id: u64, speed: Speed) -> Result<Self, ErrorCode> {
-        let sensor = SharedSensor::new(SimMpu6050::new(model, seed));
-        let mut firmware = Firmware::new(
-            sensor.clone(),
-            sensor.clone(),
-            BoardConfig {
-                address: DEFAULT_ADDRESS,
-                board_id,
-            },
-        );
-        firmware.init(&mut NoDelay)?;
+        let board = Self::with_faults(model, seed, board_id, speed, &FaultPlan::default());
+        board.boot_result.map(|()| board)
+    }
+
+    /// A board whose sensor follows `model` (seeded), with `faults` set before the board
+    /// starts (so that its start-up meets them, e.g. a clone's WHO_AM_I). Like the board, it
+    /// starts whatever the sensor answers ([`VirtualBoard::boot_error`]).
+    pub fn with_faults(
+        model: ImuModel,
+        seed: u64,
+        board_id: u64,
+        speed: Speed,
+        faults: &FaultPlan,
+    ) -> Self {
+        let mut sim = SimMpu6050::new(model, seed);
+        faults.apply_to_sensor(&mut sim);
+        let sensor = SharedSensor::new(sim);
+        let (firmware, boot_result) = boot(&sensor, board_id);
         let emulated_origin_us = sensor.lock().time_us();
-        Ok(VirtualBoard {
+        let mut board = VirtualBoard {
             sensor,
             firmware,
+            board_id,
+            boot_result,
+            reboots_at_us: VecDeque::new(),
+            reboots: 0,
             outbox: VecDeque::new(),
             speed,
             wall_origin: Instant::now(),
             emulated_origin_us,
-        })
+        };
+        for &t in &faults.board_resets_us {
+            board.schedule_reboot(t);
+        }
+        board
+    }
+
+    /// A reboot (watchdog, brown-out) when emulated time passes `t_us` (module
+    /// documentation); a time already past reboots at the next step.
+    pub fn schedule_reboot(&mut self, t_us: u64) {
+        let i = self.reboots_at_us.partition_point(|&r| r <= t_us);
+        self.reboots_at_us.insert(i, t_us);
+    }
+
+    /// Reboots so far (not counting power-up).
+    pub fn reboots(&self) -> u32 {
+        self.reboots
+    }
+
+    /// The error the firmware's start-up (`init`) logged at power-up or the last reboot.
+    pub fn boot_error(&self) -> Option<ErrorCode> {
+        self.boot_result.err()
+    }
+
+    /// Whether the firmware is streaming samples.
+    pub fn streaming(&self) -> bool {
+        self.firmware.streaming()
     }
 
     /// The simulated sensor, to inject faults or read its state.
@@ -165,12 +221,60 @@ impl VirtualBoard {
         }
     }
 
-    /// Advance emulated time by `dt` and let the firmware run.
+    /// Let `dt` of emulated time pass with the firmware running, whether or not the host
+    /// reads: what the board sends queues (up to [`LINK_BUFFER`]). At a speed factor the
+    /// board then waits for the wall clock to catch up before it moves on.
+    pub fn advance(&mut self, dt: Duration) {
+        let mut left = dt;
+        while !left.is_zero() {
+            let step = left.min(STEP);
+            self.step(step);
+            left -= step;
+        }
+    }
+
+    /// Advance emulated time by `dt` and let the firmware run, rebooting on the way when a
+    /// reboot falls in the step.
     fn step(&mut self, dt: Duration) {
-        self.sensor.lock().advance(dt);
+        let dt_us = u64::try_from(dt.as_micros()).unwrap_or(u64::MAX);
+        let end_us = self.time_us().saturating_add(dt_us);
+        while let Some(at_us) = self.reboots_at_us.front().copied().filter(|&t| t <= end_us) {
+            self.reboots_at_us.pop_front();
+            self.sensor.lock().set_time_us(at_us);
+            self.reboot();
+        }
+        self.sensor.lock().set_time_us(end_us);
         let outbox = &mut self.outbox;
         self.firmware.poll(&mut |frame| push_frame(outbox, frame));
     }
+
+    /// The board restarts: what it had not sent is gone, and a fresh firmware starts as at
+    /// power-up.
+    fn reboot(&mut self) {
+        self.outbox.clear();
+        let (firmware, boot_result) = boot(&self.sensor, self.board_id);
+        self.firmware = firmware;
+        self.boot_result = boot_result;
+        self.reboots += 1;
+    }
+}
+
+/// The firmware as the board starts it: constructed, then `init`, whose error the board
+/// logs and goes on.
+fn boot(
+    sensor: &SharedSensor,
+    board_id: u64,
+) -> (Firmware<SharedSensor, SharedSensor>, Result<(), ErrorCode>) {
+    let mut firmware = Firmware::new(
+        sensor.clone(),
+        sensor.clone(),
+        BoardConfig {
+            address: DEFAULT_ADDRESS,
+            board_id,
+        },
+    );
+    let result = firmware.init(&mut NoDelay);
+    (firmware, result)
 }
 
 impl super::Link for VirtualBoard {
@@ -253,6 +357,92 @@ mod tests {
         // At max speed every read advances time until there are bytes: 200 reads of up to
         // 4 KiB carry hundreds of samples.
         assert!(next > 500, "{next} samples");
+    }
+
+    fn count_samples(msgs: &[DeviceMessage]) -> usize {
+        msgs.iter()
+            .map(|m| match m {
+                DeviceMessage::Samples(batch) => batch.samples.len(),
+                _ => 0,
+            })
+            .sum()
+    }
+
+    #[test]
+    fn a_reboot_loses_unread_data_and_waits_for_start() {
+        let mut b = board(Speed::Max);
+        send(&mut b, 1, Command::Start);
+        let before = messages(&mut b, 20);
+        assert!(matches!(before[0], DeviceMessage::Ack { seq: 1 }));
+        assert!(count_samples(&before) > 0);
+        let reboot_us = b.time_us() + 300_000;
+        b.schedule_reboot(reboot_us);
+        // The host stops reading: the board's frames queue in its USB buffers.
+        b.advance(Duration::from_millis(250));
+        assert!(!b.outbox.is_empty());
+        assert_eq!(b.reboots(), 0);
+        let sensor_resets = b.sensor().lock().resets();
+        b.advance(Duration::from_millis(100));
+        assert_eq!(b.reboots(), 1);
+        assert!(!b.streaming());
+        assert!(b.outbox.is_empty(), "unread frames are lost");
+        // The sensor was not powered down: its clock went on; the fresh firmware's start-up
+        // set it up again.
+        assert_eq!(b.time_us(), reboot_us + 50_000);
+        assert!(b.sensor().lock().resets() > sensor_resets);
+        assert_eq!(b.boot_error(), None);
+        // Idle until the host starts it again.
+        assert!(messages(&mut b, 5).is_empty());
+        assert_eq!(
+            b.time_us(),
+            reboot_us + 50_000,
+            "not streaming: time stands"
+        );
+        send(&mut b, 2, Command::GetInfo);
+        send(&mut b, 3, Command::Start);
+        let after = messages(&mut b, 20);
+        assert!(matches!(&after[0], DeviceMessage::Info(i) if i.board_id == 42));
+        assert!(matches!(after[1], DeviceMessage::Ack { seq: 3 }));
+        assert!(count_samples(&after) > 0);
+        assert_eq!(b.reboots(), 1);
+    }
+
+    #[test]
+    fn a_fault_plan_reaches_the_sensor_and_the_board() {
+        let plan = FaultPlan {
+            clock: crate::sim::device::SensorClock {
+                ppm: 3000.0,
+                drift_ppm_per_hour: 0.0,
+            },
+            i2c_outages: vec![crate::sim::device::Outage {
+                at_us: 10_000_000,
+                for_us: 1_000_000,
+            }],
+            sensor_resets_us: vec![20_000_000],
+            board_resets_us: vec![1_000_000, 2_000_000],
+            who_am_i: Some(0x70),
+        };
+        let model = ImuModel::default();
+        let mut b = VirtualBoard::with_faults(model, 1, 42, Speed::Max, &plan);
+        {
+            let sensor = b.sensor().lock();
+            let faults = sensor.faults();
+            assert_eq!(faults.clock, plan.clock);
+            assert_eq!(faults.i2c_outages, plan.i2c_outages);
+            assert_eq!(faults.resets_at_us, plan.sensor_resets_us);
+        }
+        send(&mut b, 1, Command::GetInfo);
+        let info = messages(&mut b, 1);
+        assert!(matches!(&info[0], DeviceMessage::Info(i) if i.who_am_i == 0x70));
+        // Both reboots happen as emulated time passes them, each within the step it falls in.
+        b.advance(Duration::from_millis(999));
+        assert_eq!(b.reboots(), 0);
+        b.advance(Duration::from_millis(5));
+        assert_eq!(b.reboots(), 1);
+        b.advance(Duration::from_secs(1));
+        assert_eq!(b.reboots(), 2);
+        b.advance(Duration::from_secs(5));
+        assert_eq!(b.reboots(), 2);
     }
 
     #[test]

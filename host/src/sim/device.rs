@@ -7,8 +7,12 @@
 //!   its reset value (asleep, FIFO empty) and clears itself.
 //! - SMPLRT_DIV, CONFIG, GYRO_CONFIG, ACCEL_CONFIG set the signal chain ([`super::imu`]); a
 //!   change while awake restarts sampling with the new settings (the noise processes restart).
-//! - Samples come at the output rate of the clock the caller drives ([`SimMpu6050::advance`],
-//!   [`SimMpu6050::set_time_us`]): sample k of a run (k = 1, 2, ...) at `start + k / f_s`.
+//! - Samples come at the output rate of the sensor's own oscillator, against the clock the
+//!   caller drives (the board's: [`SimMpu6050::advance`], [`SimMpu6050::set_time_us`]).
+//!   With an ideal oscillator sample k of a run (k = 1, 2, ...) is at `start + k / f_s`;
+//!   with [`SensorClock`] the oscillator runs at `1 + (ppm + drift * t_hours) * 1e-6` of
+//!   nominal, and sample k is where the integral of that rate from `start` reaches `k / f_s`
+//!   (solved in closed form per sample, so no error accumulates over a night).
 //!   Each updates the data registers ACCEL_XOUT_H..GYRO_ZOUT_L (big-endian i16), sets
 //!   INT_STATUS bit 0 (DATA_RDY) if INT_ENABLE bit 0 is set, and, if USER_CTRL bit 6
 //!   (FIFO_EN) is set, appends the channels enabled in FIFO_EN (0x23: bit 3 accel xyz 6 bytes,
@@ -26,8 +30,12 @@
 //! - The register pointer is the first byte of a write; reads and further written bytes
 //!   auto-increment it, except at FIFO_R_W, which stays. Writes to read-only registers
 //!   (data, INT_STATUS, FIFO_COUNT, WHO_AM_I) are ignored.
-//! - Faults ([`Faults`]): NACK of the address or of written data, bus errors, a wrong
-//!   WHO_AM_I, a stuck FIFO count, a device reset at a given time.
+//! - Faults ([`Faults`]): NACK of the address or of written data (counted transactions),
+//!   bus errors, a wrong WHO_AM_I (a clone chip), a stuck FIFO count, the sample clock's
+//!   offset and linear drift ([`SensorClock`]), I2C outages (time windows in which every
+//!   transaction is NACKed at the address while sampling and the FIFO go on, so the FIFO
+//!   overflows as on the chip), and device resets at listed times (registers back to their
+//!   power-on values, asleep, FIFO empty). Times are the caller's clock, us.
 //!
 //! Not modelled: the DMP, the auxiliary I2C master, self-test, interrupt pin configuration,
 //! FIFO_EN's SLV bits, clock source selection, low-power cycle mode.
@@ -75,9 +83,74 @@ impl embedded_hal::i2c::Error for SimI2cError {
     }
 }
 
+/// The sensor's sample oscillator against the caller's (the board's) clock: its rate is
+/// `1 + (ppm + drift_ppm_per_hour * t_hours) * 1e-6` of nominal at board time `t_hours`
+/// (hours since time 0). The default is an ideal oscillator.
+///
+/// The rate must stay positive: `ppm > -1e6`; with a negative drift, once the rate would
+/// reach zero the sensor makes no more samples.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SensorClock {
+    /// Constant frequency offset, ppm (+3000: 0.3 % fast).
+    pub ppm: f64,
+    /// Linear change of the offset, ppm per hour of board time.
+    pub drift_ppm_per_hour: f64,
+}
+
+impl SensorClock {
+    /// Linear and quadratic coefficients of the phase in us: `phase(t) = c1 t + c2 t^2`.
+    fn coefficients(&self) -> (f64, f64) {
+        let c1 = 1.0 + self.ppm * 1e-6;
+        let c2 = self.drift_ppm_per_hour * 1e-6 / (2.0 * 3600e6);
+        (c1, c2)
+    }
+
+    /// The oscillator's phase at board time `t_us`: nominal microseconds elapsed on the
+    /// sensor since board time 0 (the integral of the rate).
+    pub fn phase_us(&self, t_us: f64) -> f64 {
+        let (c1, c2) = self.coefficients();
+        c1 * t_us + c2 * t_us * t_us
+    }
+
+    /// The board time at which the phase reaches `phase_us` (the inverse of
+    /// [`SensorClock::phase_us`] on its rising branch); infinity if it never does.
+    pub fn time_at_phase_us(&self, phase_us: f64) -> f64 {
+        let (c1, c2) = self.coefficients();
+        let t = if c2 == 0.0 {
+            phase_us / c1
+        } else {
+            // The root of c2 t^2 + c1 t - phase = 0 on the rising branch, in the form that
+            // keeps its precision when c2 t is small against c1.
+            let disc = c1 * c1 + 4.0 * c2 * phase_us;
+            if disc < 0.0 {
+                return f64::INFINITY;
+            }
+            2.0 * phase_us / (c1 + disc.sqrt())
+        };
+        if t.is_finite() && t >= 0.0 {
+            t
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
+/// A window of board time in which the device does not answer at all, us.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Outage {
+    pub at_us: u64,
+    pub for_us: u64,
+}
+
+impl Outage {
+    pub fn contains(&self, t_us: u64) -> bool {
+        t_us >= self.at_us && t_us - self.at_us < self.for_us
+    }
+}
+
 /// Injected faults. The counts are numbers of coming transactions affected (`u32::MAX`:
 /// all of them); each affected transaction fails without any effect on the device.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Faults {
     /// The address byte is not acknowledged.
     pub nack_address: u32,
@@ -90,8 +163,23 @@ pub struct Faults {
     pub who_am_i: Option<u8>,
     /// FIFO_COUNT reads this whatever the FIFO holds.
     pub stuck_fifo_count: Option<u16>,
-    /// A device reset (as by PWR_MGMT_1 bit 7) when the clock passes this time, us.
-    pub reset_at_us: Option<u64>,
+    /// The sample oscillator's offset and drift. A change while sampling keeps the
+    /// progress towards the next sample (the phase is continuous).
+    pub clock: SensorClock,
+    /// Windows in which every transaction is NACKed at the address (the count
+    /// `nack_address` is not consumed); sampling and the FIFO go on.
+    pub i2c_outages: Vec<Outage>,
+    /// Device resets (as by PWR_MGMT_1 bit 7), each once when the clock passes its time, us;
+    /// any order (they are sorted when the clock moves), removed as they happen. A time
+    /// already past fires at the next clock move. [`SimMpu6050::schedule_reset`] adds one.
+    pub resets_at_us: Vec<u64>,
+}
+
+impl Faults {
+    /// Whether `t_us` falls in one of the outages.
+    pub fn in_outage(&self, t_us: u64) -> bool {
+        self.i2c_outages.iter().any(|o| o.contains(t_us))
+    }
 }
 
 /// The simulated MPU-6050 (module documentation).
@@ -109,6 +197,7 @@ pub struct SimMpu6050 {
     /// Sampling state while awake.
     run: Option<Run>,
     runs_started: u64,
+    samples_made: u64,
     time_us: u64,
     faults: Faults,
     resets: u32,
@@ -138,14 +227,29 @@ pub enum JournalEntry {
 #[derive(Debug, Clone)]
 struct Run {
     imu: Imu,
-    start_us: u64,
+    /// The oscillator's phase at which the run's sample 0 would be (its start), us, under
+    /// `clock`.
+    phase_origin_us: f64,
+    clock: SensorClock,
     samples: u64,
 }
 
 impl Run {
-    /// Time of the next sample, us (fractional).
+    /// Board time of the next sample, us (fractional): where the oscillator's phase reaches
+    /// the origin plus (k + 1) nominal sample periods. Each sample's time is computed from
+    /// the origin, so rounding does not accumulate.
     fn next_us(&self) -> f64 {
-        self.start_us as f64 + (self.samples + 1) as f64 * 1e6 / self.imu.output_rate_hz()
+        let phase =
+            self.phase_origin_us + (self.samples + 1) as f64 * 1e6 / self.imu.output_rate_hz();
+        self.clock.time_at_phase_us(phase)
+    }
+
+    /// Continue under `clock` from board time `t_us` with the same progress towards the
+    /// next sample.
+    fn rebase(&mut self, clock: SensorClock, t_us: f64) {
+        let elapsed = self.clock.phase_us(t_us) - self.phase_origin_us;
+        self.phase_origin_us = clock.phase_us(t_us) - elapsed;
+        self.clock = clock;
     }
 }
 
@@ -164,6 +268,7 @@ impl SimMpu6050 {
             duration_hint_s: 3600.0,
             run: None,
             runs_started: 0,
+            samples_made: 0,
             time_us: 0,
             faults: Faults::default(),
             resets: 0,
@@ -198,8 +303,23 @@ impl SimMpu6050 {
         }
     }
 
+    pub fn faults(&self) -> &Faults {
+        &self.faults
+    }
+
     pub fn faults_mut(&mut self) -> &mut Faults {
         &mut self.faults
+    }
+
+    /// A device reset when the clock passes `t_us` (see [`Faults::resets_at_us`]).
+    pub fn schedule_reset(&mut self, t_us: u64) {
+        self.faults.resets_at_us.push(t_us);
+        self.faults.resets_at_us.sort_unstable();
+    }
+
+    /// Samples made so far, all runs together (whether or not they reached the FIFO).
+    pub fn samples_made(&self) -> u64 {
+        self.samples_made
     }
 
     /// Start keeping a journal of FIFO resets and samples made (see [`JournalEntry`]).
@@ -258,13 +378,23 @@ impl SimMpu6050 {
     }
 
     /// Move the clock to `t_us` (a time in the past is ignored), producing the samples due
-    /// and any injected reset on the way.
+    /// and the injected resets on the way.
     pub fn set_time_us(&mut self, t_us: u64) {
         if t_us <= self.time_us {
             return;
         }
+        let clock = self.faults.clock;
+        if let Some(run) = self.run.as_mut().filter(|run| run.clock != clock) {
+            run.rebase(clock, self.time_us as f64);
+        }
+        self.faults.resets_at_us.sort_unstable();
         loop {
-            let reset = self.faults.reset_at_us.filter(|&r| r <= t_us);
+            let reset = self
+                .faults
+                .resets_at_us
+                .first()
+                .copied()
+                .filter(|&r| r <= t_us);
             let sample = self
                 .run
                 .as_ref()
@@ -277,7 +407,7 @@ impl SimMpu6050 {
                 }
                 (_, Some(r)) => {
                     self.time_us = self.time_us.max(r);
-                    self.faults.reset_at_us = None;
+                    self.faults.resets_at_us.remove(0);
                     self.device_reset();
                 }
                 _ => break,
@@ -310,9 +440,11 @@ impl SimMpu6050 {
                 .wrapping_add(self.runs_started.wrapping_mul(0x9E37_79B9_7F4A_7C15));
             let mut imu = Imu::new(&self.model, self.settings(), seed, self.duration_hint_s);
             imu.set_input(self.input);
+            let clock = self.faults.clock;
             Some(Run {
                 imu,
-                start_us: self.time_us,
+                phase_origin_us: clock.phase_us(self.time_us as f64),
+                clock,
                 samples: 0,
             })
         } else {
@@ -325,6 +457,7 @@ impl SimMpu6050 {
         let Some(run) = &mut self.run else { return };
         let raw = run.imu.next_raw();
         run.samples += 1;
+        self.samples_made += 1;
         let bytes = RawSample::to_fifo_bytes(&raw);
         self.regs[usize::from(reg::ACCEL_XOUT_H)..][..14].copy_from_slice(&bytes);
         let enable = self.regs[usize::from(reg::INT_ENABLE)];
@@ -488,10 +621,14 @@ impl I2c for SimMpu6050 {
 /// these events in order, so both paths are one device.
 impl SimMpu6050 {
     /// A start (or, with `repeated`, a repeated start) addressed to `address`: acknowledged
-    /// if it is this device's, unless an address NACK or a bus error is injected (those are
-    /// counted per transaction, so a repeated start does not consume them).
+    /// if it is this device's, unless the time is in an outage or an address NACK or a bus
+    /// error is injected (those are counted per transaction, so a repeated start does not
+    /// consume them).
     pub fn bus_start(&mut self, address: u8, repeated: bool) -> Result<(), SimI2cError> {
-        if address != self.address || (!repeated && Self::take(&mut self.faults.nack_address)) {
+        if address != self.address
+            || self.faults.in_outage(self.time_us)
+            || (!repeated && Self::take(&mut self.faults.nack_address))
+        {
             return Err(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Address));
         }
         if !repeated {
@@ -755,11 +892,210 @@ mod tests {
         dev.faults_mut().stuck_fifo_count = None;
         // A reset in the middle of the run: samples stop at 150 ms.
         let now = dev.time_us();
-        dev.faults_mut().reset_at_us = Some(now + 50_000);
+        dev.schedule_reset(now + 50_000);
         dev.advance(Duration::from_millis(200));
         assert_eq!(dev.resets(), 1);
         assert_eq!(read1(&mut dev, reg::PWR_MGMT_1), SLEEP);
         assert_eq!(fifo_count(&mut dev), 0);
+    }
+
+    /// Awake at 1 kHz (DLPF on, divider 0), FIFO off, under `clock`, from `start_us`.
+    fn at_1khz(clock: SensorClock, start_us: u64) -> SimMpu6050 {
+        let mut dev = device();
+        dev.faults_mut().clock = clock;
+        dev.set_time_us(start_us);
+        dev.write(ADDR, &[reg::SMPLRT_DIV, 0, 1, 0, 0]).unwrap();
+        write(&mut dev, reg::PWR_MGMT_1, 0x01);
+        assert_eq!(dev.settings().output_rate_hz(), 1000.0);
+        dev
+    }
+
+    fn sample_times(dev: &mut SimMpu6050) -> Vec<u64> {
+        dev.take_journal()
+            .iter()
+            .filter_map(|e| match e {
+                JournalEntry::Sample { time_us, .. } => Some(*time_us),
+                JournalEntry::FifoReset { .. } => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_clock_offset_changes_the_sample_count() {
+        for (ppm, expected) in [
+            (0.0, 60_000),
+            (3000.0, 60_180),
+            (10_000.0, 60_600),
+            (-10_000.0, 59_400),
+        ] {
+            let clock = SensorClock {
+                ppm,
+                drift_ppm_per_hour: 0.0,
+            };
+            let mut dev = at_1khz(clock, 0);
+            dev.advance(Duration::from_secs(60));
+            let n = dev.samples_made();
+            assert!(n.abs_diff(expected) <= 1, "{ppm} ppm: {n} samples");
+        }
+        // The ideal clock keeps sample k at exactly k ms.
+        let mut dev = at_1khz(SensorClock::default(), 0);
+        dev.keep_journal();
+        dev.advance(Duration::from_millis(5));
+        assert_eq!(sample_times(&mut dev), [1000, 2000, 3000, 4000, 5000]);
+    }
+
+    #[test]
+    fn a_drifting_clock_follows_the_integral_of_its_rate() {
+        // From 1 h to 1 h + 60 s, rate 1 + (2000 - 5000 t_h) 1e-6: the sensor's elapsed time
+        // is the integral, 60 s + 1e-6 (2000 * 60 - 5000 (3660^2 - 3600^2) / 7200) s.
+        let clock = SensorClock {
+            ppm: 2000.0,
+            drift_ppm_per_hour: -5000.0,
+        };
+        let (t0, t1) = (3600.0_f64, 3660.0_f64);
+        let integral = |a: f64, b: f64| {
+            (b - a) + 1e-6 * (2000.0 * (b - a) - 5000.0 * (b * b - a * a) / 7200.0)
+        };
+        assert!((integral(t0, t1) - 59.8175).abs() < 1e-9);
+        let mut dev = at_1khz(clock, 3_600_000_000);
+        dev.keep_journal();
+        dev.advance(Duration::from_secs(60));
+        let times = sample_times(&mut dev);
+        let expected = (integral(t0, t1) * 1000.0).floor() as u64;
+        assert_eq!(expected, 59_817);
+        assert!(dev.samples_made().abs_diff(expected) <= 1);
+        assert_eq!(times.len() as u64, dev.samples_made());
+        // Each sample k at the first whole us where the integral has reached k ms.
+        for (k, &t) in times.iter().enumerate().step_by(997) {
+            let due = (k + 1) as f64 * 1e-3;
+            let t = t as f64 * 1e-6;
+            assert!(integral(t0, t) <= due + 1e-9, "sample {k} early");
+            assert!(integral(t0, t + 1e-6) > due - 1e-9, "sample {k} late");
+        }
+    }
+
+    #[test]
+    fn the_clock_model_inverts_exactly_over_a_night() {
+        for (ppm, drift) in [(10_000.0, 0.0), (-10_000.0, 500.0), (3000.0, -800.0)] {
+            let clock = SensorClock {
+                ppm,
+                drift_ppm_per_hour: drift,
+            };
+            for hours in [0.001, 1.0, 8.0, 14.0] {
+                let phase = hours * 3600e6;
+                let t = clock.time_at_phase_us(phase);
+                assert!(
+                    (clock.phase_us(t) - phase).abs() < 1e-3,
+                    "{ppm} {drift} {hours}"
+                );
+                // The rate is what the model says: 1 + (ppm + drift t_h) 1e-6 (a central
+                // difference is exact for a quadratic; a wide one keeps rounding small).
+                let h = 1e6;
+                let rate = (clock.phase_us(t + h) - clock.phase_us(t - h)) / (2.0 * h);
+                let expected = 1.0 + (ppm + drift * t / 3600e6) * 1e-6;
+                assert!((rate - expected).abs() < 1e-8, "{rate} {expected}");
+            }
+        }
+        // A falling rate that reaches zero: the phase never gets past its maximum.
+        let stopping = SensorClock {
+            ppm: 0.0,
+            drift_ppm_per_hour: -1e6,
+        };
+        assert_eq!(stopping.time_at_phase_us(1e10), f64::INFINITY);
+    }
+
+    #[test]
+    fn a_clock_change_mid_run_keeps_the_phase() {
+        let mut dev = at_1khz(SensorClock::default(), 0);
+        dev.keep_journal();
+        dev.set_time_us(10_000_500);
+        assert_eq!(dev.samples_made(), 10_000);
+        // Half a period to go; at 1 % fast it takes 500 / 1.01 = 495.05 us.
+        dev.faults_mut().clock.ppm = 10_000.0;
+        dev.take_journal();
+        dev.set_time_us(10_002_000);
+        let times = sample_times(&mut dev);
+        assert_eq!(times[0], 10_000_995);
+        // The next one a full fast period (990.1 us) later.
+        assert_eq!(times[1], 10_001_985);
+    }
+
+    #[test]
+    fn an_i2c_outage_nacks_everything_while_sampling_goes_on() {
+        let mut dev = running();
+        write(&mut dev, reg::INT_ENABLE, FIFO_OFLOW);
+        dev.faults_mut().i2c_outages = vec![Outage {
+            at_us: 100_000,
+            for_us: 3_000_000,
+        }];
+        let nack = Err(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Address));
+        let mut buf = [0u8; 1];
+        dev.set_time_us(99_999);
+        assert_eq!(read1(&mut dev, reg::WHO_AM_I), 0x68);
+        dev.set_time_us(100_000);
+        assert_eq!(dev.write_read(ADDR, &[reg::WHO_AM_I], &mut buf), nack);
+        // Writes have no effect: neither settings nor a FIFO reset.
+        assert_eq!(dev.write(ADDR, &[reg::SMPLRT_DIV, 1]), nack);
+        assert_eq!(
+            dev.write(ADDR, &[reg::USER_CTRL, USER_FIFO_EN | FIFO_RESET]),
+            nack
+        );
+        assert_eq!(dev.read(ADDR, &mut buf), nack);
+        let samples_before = dev.samples_made();
+        dev.set_time_us(3_099_999);
+        assert_eq!(dev.write_read(ADDR, &[reg::WHO_AM_I], &mut buf), nack);
+        // The chip went on at 100 Hz and its FIFO overflowed.
+        assert_eq!(dev.samples_made() - samples_before, 299);
+        assert_eq!(dev.fifo_len(), 1024);
+        dev.set_time_us(3_100_000);
+        assert_eq!(
+            read1(&mut dev, reg::WHO_AM_I),
+            0x68,
+            "back after the window"
+        );
+        assert_eq!(read1(&mut dev, reg::SMPLRT_DIV), 9);
+        assert_eq!(read1(&mut dev, reg::INT_STATUS), FIFO_OFLOW);
+        assert_eq!(fifo_count(&mut dev), 1024);
+        assert_eq!(dev.faults().nack_address, 0);
+        assert_eq!(dev.resets(), 0);
+    }
+
+    #[test]
+    fn resets_at_listed_times() {
+        let mut dev = running();
+        dev.keep_journal();
+        // Given out of order, partly through the field and partly scheduled.
+        dev.faults_mut().resets_at_us = vec![500_000, 150_000];
+        dev.schedule_reset(300_000);
+        assert_eq!(dev.faults().resets_at_us, [150_000, 300_000, 500_000]);
+        dev.set_time_us(149_999);
+        assert_eq!(dev.resets(), 0);
+        assert_eq!(dev.samples_made(), 14);
+        dev.set_time_us(150_000);
+        assert_eq!(dev.resets(), 1);
+        assert_eq!(dev.fifo_len(), 0);
+        assert_eq!(read1(&mut dev, reg::PWR_MGMT_1), SLEEP);
+        assert_eq!(read(&mut dev, reg::SMPLRT_DIV, 4), vec![0; 4]);
+        let journal = dev.take_journal();
+        assert_eq!(
+            journal.last(),
+            Some(&JournalEntry::FifoReset { time_us: 150_000 })
+        );
+        // Asleep until woken; woken again, it samples until the next reset.
+        dev.set_time_us(200_000);
+        assert_eq!(
+            dev.samples_made(),
+            14,
+            "the reset came before the sample at 150 ms"
+        );
+        write(&mut dev, reg::PWR_MGMT_1, 0x01);
+        dev.set_time_us(1_000_000);
+        assert_eq!(dev.resets(), 3);
+        assert!(dev.faults().resets_at_us.is_empty());
+        // The reset settings (divider 0, DLPF off) sample at 8 kHz: 200 ms to 300 ms, the
+        // sample due at the reset not made.
+        assert_eq!(dev.settings().output_rate_hz(), 8000.0);
+        assert_eq!(dev.samples_made(), 14 + 799);
     }
 
     #[test]

@@ -17,9 +17,28 @@
 //! tau }`, `ramp` (degC/s), `cycle = { amplitude, period }`, and `reference` (degC, default
 //! 25: the temperature at which the coupling is zero).
 //!
+//! `[faults]` scripts what an overnight run meets, for the simulated sensor and the virtual
+//! board ([`FaultPlan`]); times are seconds of board time from power-up, every key optional:
+//! - `clock_ppm` (default 0): the sensor's sample clock against the board's, ppm (+3000: the
+//!   sensor samples 0.3 % fast), > -1e6;
+//! - `clock_drift_ppm_per_hour` (default 0): a linear change of that offset, ppm per hour
+//!   (the rate is `1 + (clock_ppm + drift * t_hours) * 1e-6`; sample times follow its
+//!   integral exactly);
+//! - `i2c_outage = [{ at_s, for_s }, ...]`: windows in which every I2C transfer is NACKed at
+//!   the address while the sensor keeps sampling (its FIFO overflows); `for_s` > 0;
+//! - `sensor_reset = [t, ...]`: sensor resets (registers back to power-on values, asleep,
+//!   FIFO empty);
+//! - `board_reset = [t, ...]`: the board reboots (watchdog, brown-out): fresh firmware, unread
+//!   USB data lost, not streaming until the host sends Start; the sensor is left as it is;
+//! - `who_am_i` (0..=255): what WHO_AM_I reads instead of 0x68 (a clone chip).
+//!
+//! Commands that only synthesise samples (`simulate`) ignore `[faults]`; the virtual board
+//! (`capture --port sim`) applies it.
+//!
 //! Unknown keys, keys in the wrong group, negative or non-finite values are errors naming the
 //! file and the field.
 
+use super::device::{Outage, SensorClock, SimMpu6050};
 use super::imu::{GravityAxis, ImuModel, SensorModel, TemperatureModel};
 use super::noise::{GaussMarkov, NoiseTerms, Sinusoid};
 use super::temperature::{Cycle, TempCoupling, TemperatureProfile, Warmup};
@@ -54,6 +73,73 @@ struct FileSpec {
     accel: GroupSpec,
     #[serde(default)]
     temperature: GroupSpec,
+    #[serde(default)]
+    faults: FaultsSpec,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FaultsSpec {
+    clock_ppm: Option<f64>,
+    clock_drift_ppm_per_hour: Option<f64>,
+    #[serde(default)]
+    i2c_outage: Vec<OutageSpec>,
+    #[serde(default)]
+    sensor_reset: Vec<f64>,
+    #[serde(default)]
+    board_reset: Vec<f64>,
+    who_am_i: Option<i64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OutageSpec {
+    at_s: f64,
+    for_s: f64,
+}
+
+/// A model file's content: the sensor model and the faults to inject.
+#[derive(Debug, Clone, Default)]
+pub struct ModelFile {
+    pub model: ImuModel,
+    pub faults: FaultPlan,
+}
+
+/// Faults scripted for a run (the `[faults]` table), in board time, us, from power-up.
+/// Lists are sorted by time.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FaultPlan {
+    /// The sensor's sample oscillator against the board's clock.
+    pub clock: SensorClock,
+    /// Windows in which the sensor answers no transaction.
+    pub i2c_outages: Vec<Outage>,
+    /// Sensor resets.
+    pub sensor_resets_us: Vec<u64>,
+    /// Board reboots (the virtual board's, [`crate::link::virtual_board`]).
+    pub board_resets_us: Vec<u64>,
+    /// WHO_AM_I's value instead of 0x68.
+    pub who_am_i: Option<u8>,
+}
+
+impl FaultPlan {
+    /// Whether the plan injects nothing.
+    pub fn is_empty(&self) -> bool {
+        *self == FaultPlan::default()
+    }
+
+    /// Set the sensor's share of the plan (everything but board resets) on `sensor`: its
+    /// clock and WHO_AM_I are replaced, outages and resets added to those it has.
+    pub fn apply_to_sensor(&self, sensor: &mut SimMpu6050) {
+        let faults = sensor.faults_mut();
+        faults.clock = self.clock;
+        faults.i2c_outages.extend_from_slice(&self.i2c_outages);
+        if self.who_am_i.is_some() {
+            faults.who_am_i = self.who_am_i;
+        }
+        for &t in &self.sensor_resets_us {
+            sensor.schedule_reset(t);
+        }
+    }
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -115,7 +201,6 @@ struct CycleSpec {
     period: f64,
 }
 
-/// Read and check a model file.
 /// The documented example model (examples/mpu6050.toml), built in so that the demo and the
 /// virtual board run anywhere.
 pub const EXAMPLE: &str = include_str!("../../../examples/mpu6050.toml");
@@ -127,16 +212,28 @@ pub fn example() -> ImuModel {
     parse(EXAMPLE, Path::new("examples/mpu6050.toml")).unwrap_or_default()
 }
 
+/// Read and check a model file: its model, `[faults]` checked and left out.
 pub fn load(path: &Path) -> Result<ImuModel, ModelFileError> {
+    load_file(path).map(|f| f.model)
+}
+
+/// Read and check a model file: the model and the fault plan.
+pub fn load_file(path: &Path) -> Result<ModelFile, ModelFileError> {
     let text = std::fs::read_to_string(path).map_err(|source| ModelFileError::Read {
         file: path.to_owned(),
         source,
     })?;
-    parse(&text, path)
+    parse_file(&text, path)
 }
 
-/// Parse model-file text; `file` names it in errors.
+/// Parse model-file text (its model; `[faults]` checked and left out); `file` names it in
+/// errors.
 pub fn parse(text: &str, file: &Path) -> Result<ImuModel, ModelFileError> {
+    parse_file(text, file).map(|f| f.model)
+}
+
+/// Parse model-file text: the model and the fault plan; `file` names it in errors.
+pub fn parse_file(text: &str, file: &Path) -> Result<ModelFile, ModelFileError> {
     let spec: FileSpec = toml::from_str(text).map_err(|e| ModelFileError::Parse {
         file: file.to_owned(),
         message: e.to_string().trim_end().to_owned(),
@@ -151,11 +248,15 @@ pub fn parse(text: &str, file: &Path) -> Result<ImuModel, ModelFileError> {
         None => GravityAxis::default(),
     };
     let temperature = cx.temperature(&spec.temperature)?;
-    Ok(ImuModel {
-        gyro,
-        accel,
-        gravity,
-        temperature,
+    let faults = cx.faults(&spec.faults)?;
+    Ok(ModelFile {
+        model: ImuModel {
+            gyro,
+            accel,
+            gravity,
+            temperature,
+        },
+        faults,
     })
 }
 
@@ -215,6 +316,67 @@ impl Checker<'_> {
         } else {
             Err(self.error(group, field, format!("{v} must be a finite number > 0")))
         }
+    }
+
+    /// A time in seconds (>= 0) as whole microseconds.
+    fn time_us(&self, field: &'static str, seconds: f64) -> Result<u64, ModelFileError> {
+        let s = self.non_negative("faults", field, seconds)?;
+        let us = (s * 1e6).round();
+        if us < u64::MAX as f64 {
+            Ok(us as u64)
+        } else {
+            Err(self.error("faults", field, format!("{seconds} s is too far")))
+        }
+    }
+
+    fn faults(&self, f: &FaultsSpec) -> Result<FaultPlan, ModelFileError> {
+        let group = "faults";
+        let ppm = self.finite(group, "clock_ppm", f.clock_ppm.unwrap_or(0.0))?;
+        if ppm <= -1e6 {
+            return Err(self.error(
+                group,
+                "clock_ppm",
+                format!("{ppm} must be > -1e6 (the sensor's clock must run)"),
+            ));
+        }
+        let clock = SensorClock {
+            ppm,
+            drift_ppm_per_hour: self.finite(
+                group,
+                "clock_drift_ppm_per_hour",
+                f.clock_drift_ppm_per_hour.unwrap_or(0.0),
+            )?,
+        };
+        let mut i2c_outages = Vec::with_capacity(f.i2c_outage.len());
+        for o in &f.i2c_outage {
+            let at_us = self.time_us("i2c_outage.at_s", o.at_s)?;
+            self.positive(group, "i2c_outage.for_s", o.for_s)?;
+            let for_us = self.time_us("i2c_outage.for_s", o.for_s)?;
+            i2c_outages.push(Outage { at_us, for_us });
+        }
+        i2c_outages.sort_by_key(|o| o.at_us);
+        let times = |field, list: &[f64]| -> Result<Vec<u64>, ModelFileError> {
+            let mut v = list
+                .iter()
+                .map(|&s| self.time_us(field, s))
+                .collect::<Result<Vec<_>, _>>()?;
+            v.sort_unstable();
+            Ok(v)
+        };
+        let who_am_i = match f.who_am_i {
+            Some(v) => Some(
+                u8::try_from(v)
+                    .map_err(|_| self.error(group, "who_am_i", format!("{v} is not a byte")))?,
+            ),
+            None => None,
+        };
+        Ok(FaultPlan {
+            clock,
+            i2c_outages,
+            sensor_resets_us: times("sensor_reset", &f.sensor_reset)?,
+            board_resets_us: times("board_reset", &f.board_reset)?,
+            who_am_i,
+        })
     }
 
     /// Keys that exist but do not belong in `group`.
@@ -396,6 +558,92 @@ mod tests {
     }
 
     #[test]
+    fn the_faults_table() {
+        let f = parse_file(
+            r#"
+            [gyro]
+            noise_density = 1e-4
+            [faults]
+            clock_ppm = 3000.0
+            clock_drift_ppm_per_hour = -2.5
+            i2c_outage = [{ at_s = 120.0, for_s = 2.0 }, { at_s = 60.5, for_s = 0.25 }]
+            sensor_reset = [300.0, 200.000001]
+            board_reset = [420.0]
+            who_am_i = 0x70
+            "#,
+            Path::new("m.toml"),
+        )
+        .unwrap();
+        assert_eq!(f.model.gyro.noise.n, 1e-4);
+        let plan = &f.faults;
+        assert_eq!(
+            plan.clock,
+            SensorClock {
+                ppm: 3000.0,
+                drift_ppm_per_hour: -2.5
+            }
+        );
+        assert_eq!(
+            plan.i2c_outages,
+            [
+                Outage {
+                    at_us: 60_500_000,
+                    for_us: 250_000
+                },
+                Outage {
+                    at_us: 120_000_000,
+                    for_us: 2_000_000
+                }
+            ]
+        );
+        assert_eq!(plan.sensor_resets_us, [200_000_001, 300_000_000]);
+        assert_eq!(plan.board_resets_us, [420_000_000]);
+        assert_eq!(plan.who_am_i, Some(0x70));
+        assert!(!plan.is_empty());
+        // Every key optional; a file without the table injects nothing.
+        assert!(
+            parse_file("[faults]\n", Path::new("m.toml"))
+                .unwrap()
+                .faults
+                .is_empty()
+        );
+        assert!(
+            parse_file("", Path::new("m.toml"))
+                .unwrap()
+                .faults
+                .is_empty()
+        );
+        // `parse` checks the table and returns the model alone.
+        assert!(parse_str("[faults]\nclock_ppm = 3000.0").is_ok());
+        assert!(parse_str("[faults]\nclock_ppm = -1e7").is_err());
+    }
+
+    #[test]
+    fn a_plan_reaches_the_sensor() {
+        let plan = FaultPlan {
+            clock: SensorClock {
+                ppm: -10_000.0,
+                drift_ppm_per_hour: 0.0,
+            },
+            i2c_outages: vec![Outage {
+                at_us: 5,
+                for_us: 10,
+            }],
+            sensor_resets_us: vec![3, 1],
+            board_resets_us: vec![7],
+            who_am_i: Some(0x70),
+        };
+        let mut dev = SimMpu6050::new(ImuModel::default(), 1);
+        dev.schedule_reset(2);
+        plan.apply_to_sensor(&mut dev);
+        let faults = dev.faults();
+        assert_eq!(faults.clock, plan.clock);
+        assert_eq!(faults.i2c_outages, plan.i2c_outages);
+        assert_eq!(faults.resets_at_us, [1, 2, 3]);
+        assert_eq!(faults.who_am_i, Some(0x70));
+    }
+
+    #[test]
     fn errors_name_file_and_field() {
         let cases = [
             ("[gyro]\nnoise_densty = 1e-4", "noise_densty"),
@@ -410,13 +658,33 @@ mod tests {
             ("[gyro]\nramp = 1", "[gyro] ramp"),
             ("[magnetometer]\nnoise_density = 1", "magnetometer"),
             ("[gyro]\nsinusoid = { amplitude = 1 }", "freq_hz"),
+            ("[faults]\nclock_pm = 1", "clock_pm"),
+            ("[faults]\nclock_ppm = -1e6", "[faults] clock_ppm"),
+            ("[faults]\nclock_ppm = nan", "[faults] clock_ppm"),
+            (
+                "[faults]\nclock_drift_ppm_per_hour = inf",
+                "[faults] clock_drift_ppm_per_hour",
+            ),
+            (
+                "[faults]\ni2c_outage = [{ at_s = -1, for_s = 2 }]",
+                "[faults] i2c_outage.at_s",
+            ),
+            (
+                "[faults]\ni2c_outage = [{ at_s = 1, for_s = 0 }]",
+                "[faults] i2c_outage.for_s",
+            ),
+            ("[faults]\ni2c_outage = [{ at_s = 1 }]", "for_s"),
+            ("[faults]\nsensor_reset = [1, -2]", "[faults] sensor_reset"),
+            ("[faults]\nboard_reset = [inf]", "[faults] board_reset"),
+            ("[faults]\nwho_am_i = 256", "[faults] who_am_i"),
+            ("[faults]\nwho_am_i = -1", "[faults] who_am_i"),
         ];
         for (text, needle) in cases {
             let e = parse_str(text).unwrap_err().to_string();
             assert!(e.starts_with("m.toml"), "{e}");
             assert!(e.contains(needle), "{needle}: {e}");
         }
-        let e = load(Path::new("/nonexistent/model.toml"))
+        let e = load_file(Path::new("/nonexistent/model.toml"))
             .unwrap_err()
             .to_string();
         assert!(e.contains("/nonexistent/model.toml"), "{e}");
