@@ -56,7 +56,9 @@ pub struct Implausible;
 
 impl SampleGrid {
     /// A grid for samples every `period_us`, counted from a FIFO reset done between
-    /// `t0_us` and `reset_done_us` (sample 1 is the first one after the reset).
+    /// `t0_us` and `reset_done_us` (sample 1 is the first one after the reset: it comes
+    /// within one of the sensor's periods, which may be up to [`MAX_RATE_ERROR_PERCENT`]
+    /// longer than the nominal one).
     pub fn new(t0_us: u64, reset_done_us: u64, period_us: u32) -> Self {
         let period = i128::from(period_us) << SCALE_BITS;
         let reset_len = i128::from(reset_done_us.saturating_sub(t0_us)) << SCALE_BITS;
@@ -65,7 +67,7 @@ impl SampleGrid {
             nominal: period,
             period,
             lo: -1,
-            hi: period + reset_len,
+            hi: period * (100 + MAX_RATE_ERROR_PERCENT) / 100 + reset_len,
             first: None,
             remeasured: 0,
         }
@@ -77,9 +79,7 @@ impl SampleGrid {
         let mut grid = SampleGrid::new(t0_us, reset_done_us, period_us);
         let tolerance = grid.nominal * MAX_RATE_ERROR_PERCENT / 100;
         if measured > 0 && (measured - grid.nominal).abs() <= tolerance {
-            let reset_len = grid.hi - grid.period;
             grid.period = measured;
-            grid.hi = measured + reset_len;
         }
         grid
     }
@@ -130,11 +130,17 @@ impl SampleGrid {
         if n <= n_first {
             return Err(Implausible);
         }
-        let period = (ta - t_first) / i128::from(n - n_first);
+        let spans = i128::from(n - n_first);
+        let period = (ta - t_first) / spans;
+        // Each end of the span is known to about a period, so a re-measure early in a run
+        // is uncertain by about two periods over the span: only a period outside the
+        // tolerance by more than that is implausible (then clamped into it).
         let tolerance = self.nominal * MAX_RATE_ERROR_PERCENT / 100;
-        if (period - self.nominal).abs() > tolerance || period <= 0 {
+        let uncertainty = 2 * self.nominal / spans;
+        if (period - self.nominal).abs() > tolerance + uncertainty || period <= 0 {
             return Err(Implausible);
         }
+        let period = period.clamp(self.nominal - tolerance, self.nominal + tolerance);
         self.period = period;
         self.remeasured += 1;
         self.lo = tb - n_i * period;

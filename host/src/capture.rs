@@ -4,13 +4,19 @@
 //! the raw bytes means a capture can always be decoded again, by a newer host too, and a
 //! replay is the same decoder reading a file instead of a port.
 //!
+//! **Host notes.** The one thing the board cannot say is how long it was gone when it
+//! restarted (its clock restarts too). The capture loop measures that silence on the host's
+//! clock and writes it among the frames as a [`HostNote`]: a frame like the board's, whose
+//! body starts with the tag `HOST` (no board message starts with that byte), which older
+//! decoders count as one rejected frame and skip.
+//!
 //! Reading a capture accounts for every sample by its index: gaps (FIFO overflows, batches
 //! dropped for back-pressure, frames damaged on the line) are counted and listed, never
 //! bridged; the analysis refuses gapped data unless asked to take the longest gap-free run.
 
 use crate::link::accounting::SampleAccounting;
 use crate::record::{Channel, Record};
-use protocol::frame::{self, DecoderStats, FrameDecoder, MAX_WIRE_LEN};
+use protocol::frame::{self, Decoded, DecoderStats, FrameDecoder, MAX_WIRE_LEN};
 use protocol::mpu6050::temperature_celsius;
 use protocol::{
     DeviceInfo, DeviceMessage, ErrorCode, RawSample, SampleBatch, SensorSettings, Status,
@@ -22,6 +28,53 @@ use std::ops::Range;
 /// NumPy file does: enough to tell them apart.
 pub fn looks_like_capture(bytes: &[u8]) -> bool {
     bytes.first() == Some(&frame::DELIMITER)
+}
+
+/// A note the host writes among a capture's frames (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum HostNote {
+    /// The board went silent, was found not streaming (it had restarted) and was set up and
+    /// started again; `silent_us` is the host's clock from the last bytes received to the
+    /// new start. The samples the sensor made in that time are lost, and counted so.
+    BoardRestarted { silent_us: u64 },
+}
+
+/// First bytes of a [`HostNote`] frame's body.
+const HOST_NOTE_TAG: [u8; 4] = *b"HOST";
+
+impl HostNote {
+    /// The note in a frame body, if the body is one.
+    pub fn decode(body: &[u8]) -> Option<HostNote> {
+        let (tag, note): ([u8; 4], HostNote) = postcard::from_bytes(body).ok()?;
+        (tag == HOST_NOTE_TAG).then_some(note)
+    }
+
+    /// The note as a whole frame (delimiters included), to write among the board's.
+    pub fn frame(&self) -> Vec<u8> {
+        let mut buf = vec![0u8; MAX_WIRE_LEN];
+        // A tag and a varint: always fits.
+        let n = frame::encode(&(HOST_NOTE_TAG, *self), &mut buf).unwrap_or(0);
+        buf.truncate(n);
+        buf
+    }
+}
+
+/// A frame that is not a current board message but still means something.
+enum Other {
+    /// A version-2 Status.
+    Status(Status),
+    Note(HostNote),
+}
+
+/// A restart whose silence the host measured: a gap like any other, of estimated length.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Segment {
+    /// Session index of the new segment's first sample.
+    pub first_index: u64,
+    /// The host's measure of the silence, seconds.
+    pub silent_s: f64,
+    /// Samples counted lost for it: the silence times the output rate, rounded.
+    pub samples_lost: u64,
 }
 
 /// Writes a capture: each message framed exactly as a board frames it.
@@ -84,6 +137,8 @@ pub struct Capture {
     pub board_errors: Vec<BoardReport>,
     /// Faults the board recovered from, where streaming resumed.
     pub recoveries: Vec<RecoveryReport>,
+    /// Board restarts the host measured and bridged with a counted gap.
+    pub segments: Vec<Segment>,
 }
 
 /// The board brought its sensor back after a fault (protocol `Recovered`).
@@ -179,6 +234,10 @@ pub struct StreamDecoder {
     keep_samples: bool,
     board_errors: Vec<BoardReport>,
     recoveries: Vec<RecoveryReport>,
+    segments: Vec<Segment>,
+    /// A [`HostNote::BoardRestarted`] waiting for the restart it measured.
+    silent_before_restart_us: Option<u64>,
+    statuses_seen: u64,
 }
 
 impl Default for StreamDecoder {
@@ -206,6 +265,9 @@ impl StreamDecoder {
             keep_samples,
             board_errors: Vec::new(),
             recoveries: Vec::new(),
+            segments: Vec::new(),
+            silent_before_restart_us: None,
+            statuses_seen: 0,
         }
     }
 
@@ -213,25 +275,52 @@ impl StreamDecoder {
     pub fn feed(&mut self, bytes: &[u8]) -> usize {
         let mut decoder = std::mem::take(&mut self.decoder);
         let mut infos = 0;
-        let v2_status = |body: &[u8]| Status::decode_v2(body).map(DeviceMessage::Status);
-        decoder.feed_with_fallback(bytes, v2_status, |message| match message {
-            Ok(DeviceMessage::Info(i)) => {
-                infos += 1;
-                self.info(i);
+        let other = |body: &[u8]| {
+            Status::decode_v2(body)
+                .map(Other::Status)
+                .or_else(|| HostNote::decode(body).map(Other::Note))
+        };
+        decoder.feed_or(bytes, other, |frame| match frame {
+            Ok(Decoded::Current(message)) => self.message(message, &mut infos),
+            Ok(Decoded::Other(Other::Status(status))) => {
+                self.message(DeviceMessage::Status(status), &mut infos)
             }
-            Ok(DeviceMessage::Status(s)) => self.status = Some(s),
-            Ok(DeviceMessage::Samples(batch)) => self.batch(&batch),
-            Ok(DeviceMessage::Nack { seq, error }) => self.board_error(Some(seq), error),
-            Ok(DeviceMessage::Fault(error)) => self.board_error(None, error),
-            Ok(DeviceMessage::Recovered {
-                attempts,
-                resumed_at_index,
-            }) => self.recovered(attempts, resumed_at_index),
-            // Acks and pongs carry nothing to keep; damaged frames are in the decoder's stats.
-            Ok(_) | Err(_) => {}
+            Ok(Decoded::Other(Other::Note(note))) => self.note(note),
+            // Damaged frames are in the decoder's stats.
+            Err(_) => {}
         });
         self.decoder = decoder;
         infos
+    }
+
+    fn message(&mut self, message: DeviceMessage, infos: &mut usize) {
+        match message {
+            DeviceMessage::Info(i) => {
+                *infos += 1;
+                self.info(i);
+            }
+            DeviceMessage::Status(s) => {
+                self.status = Some(s);
+                self.statuses_seen += 1;
+            }
+            DeviceMessage::Samples(batch) => self.batch(&batch),
+            DeviceMessage::Nack { seq, error } => self.board_error(Some(seq), error),
+            DeviceMessage::Fault(error) => self.board_error(None, error),
+            DeviceMessage::Recovered {
+                attempts,
+                resumed_at_index,
+            } => self.recovered(attempts, resumed_at_index),
+            // Acks and pongs carry nothing to keep.
+            DeviceMessage::Ack { .. } | DeviceMessage::Pong { .. } => {}
+        }
+    }
+
+    fn note(&mut self, note: HostNote) {
+        match note {
+            HostNote::BoardRestarted { silent_us } => {
+                self.silent_before_restart_us = Some(silent_us)
+            }
+        }
     }
 
     fn info(&mut self, info: DeviceInfo) {
@@ -257,18 +346,41 @@ impl StreamDecoder {
         });
     }
 
+    /// A new segment: after a silence the host measured, its samples are counted lost and
+    /// the new indices continue past them; otherwise the restart is recorded as unmeasured.
     fn restart(&mut self) {
-        self.segment_base = self.accounting.expected();
-        self.restarts.push(self.segment_base);
+        let expected = self.accounting.expected();
+        match self.silent_before_restart_us.take() {
+            Some(silent_us) => {
+                let rate_hz = self.settings.map_or(0.0, |s| s.output_rate_hz());
+                let silent_s = silent_us as f64 * 1e-6;
+                let samples_lost = (silent_s * rate_hz).round() as u64;
+                self.segment_base = expected.saturating_add(samples_lost);
+                self.segments.push(Segment {
+                    first_index: self.segment_base,
+                    silent_s,
+                    samples_lost,
+                });
+            }
+            None => {
+                self.segment_base = expected;
+                self.restarts.push(expected);
+            }
+        }
         self.samples_in_segment = false;
         self.new_run = true;
+    }
+
+    /// Status messages seen so far (a watcher asks for one and waits for the count to move).
+    pub fn statuses_seen(&self) -> u64 {
+        self.statuses_seen
     }
 
     fn batch(&mut self, batch: &SampleBatch) {
         // Indices gone back, and the clock before the segment began (or a new index 0 at
         // another time): the board restarted and its Info was lost on the line. A repeated
         // batch keeps its own timestamp, so it is not taken for a restart.
-        let board_next = self.accounting.expected() - self.segment_base;
+        let board_next = self.accounting.expected().saturating_sub(self.segment_base);
         let ts = batch.first_timestamp_us;
         if self.samples_in_segment
             && batch.first_index < board_next
@@ -347,6 +459,7 @@ impl StreamDecoder {
             trailing_bytes: self.decoder.pending(),
             board_errors: self.board_errors,
             recoveries: self.recoveries,
+            segments: self.segments,
         })
     }
 }
@@ -552,6 +665,70 @@ mod tests {
         .unwrap();
         assert!(c.restarts.is_empty());
         assert_eq!(c.accounting.out_of_order_batches(), 1);
+    }
+
+    #[test]
+    fn a_restart_the_host_measured_is_a_counted_gap() {
+        let mut restarted = batch(0, 32);
+        if let DeviceMessage::Samples(b) = &mut restarted {
+            b.first_timestamp_us = 1234;
+        }
+        let mut bytes = capture(&[DeviceMessage::Info(info()), batch(0, 32), batch(32, 32)]);
+        // 1.5 s of silence at the info's output rate.
+        let rate = info().settings.output_rate_hz();
+        bytes.extend(
+            HostNote::BoardRestarted {
+                silent_us: 1_500_000,
+            }
+            .frame(),
+        );
+        bytes.extend(capture(&[
+            DeviceMessage::Info(info()),
+            restarted,
+            batch(32, 32),
+        ]));
+        let c = Capture::decode(&bytes).unwrap();
+        let lost = (1.5 * rate).round() as u64;
+        assert!(c.restarts.is_empty());
+        assert_eq!(
+            c.segments,
+            [Segment {
+                first_index: 64 + lost,
+                silent_s: 1.5,
+                samples_lost: lost
+            }]
+        );
+        assert_eq!(c.gaps(), std::slice::from_ref(&(64..64 + lost)));
+        assert_eq!((c.accounting.received(), c.accounting.lost()), (128, lost));
+        // The note is a good frame, not a damaged one; an older decoder would skip it.
+        assert_eq!(c.decoder.rejected(), 0);
+        let mut buf = [0u8; 16];
+        let pong = postcard::to_slice(&DeviceMessage::Pong { seq: 1 }, &mut buf).unwrap();
+        assert_eq!(HostNote::decode(pong), None);
+    }
+
+    #[test]
+    fn a_version_2_status_in_a_stored_capture_still_decodes() {
+        // Variant 4 (Status) and the nine fields version 2 sent.
+        let v2 = (
+            4u8,
+            true,
+            1_000_000u64,
+            64u64,
+            0u32,
+            3u64,
+            0u32,
+            0u32,
+            0u64,
+            0u32,
+        );
+        let mut bytes = capture(&[DeviceMessage::Info(info()), batch(0, 32)]);
+        let mut buf = vec![0u8; MAX_WIRE_LEN];
+        let n = frame::encode(&v2, &mut buf).unwrap();
+        bytes.extend_from_slice(&buf[..n]);
+        let c = Capture::decode(&bytes).unwrap();
+        assert_eq!(c.status.map(|s| s.samples_lost), Some(3));
+        assert_eq!(c.decoder.rejected(), 0);
     }
 
     #[test]

@@ -134,6 +134,13 @@ impl DecoderStats {
     }
 }
 
+/// A frame read by [`FrameDecoder::feed_or`]: the expected message, or the other reading.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Decoded<T, U> {
+    Current(T),
+    Other(U),
+}
+
 /// Streaming frame decoder with one fixed buffer.
 pub struct FrameDecoder {
     buf: [u8; MAX_FRAME_LEN],
@@ -233,19 +240,27 @@ impl FrameDecoder {
     pub fn feed_salvaging<T: DeserializeOwned>(
         &mut self,
         bytes: &[u8],
-        on_message: impl FnMut(Result<T, (FrameError, &[u8])>),
+        mut on_message: impl FnMut(Result<T, (FrameError, &[u8])>),
     ) {
-        self.feed_with_fallback(bytes, |_| None, on_message);
+        self.feed_or::<T, T>(
+            bytes,
+            |_| None,
+            |outcome| {
+                on_message(outcome.map(|d| match d {
+                    Decoded::Current(m) | Decoded::Other(m) => m,
+                }))
+            },
+        );
     }
 
     /// [`FrameDecoder::feed_salvaging`], with a second reading for bodies that are not a
-    /// `T`: `older(body)` (a message of an older protocol version that still has a meaning)
-    /// makes the frame a good one.
-    pub fn feed_with_fallback<T: DeserializeOwned>(
+    /// `T`: `other(body)` (a message of an older protocol version that still has a meaning,
+    /// or a note the receiver itself put among the frames) makes the frame a good one.
+    pub fn feed_or<T: DeserializeOwned, U>(
         &mut self,
         bytes: &[u8],
-        older: impl Fn(&[u8]) -> Option<T>,
-        mut on_message: impl FnMut(Result<T, (FrameError, &[u8])>),
+        other: impl Fn(&[u8]) -> Option<U>,
+        mut on_message: impl FnMut(Result<Decoded<T, U>, (FrameError, &[u8])>),
     ) {
         for &byte in bytes {
             let Some(frame) = self.push(byte) else {
@@ -254,10 +269,10 @@ impl FrameDecoder {
             match frame {
                 Err(error) => on_message(Err((error, &[]))),
                 Ok(body) => match postcard::from_bytes::<T>(body) {
-                    Ok(message) => on_message(Ok(message)),
+                    Ok(message) => on_message(Ok(Decoded::Current(message))),
                     Err(_) => {
-                        if let Some(message) = older(body) {
-                            on_message(Ok(message));
+                        if let Some(message) = other(body) {
+                            on_message(Ok(Decoded::Other(message)));
                             continue;
                         }
                         let len = body.len() + CRC_LEN;

@@ -737,3 +737,80 @@ fn unknown_command_is_refused_by_seq_while_streaming() {
         other => panic!("{other:?}"),
     }
 }
+
+/// Indices stay exact when the sensor's clock is off or drifting: after an overflow stall
+/// and after an outage the firmware recovers from, every delivered sample sits at its true
+/// index (its values are the oracle's), and delivered + lost is what the sensor made.
+#[test]
+fn indices_are_exact_with_a_sensor_clock_off_and_drifting() {
+    use imunoise::sim::device::SensorClock;
+    for (seed, ppm, drift_ppm_per_hour) in [
+        (21, 10_000.0, 0.0),
+        (22, -10_000.0, 0.0),
+        (23, 3_000.0, 30_000.0),
+        (24, -5_000.0, -30_000.0),
+    ] {
+        let mut board = Board::new(seed);
+        board.sim().faults_mut().clock = SensorClock {
+            ppm,
+            drift_ppm_per_hour,
+        };
+        board.ack(Command::Configure(settings(DlpfCfg::Cfg1, 0)));
+        board.ack(Command::Start);
+        let mut oracle = Oracle::at_start(&board);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let start = board.now();
+        let mut t = start;
+        let mut run = |board: &mut Board, t: &mut u64, until: u64| {
+            while *t < until {
+                *t += rng.random_range(1_000..25_000);
+                board.poll_at(*t);
+            }
+        };
+        run(&mut board, &mut t, start + 20_000_000);
+        // A stall of 0.3 s: the FIFO overflows.
+        t += 300_000;
+        board.poll_at(t);
+        run(&mut board, &mut t, start + 40_000_000);
+        // An outage of 1 s: the run ends, and is brought back.
+        board.sim().faults_mut().nack_address = u32::MAX;
+        run(&mut board, &mut t, start + 41_000_000);
+        board.sim().faults_mut().nack_address = 0;
+        run(&mut board, &mut t, start + 60_000_000);
+        let replies: Vec<_> = board.replies.drain(..).collect();
+        assert!(
+            matches!(
+                replies[..],
+                [
+                    DeviceMessage::Fault(ErrorCode::SensorNotResponding),
+                    DeviceMessage::Recovered { .. }
+                ]
+            ),
+            "{ppm} ppm: {replies:?}"
+        );
+        board.ack(Command::Stop);
+        oracle.run_to(board.now());
+        let status = board.status();
+        assert_eq!(status.fifo_overflows, 1, "{ppm} ppm");
+        assert_eq!(status.recoveries, 1, "{ppm} ppm");
+        assert!(status.loss_certain, "{ppm} ppm");
+        let mut acc = SampleAccounting::new();
+        for b in &board.batches {
+            acc.batch(b.first_index, b.samples.len()).unwrap();
+        }
+        assert_eq!(acc.gaps().len(), 2, "{ppm} ppm: {:?}", acc.gaps());
+        check_against(&board.batches, &oracle, acc.gaps());
+        assert_eq!(
+            delivered(&board) + status.samples_lost,
+            oracle.samples.len() as u64,
+            "{ppm} ppm"
+        );
+        // The measured period is the sensor's, to a part in 10^4.
+        let true_ns = 1e6 / (1.0 + ppm * 1e-6);
+        let measured = f64::from(status.sample_period_ns);
+        assert!(
+            (measured / true_ns - 1.0).abs() < 5e-3,
+            "{ppm} ppm: {measured} ns against {true_ns}"
+        );
+    }
+}

@@ -162,11 +162,13 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         .map_err(|e| anyhow!("--duration: {e}"))?;
     let mut link = open_link(args)?;
     let store = open_store(store)?;
+    let mut watch = None;
     if let (Some(rate), Some(bandwidth)) = (args.rate, args.bandwidth) {
         let settings = SensorSettings::for_rate_and_bandwidth(rate, bandwidth)
             .map_err(|e| anyhow!("--rate {rate} --bandwidth {bandwidth}: {e}"))?
             .with_ranges(gyro_range(args.gyro_range)?, accel_range(args.accel_range)?);
         let info = start_board(link.as_mut(), settings)?;
+        watch = args.port.is_some().then_some(settings);
         eprintln!(
             "{}: board {:016x}, firmware {}, protocol {}; capturing {settings}",
             link.describe(),
@@ -184,6 +186,7 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         notes: args.note.clone(),
         duration_s,
         keep_samples: false,
+        watch,
     };
     let bar = progress_bar();
     let outcome = recorder::record(link.as_mut(), &store, &options, &stop, &mut |p| {

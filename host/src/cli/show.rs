@@ -1,7 +1,7 @@
 //! `imunoise show ID`: everything the store knows about a session: metadata, counts, the
 //! losses with their gap list (from the raw file), the stored analyses.
 
-use crate::capture::{BoardReport, Capture, RecoveryReport};
+use crate::capture::{BoardReport, Capture, RecoveryReport, Segment};
 use crate::cli::sessions::{duration, rate_bandwidth};
 use crate::cli::stored::open_store;
 use crate::store::{Analysis, Kind, Session, State};
@@ -54,6 +54,8 @@ struct Losses {
     board_errors: Vec<BoardReport>,
     /// Faults the board recovered from by itself, where samples resumed.
     recoveries: Vec<RecoveryReport>,
+    /// Board restarts the capture bridged, with the silence measured on the host clock.
+    segments: Vec<Segment>,
     error: Option<String>,
 }
 
@@ -72,6 +74,7 @@ impl Losses {
                 trailing_bytes: c.trailing_bytes,
                 board_errors: c.board_errors.clone(),
                 recoveries: c.recoveries.clone(),
+                segments: c.segments.clone(),
                 error: None,
             },
             Err(e) => Losses {
@@ -138,7 +141,13 @@ fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
         );
     }
     if let Some(b) = &c.board_status {
-        kv("board counters", board_counters(b));
+        kv(
+            "board counters",
+            format!(
+                "{} (last report; since the board's power-up)",
+                board_counters(b)
+            ),
+        );
     }
     if let Some(n) = &s.notes {
         kv("notes", n.clone());
@@ -160,6 +169,15 @@ fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
     }
     for r in &losses.recoveries {
         kv("recovery", r.to_string());
+    }
+    for g in &losses.segments {
+        kv(
+            "board restart",
+            format!(
+                "silent {:.2} s on the host clock; {} samples counted lost; streaming resumed at index {}",
+                g.silent_s, g.samples_lost, g.first_index
+            ),
+        );
     }
     for (start, end) in losses.gaps.iter().take(GAPS_SHOWN) {
         kv(

@@ -136,6 +136,7 @@ pub fn sweep(
             notes: Some(format!("imunoise sweep {}", settings.len())),
             duration_s: Some(seconds),
             keep_samples: true,
+            watch: Some(*s),
         };
         let bar = report::progress::bar((seconds * s.output_rate_hz()) as u64, "capturing");
         let outcome = recorder::record(link.as_mut(), store, &options, &stop, &mut |p| {

@@ -1,10 +1,12 @@
-//! Talking to a board: the byte transport ([`transport::Link`]) and its sources (a replayed
-//! capture file now; the serial port and the virtual board join here), the handshake, and
-//! exact sample accounting (see DESIGN.md, the sample's journey).
+//! Talking to a board: the byte transport ([`transport::Link`]) and its sources (a serial
+//! port, the virtual board, a replayed capture file), the handshake and commands, the
+//! watcher that keeps a capture going through board restarts ([`keepalive`]), and exact
+//! sample accounting.
 
 pub mod accounting;
 pub mod board;
 pub mod handshake;
+pub mod keepalive;
 pub mod replay;
 pub mod serial;
 pub mod transport;

@@ -22,6 +22,20 @@ pub trait Link {
 
     /// What this link reads from, for messages ("file X.imucap", "/dev/ttyACM0").
     fn describe(&self) -> String;
+
+    /// The host's clock beside this link, microseconds from an arbitrary origin: how long
+    /// the board has been silent, how long a restart took. Wall time for a real port; the
+    /// emulated time for a simulated board, whose clock is the one its samples keep.
+    fn clock_us(&self) -> u64 {
+        wall_clock_us()
+    }
+}
+
+/// Microseconds of wall time since the first call in this process (monotonic).
+pub fn wall_clock_us() -> u64 {
+    static ORIGIN: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
+    let origin = ORIGIN.get_or_init(std::time::Instant::now);
+    u64::try_from(origin.elapsed().as_micros()).unwrap_or(u64::MAX)
 }
 
 /// How fast a simulated or replayed source runs.

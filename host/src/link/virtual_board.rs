@@ -196,6 +196,9 @@ impl VirtualBoard {
             match self.speed {
                 Speed::Max => {
                     if !self.firmware.streaming() {
+                        // The host waited `timeout` for nothing: on a real board that much
+                        // time passes, and a host that watches for silence must see it.
+                        self.advance(timeout);
                         return 0;
                     }
                     self.step(STEP);
@@ -289,6 +292,11 @@ impl super::Link for VirtualBoard {
 
     fn describe(&self) -> String {
         "the virtual board (--port sim)".into()
+    }
+
+    /// Emulated time: what the host would see on its own clock beside a real board.
+    fn clock_us(&self) -> u64 {
+        self.time_us()
     }
 }
 

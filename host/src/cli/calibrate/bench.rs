@@ -113,6 +113,7 @@ impl Bench {
             notes: Some(note.to_string()),
             duration_s: Some(seconds),
             keep_samples: true,
+            watch: Some(self.settings),
         };
         let stop = AtomicBool::new(false);
         let bar = progress_bar();
