@@ -36,7 +36,7 @@ use embedded_hal::i2c::I2c;
 use protocol::frame::{FrameDecoder, FrameError, MAX_WIRE_LEN, encode};
 use protocol::{
     Command, DeviceInfo, DeviceMessage, ErrorCode, MAX_SAMPLES_PER_BATCH, PROTOCOL_VERSION,
-    Request, SampleBatch, SensorSettings, Status,
+    Request, ResetReason, SampleBatch, SensorSettings, Status,
 };
 
 /// Replies waiting for room on the link.
@@ -52,6 +52,8 @@ pub struct BoardConfig {
     pub address: u8,
     /// A unique id of the board (the RP2040's flash unique id).
     pub board_id: u64,
+    /// Why the chip last started, as its reset registers say.
+    pub reset_reason: ResetReason,
 }
 
 /// Every message except sample batches: small, so a few can wait for the link.
@@ -101,6 +103,7 @@ pub struct Firmware<I2C, C> {
     dev: Mpu6050<I2C>,
     clock: C,
     board_id: u64,
+    reset_reason: ResetReason,
     /// What WHO_AM_I answered last (0: never answered).
     who_am_i: u8,
     settings: SensorSettings,
@@ -126,6 +129,7 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
             dev: Mpu6050::new(i2c, config.address),
             clock,
             board_id: config.board_id,
+            reset_reason: config.reset_reason,
             who_am_i: 0,
             settings: SensorSettings::default(),
             ready: false,
@@ -215,6 +219,22 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
         self.flush_replies(out);
     }
 
+    /// The host closed the port (DTR dropped): stop streaming as a Stop would, and forget
+    /// the replies nobody will read. The next host starts from a stopped board with the
+    /// settings it last had; the counters keep counting.
+    pub fn host_left(&mut self) {
+        self.replies.clear();
+        if let Some(recovery) = self.recovery.take() {
+            let now = self.clock.now_us();
+            self.count_loss(&recovery.timeline, now, None);
+        }
+        if self.run.take().is_some() {
+            // Best effort: a failure shows at the next Start.
+            let _ = self.dev.disable_fifo();
+        }
+        self.resumed = None;
+    }
+
     /// Drain the FIFO if a drain is due and send the samples; send waiting replies. Call
     /// it as often as possible (every main-loop turn); it returns at once when nothing is due.
     pub fn poll(&mut self, out: &mut impl FnMut(&[u8]) -> bool) {
@@ -271,10 +291,9 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
         };
         self.counters.sample_period_ns = run.grid().period_ns();
         self.ready = false;
-        let relapse = self
-            .resumed
-            .take()
-            .filter(|(_, at)| now.saturating_sub(*at) < STABLE_RUN_US);
+        let relapse = self.resumed.take().filter(|(episode, at)| {
+            now.saturating_sub(*at) < STABLE_RUN_US && episode.last_error == error
+        });
         self.recovery = Some(match relapse {
             Some((episode, _)) => episode.relapse(run.timeline(), error, now),
             None => {
@@ -379,6 +398,7 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
             settings: self.settings,
             streaming: self.streaming(),
             max_samples_per_batch: MAX_SAMPLES_PER_BATCH as u16,
+            reset_reason: self.reset_reason,
         }
     }
 

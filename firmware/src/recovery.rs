@@ -22,10 +22,11 @@ use protocol::ErrorCode;
 pub const FIRST_BACKOFF_US: u64 = 50_000;
 /// Longest wait between attempts.
 pub const MAX_BACKOFF_US: u64 = 1_000_000;
-/// A resumed run that fails again sooner than this continues the same episode: the same
-/// backoff and the same give-up clock, and no second Fault message. A sensor that comes
-/// back only to fail at once (a stuck FIFO count) must not be restarted in a tight loop.
-pub const STABLE_RUN_US: u64 = 10_000_000;
+/// A resumed run that fails again with the same error sooner than this continues the same
+/// episode: the same backoff and the same give-up clock, and no second Fault message. A
+/// sensor that comes back only to fail at once (a stuck FIFO count) must not be restarted in
+/// a tight loop; another error, or one after a run this long, is a new fault.
+pub const STABLE_RUN_US: u64 = 2_000_000;
 
 /// A run being brought back.
 #[derive(Debug, Clone)]

@@ -61,8 +61,9 @@ impl HostNote {
 
 /// A frame that is not a current board message but still means something.
 enum Other {
-    /// A version-2 Status.
+    /// A version-2 Status or Info.
     Status(Status),
+    Info(DeviceInfo),
     Note(HostNote),
 }
 
@@ -278,12 +279,16 @@ impl StreamDecoder {
         let other = |body: &[u8]| {
             Status::decode_v2(body)
                 .map(Other::Status)
+                .or_else(|| DeviceInfo::decode_v2(body).map(Other::Info))
                 .or_else(|| HostNote::decode(body).map(Other::Note))
         };
         decoder.feed_or(bytes, other, |frame| match frame {
             Ok(Decoded::Current(message)) => self.message(message, &mut infos),
             Ok(Decoded::Other(Other::Status(status))) => {
                 self.message(DeviceMessage::Status(status), &mut infos)
+            }
+            Ok(Decoded::Other(Other::Info(info))) => {
+                self.message(DeviceMessage::Info(info), &mut infos)
             }
             Ok(Decoded::Other(Other::Note(note))) => self.note(note),
             // Damaged frames are in the decoder's stats.
@@ -550,6 +555,7 @@ mod tests {
             settings: SensorSettings::for_rate_and_bandwidth(200.0, 42.0).unwrap(),
             streaming: true,
             max_samples_per_batch: 32,
+            reset_reason: protocol::ResetReason::Unknown,
         }
     }
 

@@ -358,6 +358,7 @@ fn gapped_captures_are_refused_or_cut_to_their_longest_run() {
         settings,
         streaming: true,
         max_samples_per_batch: 32,
+        reset_reason: protocol::ResetReason::Unknown,
     }))
     .unwrap();
     let mut s = 5u64;

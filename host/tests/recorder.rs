@@ -76,6 +76,7 @@ fn info() -> DeviceInfo {
         settings: SensorSettings::for_rate_and_bandwidth(200.0, 42.0).unwrap(),
         streaming: true,
         max_samples_per_batch: 32,
+        reset_reason: protocol::ResetReason::Unknown,
     }
 }
 

@@ -239,6 +239,7 @@ fn export_marks_gaps_without_bridging_them() {
         settings: protocol::SensorSettings::for_rate_and_bandwidth(200.0, 42.0).unwrap(),
         streaming: true,
         max_samples_per_batch: 32,
+        reset_reason: protocol::ResetReason::Unknown,
     }))
     .unwrap();
     for first in [0u64, 4, 10] {

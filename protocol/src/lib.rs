@@ -33,8 +33,8 @@ pub use mpu6050::SensorSettings;
 /// intact frame it cannot read instead of only counting it); 3 made a fault something the
 /// board recovers from ([`DeviceMessage::Recovered`], [`ErrorCode::GaveUp`],
 /// [`ErrorCode::SensorReset`]), accepted clone chips ([`mpu6050::KNOWN_CHIPS`]) and appended
-/// the recovery counters to [`Status`] (a version-2 Status still decodes:
-/// [`Status::decode_v2`]).
+/// the recovery counters to [`Status`] and the reset reason to [`DeviceInfo`] (a version-2
+/// Status or Info still decodes: [`Status::decode_v2`], [`DeviceInfo::decode_v2`]).
 pub const PROTOCOL_VERSION: u16 = 3;
 
 /// Most samples one [`SampleBatch`] carries: 32 samples are 32 ms at 1 kHz, so a batch
@@ -128,6 +128,61 @@ pub struct DeviceInfo {
     pub streaming: bool,
     /// [`MAX_SAMPLES_PER_BATCH`] as compiled into this firmware.
     pub max_samples_per_batch: u16,
+    /// Why the board last started: a board that rebooted by its watchdog during a night
+    /// says so. Defaults when missing from a self-describing format.
+    #[serde(default)]
+    pub reset_reason: ResetReason,
+}
+
+/// Why the board's chip last started (the RP2040's CHIP_RESET and WATCHDOG REASON
+/// registers).
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ResetReason {
+    /// Not known (an emulated or simulated board, or a version-2 Info).
+    #[default]
+    Unknown,
+    /// Power applied, or the supply dipped below the brown-out level.
+    PowerOn,
+    /// The RUN pin (a reset button).
+    RunPin,
+    /// The watchdog expired: the firmware hung and was restarted.
+    Watchdog,
+    /// A debugger or the firmware itself asked for the restart.
+    Requested,
+}
+
+/// [`DeviceInfo`] as protocol version 2 sent it, kept so that stored version-2 captures
+/// still decode.
+#[derive(Deserialize)]
+struct DeviceInfoV2 {
+    protocol_version: u16,
+    firmware_version: FirmwareVersion,
+    board_id: u64,
+    who_am_i: u8,
+    settings: SensorSettings,
+    streaming: bool,
+    max_samples_per_batch: u16,
+}
+
+impl DeviceInfo {
+    /// A version-2 Info message body (variant 0, then the seven fields it had), or `None`.
+    pub fn decode_v2(body: &[u8]) -> Option<DeviceInfo> {
+        let (&variant, rest) = body.split_first()?;
+        if variant != 0 {
+            return None;
+        }
+        let v2: DeviceInfoV2 = postcard::from_bytes(rest).ok()?;
+        (v2.protocol_version == 2).then_some(DeviceInfo {
+            protocol_version: v2.protocol_version,
+            firmware_version: v2.firmware_version,
+            board_id: v2.board_id,
+            who_am_i: v2.who_am_i,
+            settings: v2.settings,
+            streaming: v2.streaming,
+            max_samples_per_batch: v2.max_samples_per_batch,
+            reset_reason: ResetReason::Unknown,
+        })
+    }
 }
 
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -472,6 +527,29 @@ mod tests {
     }
 
     #[test]
+    fn a_version_2_info_still_decodes() {
+        let settings = SensorSettings::default();
+        // Variant 0 and the seven fields version 2 sent.
+        let v2 = (
+            0u8,
+            2u16,
+            (0u16, 1u16, 0u16),
+            7u64,
+            0x68u8,
+            settings,
+            false,
+            32u16,
+        );
+        let mut buf = [0u8; 64];
+        let body = postcard::to_slice(&v2, &mut buf).unwrap();
+        let info = DeviceInfo::decode_v2(body).unwrap();
+        assert_eq!((info.protocol_version, info.board_id), (2, 7));
+        assert_eq!(info.settings, settings);
+        assert_eq!(info.reset_reason, ResetReason::Unknown);
+        assert!(postcard::from_bytes::<DeviceMessage>(body).is_err());
+    }
+
+    #[test]
     fn info_version_can_be_read_without_decoding_the_rest() {
         let info = DeviceMessage::Info(DeviceInfo {
             protocol_version: 0x1234,
@@ -485,6 +563,7 @@ mod tests {
             settings: SensorSettings::default(),
             streaming: false,
             max_samples_per_batch: 32,
+            reset_reason: ResetReason::Watchdog,
         });
         let mut buf = [0u8; 64];
         let body = postcard::to_slice(&info, &mut buf).unwrap();

@@ -9,7 +9,10 @@
 //      hold): the firmware's loss count equals the gap the host sees, every sample after
 //      the gap is the sensor's sample of that index, and streaming recovers;
 //   4. refusals while streaming (Configure, an unknown command): nacked by seq, and the
-//      capture goes on without a loss.
+//      capture goes on without a loss;
+//   5. an I2C outage and a sensor reset mid-capture: the firmware reports each, brings the
+//      sensor back, and numbers the samples on from where the sensor's clock is, so each
+//      gap is the time lost and every sample on either side is the device's own.
 
 import { after, before, test } from 'node:test';
 import assert from 'node:assert/strict';
@@ -219,4 +222,66 @@ test('4. Configure and an unknown command while streaming: nacked, capture goes 
   assert.equal(got.mismatches, 0);
   assert.ok(got.rows.length >= 1000, `${got.rows.length} samples`);
   assert.ok(show.losses.board_errors[0].at_index < got.rows.length - 200, 'samples kept coming after the refusals');
+});
+
+/**
+ * Rows split at the session's gaps, each piece held against the journal epoch it came from
+ * (a recovery restarts the FIFO, so a piece's first index is its epoch's sample 0).
+ */
+function pieces(rows, gaps, epochs) {
+  const bounds = [0, ...gaps.flatMap(([start, end]) => [start, end]), Infinity];
+  const out = [];
+  for (let k = 0; k < bounds.length; k += 2) {
+    const [from, to] = [bounds[k], bounds[k + 1]];
+    const part = rows.filter((r) => r.index >= from && r.index < to);
+    const shifted = part.map((r) => ({ index: r.index - part[0].index, counts: r.counts }));
+    out.push({ first: part[0].index, last: part.at(-1).index, ...compare(shifted, epochs) });
+  }
+  return out;
+}
+
+test('5. an I2C outage and a sensor reset: reported, recovered, the gaps are the time lost', async () => {
+  const rate = 200;
+  const periodUs = 1e6 / rate;
+  await capture('emu-faults', rate, 42, '8s', async () => {
+    await emulatedTime(board.nowUs() + 1_500_000);
+    board.device.ask(`o ${board.nowUs()} 1000000`);
+    await emulatedTime(board.nowUs() + 3_000_000);
+    board.device.ask(`x ${board.nowUs()}`);
+  });
+  const show = await json(['show', 'emu-faults']);
+  const faults = show.losses.board_errors.filter((e) => e.refused_seq === null).map((e) => e.error);
+  assert.deepEqual(faults, ['SensorNotResponding', 'SensorReset']);
+  assert.equal(show.losses.recoveries.length, 2);
+  const gaps = show.losses.gaps;
+  assert.equal(gaps.length, 2, JSON.stringify(gaps));
+  const [outage, reset] = gaps.map(([start, end]) => end - start);
+  // The outage: 1 s, plus the 0.5 s the firmware waits before it calls it a fault, plus at
+  // most one backoff step; the reset: found within a drain or a second's read-back.
+  assert.ok(outage >= rate && outage <= 2.5 * rate, `outage cost ${outage} samples`);
+  assert.ok(reset <= 1.5 * rate, `reset cost ${reset} samples`);
+  board.device.ask(`f ${board.nowUs()}`);
+  const { stdout } = await imunoise(['export', 'emu-faults', '--units', 'counts']);
+  const rows = readCounts(stdout).rows;
+  const epochs = readJournal(journalFile);
+  const parts = pieces(rows, gaps, epochs);
+  for (const part of parts) {
+    assert.ok(part.epoch, `piece from index ${part.first}: found among the device's samples`);
+    assert.equal(part.mismatches, 0, `piece from index ${part.first}: ${JSON.stringify(part.firstMismatch)}`);
+  }
+  // Each gap is the time the sensor's clock says passed: the first sample after it was made
+  // (gap + 1) periods after the last one before it, within a period (a reset restarts the
+  // sensor's sampling at a new phase).
+  for (let k = 0; k < 2; k++) {
+    const before = parts[k];
+    const after = parts[k + 1];
+    const lastT = before.epoch.samples[before.last - before.first].t;
+    const firstT = after.epoch.samples[0].t;
+    const expectedUs = (after.first - before.last) * periodUs;
+    assert.ok(
+      Math.abs(firstT - lastT - expectedUs) <= periodUs,
+      `gap ${k}: ${firstT - lastT} us between the samples around it, ${expectedUs} us by the indices`,
+    );
+  }
+  console.error(`[test] outage of 1 s: ${outage} samples lost; sensor reset: ${reset} samples lost`);
 });

@@ -91,6 +91,7 @@ pub fn device_info() -> impl Strategy<Value = DeviceInfo> {
                 settings,
                 streaming,
                 max_samples_per_batch: max,
+                reset_reason: protocol::ResetReason::Unknown,
             },
         )
 }

@@ -56,6 +56,7 @@ impl Board {
             BoardConfig {
                 address: DEFAULT_ADDRESS,
                 board_id: 0xB0A4D,
+                reset_reason: protocol::ResetReason::Unknown,
             },
         );
         fw.init(&mut NoDelay).unwrap();
@@ -813,4 +814,28 @@ fn indices_are_exact_with_a_sensor_clock_off_and_drifting() {
             "{ppm} ppm: {measured} ns against {true_ns}"
         );
     }
+}
+
+#[test]
+fn a_host_that_goes_away_stops_the_stream_and_the_next_one_starts_cleanly() {
+    let mut board = Board::new(12);
+    board.ack(Command::Start);
+    poll_for(&mut board, 200_000);
+    let before = delivered(&board);
+    assert!(before > 0);
+    board.fw.host_left();
+    assert!(!board.fw.streaming());
+    poll_for(&mut board, 200_000);
+    assert_eq!(delivered(&board), before, "nothing is sent to nobody");
+    // The next host: info, configure, start, as a capture does.
+    match board.command(Command::GetInfo).as_slice() {
+        [DeviceMessage::Info(info)] => assert!(!info.streaming),
+        other => panic!("{other:?}"),
+    }
+    board.ack(Command::Configure(SensorSettings::default()));
+    board.ack(Command::Start);
+    poll_for(&mut board, 200_000);
+    assert!(delivered(&board) > before);
+    let restarted = board.batches.iter().filter(|b| b.first_index == 0).count();
+    assert_eq!(restarted, 2, "the new run numbers from 0");
 }

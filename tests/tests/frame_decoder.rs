@@ -316,6 +316,7 @@ fn encoder_refuses_small_buffers() {
         settings: SensorSettings::default(),
         streaming: false,
         max_samples_per_batch: 32,
+        reset_reason: protocol::ResetReason::Unknown,
     });
     assert_eq!(
         frame::encode(&message, &mut small),

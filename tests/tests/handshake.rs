@@ -17,6 +17,7 @@ fn info_body(protocol_version: u16) -> Vec<u8> {
         settings: SensorSettings::default(),
         streaming: false,
         max_samples_per_batch: 32,
+        reset_reason: protocol::ResetReason::Unknown,
     };
     postcard::to_allocvec(&DeviceMessage::Info(info)).unwrap()
 }

@@ -76,6 +76,7 @@ fn the_largest_messages_fit_one_frame() {
         },
         streaming: true,
         max_samples_per_batch: u16::MAX,
+        reset_reason: protocol::ResetReason::Unknown,
     };
     let status = Status {
         streaming: true,

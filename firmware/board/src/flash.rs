@@ -51,7 +51,7 @@ pub mod flash_impl {
         erase: bool,
         write: bool,
         boot2: &[u32; 64],
-    ) -> FlashFunctionPointers {
+    ) -> FlashFunctionPointers<'_> {
         let boot2_fn_ptr = (boot2 as *const u32 as *const u8).offset(1);
         let boot2_fn: unsafe extern "C" fn() -> () = core::mem::transmute(boot2_fn_ptr);
         FlashFunctionPointers {

@@ -21,6 +21,11 @@ impl TxQueue {
     }
 
     /// Queue a whole frame, or refuse it whole.
+    /// Forget what is queued (the host is gone).
+    pub fn clear(&mut self) {
+        self.ring.clear();
+    }
+
     pub fn push_frame(&mut self, frame: &[u8]) -> bool {
         if TX_CAPACITY - self.ring.len() < frame.len() {
             return false;

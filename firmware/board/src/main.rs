@@ -15,6 +15,7 @@
 mod bus;
 mod flash;
 mod link;
+mod log;
 
 use defmt_rtt as _;
 use panic_probe as _;
@@ -23,7 +24,8 @@ use firmware::{BoardConfig, Clock, Firmware};
 use rp2040_hal as hal;
 
 use embedded_hal::digital::OutputPin;
-use hal::fugit::RateExtU32;
+use hal::fugit::{ExtU32, RateExtU32};
+use protocol::ResetReason;
 use hal::clocks::{Clock as _, init_clocks_and_plls};
 use hal::{Sio, Timer, Watchdog, gpio, pac};
 use usb_device::class_prelude::UsbBusAllocator;
@@ -36,7 +38,14 @@ use usbd_serial::SerialPort;
 pub static BOOT2: [u8; 256] = rp2040_boot2::BOOT_LOADER_W25Q080;
 
 const XTAL_FREQ_HZ: u32 = 12_000_000;
-/// pid.codes test VID/PID for CDC devices; the host finds the board by its product string.
+/// The watchdog's period: a main-loop turn takes well under a millisecond, a recovery
+/// attempt a few.
+const WATCHDOG_PERIOD_US: u32 = 1_000_000;
+/// 16c0:27dd is one of the VID:PID pairs Van Ooijen Technische Informatica shares for CDC-ACM
+/// devices (V-USB's free IDs), not an id of our own: other devices carry it too, and the host
+/// tells ours apart by the manufacturer and product strings below, as the rules for shared
+/// pairs ask. A lab with its own VID:PID (or a pid.codes allocation) changes it here and in
+/// `host/src/link/serial.rs` (README, "Unattended logging").
 const USB_VID_PID: UsbVidPid = UsbVidPid(0x16c0, 0x27dd);
 
 /// The RP2040's 64-bit microsecond timer.
@@ -57,6 +66,7 @@ fn main() -> ! {
     let Some(mut pac) = pac::Peripherals::take() else {
         panic!("peripherals taken twice");
     };
+    let reset_reason = reset_reason(&pac.WATCHDOG, &pac.VREG_AND_CHIP_RESET);
     let mut watchdog = Watchdog::new(pac.WATCHDOG);
     let Ok(clocks) = init_clocks_and_plls(
         XTAL_FREQ_HZ,
@@ -70,7 +80,11 @@ fn main() -> ! {
         panic!("clock setup failed");
     };
     let board_id = board_id();
-    defmt::info!("imunoise board {=u64:016x}", board_id);
+    defmt::info!(
+        "imunoise board {=u64:016x}, started by {}",
+        board_id,
+        defmt::Debug2Format(&reset_reason)
+    );
 
     let sio = Sio::new(pac.SIO);
     let pins = gpio::Pins::new(
@@ -123,6 +137,7 @@ fn main() -> ! {
         BoardConfig {
             address: protocol::mpu6050::DEFAULT_ADDRESS,
             board_id,
+            reset_reason,
         },
     );
     match fw.init(&mut timer) {
@@ -130,20 +145,57 @@ fn main() -> ! {
         Err(e) => defmt::warn!("MPU-6050 not ready: {}", defmt::Display2Format(&e)),
     }
 
+    // From here the main loop must turn at least once a second, or the chip restarts (and
+    // says so in Info): a hang anywhere, or a bus that blocks forever, costs a reboot, not
+    // the night.
+    watchdog.pause_on_debug(true);
+    watchdog.start(WATCHDOG_PERIOD_US.micros());
+
     let mut tx = link::TxQueue::new();
     let mut rx = [0u8; 64];
+    let mut host_present = false;
+    let mut log = log::Changes::default();
     loop {
+        watchdog.feed();
         if usb.poll(&mut [&mut serial]) {
             if let Ok(n) = serial.read(&mut rx) {
                 fw.handle_bytes(&rx[..n], &mut |frame| tx.push_frame(frame));
             }
         }
+        // A host that closes the port drops DTR: stop streaming into nowhere.
+        let dtr = serial.dtr();
+        if host_present && !dtr {
+            defmt::info!("host closed the port: streaming stopped");
+            fw.host_left();
+            tx.clear();
+        }
+        host_present = dtr;
         fw.poll(&mut |frame| tx.push_frame(frame));
         tx.write_to(&mut serial);
+        log.report(&fw.status());
         // LED: on while streaming, a 1 Hz blink while stopped.
         let now = timer.get_counter().ticks();
         let on = fw.streaming() || (now / 500_000) % 2 == 0;
         let _ = if on { led.set_high() } else { led.set_low() };
+    }
+}
+
+/// Why the chip started: the watchdog's reason register says whether it fired or was forced;
+/// otherwise the chip-reset register says power-on (or brown-out), the RUN pin, or a
+/// debugger.
+fn reset_reason(watchdog: &pac::WATCHDOG, chip: &pac::VREG_AND_CHIP_RESET) -> ResetReason {
+    let reason = watchdog.reason().read();
+    let chip = chip.chip_reset().read();
+    if reason.timer().bit_is_set() {
+        ResetReason::Watchdog
+    } else if reason.force().bit_is_set() || chip.had_psm_restart().bit_is_set() {
+        ResetReason::Requested
+    } else if chip.had_run().bit_is_set() {
+        ResetReason::RunPin
+    } else if chip.had_por().bit_is_set() {
+        ResetReason::PowerOn
+    } else {
+        ResetReason::Unknown
     }
 }
 

@@ -150,6 +150,7 @@ fn decode_throughput(megabytes: usize) {
         settings,
         streaming: true,
         max_samples_per_batch: protocol::MAX_SAMPLES_PER_BATCH as u16,
+        reset_reason: protocol::ResetReason::Unknown,
     };
     let mut index = 0u64;
     let mut ok = writer.message(&DeviceMessage::Info(info)).is_ok();

@@ -13,7 +13,9 @@ pub struct SimDeviceArgs {
     /// Serve the line protocol on standard input and output (the only transport)
     #[arg(long)]
     pub stdio: bool,
-    /// The device's noise model (default: the built-in examples/mpu6050.toml)
+    /// The device's noise model (default: the built-in examples/mpu6050.toml); its
+    /// `[faults]` table's sensor faults (clock, I2C outages, sensor resets, WHO_AM_I) apply,
+    /// in the bus model's time (board reboots are the bus model's own business)
     #[arg(long, value_name = "FILE")]
     pub model: Option<PathBuf>,
     /// Random seed of the noise processes
@@ -28,11 +30,15 @@ pub fn run(args: &SimDeviceArgs) -> Result<()> {
     if !args.stdio {
         bail!("give --stdio: the device is served on standard input and output");
     }
-    let model = match &args.model {
-        Some(path) => model_file::load(path)?,
-        None => model_file::example(),
+    let file = match &args.model {
+        Some(path) => model_file::load_file(path)?,
+        None => model_file::ModelFile {
+            model: model_file::example(),
+            faults: model_file::FaultPlan::default(),
+        },
     };
-    let mut device = SimMpu6050::new(model, args.seed);
+    let mut device = SimMpu6050::new(file.model, args.seed);
+    file.faults.apply_to_sensor(&mut device);
     let mut journal = match &args.journal {
         Some(path) => {
             device.keep_journal();

@@ -144,6 +144,7 @@ fn write_capture(
         settings,
         streaming: true,
         max_samples_per_batch: MAX_SAMPLES_PER_BATCH as u16,
+        reset_reason: protocol::ResetReason::Unknown,
     }))?;
     let mut index = 0u64;
     while index < rows {

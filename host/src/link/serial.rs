@@ -1,11 +1,14 @@
 //! The serial transport: the board is a USB CDC serial port (firmware/board: VID:PID
-//! 16c0:27dd, product "imunoise MPU-6050 logger", serial number = flash unique id). Listing
-//! ports shows USB vendor/product where the OS gives them and recognises our board.
+//! 16c0:27dd, manufacturer "imunoise", product "imunoise MPU-6050 logger", serial number =
+//! flash unique id). Listing ports shows USB vendor/product where the OS gives them and
+//! recognises our board by its product string: 16c0:27dd is a VID:PID pair shared by many
+//! CDC-ACM devices (V-USB's free IDs), so the pair alone names no device.
 
 use std::io::{Read, Write};
 use std::time::Duration;
 
-/// Our board's USB vendor and product ids (pid.codes test ids for CDC devices).
+/// Our board's USB vendor and product ids: a pair shared by CDC-ACM devices (module docs),
+/// so a port is ours only if its product string says so too.
 pub const BOARD_VID_PID: (u16, u16) = (0x16c0, 0x27dd);
 /// Our board's USB product string.
 pub const BOARD_PRODUCT: &str = "imunoise MPU-6050 logger";
@@ -21,7 +24,7 @@ pub struct PortInfo {
     pub manufacturer: Option<String>,
     pub product: Option<String>,
     pub serial_number: Option<String>,
-    /// Our board, by VID:PID or product string.
+    /// Our board, by its product string (the VID:PID pair is shared).
     pub imunoise_board: bool,
 }
 
@@ -47,8 +50,7 @@ pub fn list_ports() -> Result<Vec<PortInfo>, SerialError> {
         .into_iter()
         .map(|p| match p.port_type {
             serialport::SerialPortType::UsbPort(usb) => {
-                let ours = (usb.vid, usb.pid) == BOARD_VID_PID
-                    || usb.product.as_deref() == Some(BOARD_PRODUCT);
+                let ours = usb.product.as_deref() == Some(BOARD_PRODUCT);
                 PortInfo {
                     name: p.port_name,
                     kind: "usb",

@@ -274,6 +274,7 @@ fn boot(
         BoardConfig {
             address: DEFAULT_ADDRESS,
             board_id,
+            reset_reason: protocol::ResetReason::Unknown,
         },
     );
     let result = firmware.init(&mut NoDelay);

@@ -14,6 +14,8 @@
 //! | `p T`          | stop                           | none                                   |
 //! | `t T`          | clock only                     | none                                   |
 //! | `f T`          | flush the journal to its file  | `a` once it is written                 |
+//! | `o T US`       | an I2C outage from T for US us | `a`                                    |
+//! | `x T`          | a sensor reset at T            | `a`                                    |
 //!
 //! A malformed request gets `! <reason>` and changes nothing. The reply is flushed at once
 //! (the caller waits for it); requests without a reply are not, so a stop costs no round
@@ -23,7 +25,7 @@
 //! the host received: `reset,T` for a FIFO reset, `sample,T,F,ax,ay,az,temp,gx,gy,gz` for
 //! a sample made at `T` (raw counts; `F` = 1 if it went into the FIFO).
 
-use super::device::{JournalEntry, SimI2cError, SimMpu6050};
+use super::device::{JournalEntry, Outage, SimI2cError, SimMpu6050};
 use std::io::{self, BufRead, Write};
 
 /// Serve `device` on `input`/`output` until `input` ends; the journal, if kept, is written
@@ -83,6 +85,8 @@ enum Request {
     Stop,
     Clock,
     FlushJournal,
+    Outage { for_us: u64 },
+    SensorReset,
 }
 
 fn parse(line: &str) -> Result<(u64, Request), &'static str> {
@@ -116,7 +120,15 @@ fn parse(line: &str) -> Result<(u64, Request), &'static str> {
         "p" => Request::Stop,
         "t" => Request::Clock,
         "f" => Request::FlushJournal,
-        _ => return Err("unknown request (s, S, w, r, p, t, f)"),
+        "o" => Request::Outage {
+            for_us: words
+                .next()
+                .ok_or("no outage length")?
+                .parse::<u64>()
+                .map_err(|_| "outage length is not a whole number of microseconds")?,
+        },
+        "x" => Request::SensorReset,
+        _ => return Err("unknown request (s, S, w, r, p, t, f, o, x)"),
     };
     Ok((time_us, request))
 }
@@ -139,6 +151,19 @@ fn respond(device: &mut SimMpu6050, (time_us, request): (u64, Request)) -> Optio
         Request::Clock => None,
         // serve() writes the journal out before this reply goes.
         Request::FlushJournal => Some("a".to_string()),
+        Request::Outage { for_us } => {
+            device.faults_mut().i2c_outages.push(Outage {
+                at_us: time_us,
+                for_us,
+            });
+            Some("a".to_string())
+        }
+        Request::SensorReset => {
+            device.schedule_reset(time_us);
+            // Due now: make it happen before the next request sees the device.
+            device.set_time_us(time_us + 1);
+            Some("a".to_string())
+        }
     }
 }
 
@@ -218,6 +243,28 @@ mod tests {
         assert_ne!(expected, [0; 14], "the device made samples by 25 ms");
     }
 
+    /// A bus model scripts faults through the lines: an outage NACKs every start in its
+    /// window, a reset puts the device back to its power-on state at once.
+    #[test]
+    fn outages_and_resets_by_request() {
+        let mut d = device();
+        handle(&mut d, "s 0 104");
+        handle(&mut d, &format!("w 0 {}", reg::PWR_MGMT_1));
+        handle(&mut d, "w 0 0");
+        handle(&mut d, "p 0");
+        assert_eq!(handle(&mut d, "s 999 104").as_deref(), Some("a"));
+        handle(&mut d, "p 999");
+        assert_eq!(handle(&mut d, "o 1000 2000").as_deref(), Some("a"));
+        assert_eq!(handle(&mut d, "s 1000 104").as_deref(), Some("n"));
+        assert_eq!(handle(&mut d, "s 2999 104").as_deref(), Some("n"));
+        assert_eq!(handle(&mut d, "s 3000 104").as_deref(), Some("a"));
+        handle(&mut d, "p 3000");
+        assert_eq!(d.resets(), 0);
+        assert_eq!(handle(&mut d, "x 4000").as_deref(), Some("a"));
+        assert_eq!(d.resets(), 1);
+        assert_eq!(d.peek(reg::PWR_MGMT_1), 0x40, "asleep, as at power-up");
+    }
+
     #[test]
     fn wrong_address_and_bad_requests() {
         let mut d = device();
@@ -227,7 +274,7 @@ mod tests {
             handle(&mut d, "r 0").as_deref(),
             Some(d.peek(0).to_string().as_str())
         );
-        for bad in ["", "x 0", "w 0 256", "s 0 200", "r soon"] {
+        for bad in ["", "q 0", "w 0 256", "s 0 200", "r soon", "o 0", "o 0 -1"] {
             let reply = handle(&mut d, bad).unwrap();
             assert!(reply.starts_with("! "), "{bad:?} -> {reply}");
         }

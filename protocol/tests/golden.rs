@@ -1,0 +1,222 @@
+//! Golden wire vectors: every message of the protocol, framed, as fixed bytes. A field or
+//! variant reordered, a type widened, the CRC or the COBS step changed — anything that
+//! changes the bytes on the wire — fails here, and must come with a new PROTOCOL_VERSION.
+//! (`GOLDEN_PRINT=1 cargo test -p imunoise-protocol --test golden -- --nocapture` prints the
+//! bytes the code makes now, for a deliberate protocol change.)
+
+use protocol::frame::{MAX_WIRE_LEN, encode};
+use protocol::mpu6050::{AccelRange, DlpfCfg, GyroRange, SensorSettings};
+use protocol::{
+    Command, DeviceInfo, DeviceMessage, ErrorCode, FaultKind, FirmwareVersion, RawSample, Request,
+    ResetReason, SampleBatch, Status,
+};
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn framed(message: &impl serde::Serialize) -> String {
+    let mut buf = [0u8; MAX_WIRE_LEN];
+    let n = encode(message, &mut buf).unwrap();
+    hex(&buf[..n])
+}
+
+fn check(name: &str, got: String, want: &str) {
+    if std::env::var_os("GOLDEN_PRINT").is_some() {
+        println!("(\"{name}\", \"{got}\"),");
+        return;
+    }
+    assert_eq!(got, want, "{name}: the bytes on the wire changed");
+}
+
+fn settings() -> SensorSettings {
+    SensorSettings {
+        dlpf: DlpfCfg::Cfg3,
+        smplrt_div: 4,
+        gyro_range: GyroRange::Dps500,
+        accel_range: AccelRange::G4,
+    }
+}
+
+fn requests() -> Vec<(&'static str, Request)> {
+    let r = |seq, command| Request { seq, command };
+    vec![
+        ("GetInfo", r(1, Command::GetInfo)),
+        ("Configure", r(2, Command::Configure(settings()))),
+        ("Start", r(3, Command::Start)),
+        ("Stop", r(4, Command::Stop)),
+        ("Ping", r(300, Command::Ping)),
+        ("GetStatus", r(65535, Command::GetStatus)),
+    ]
+}
+
+fn messages() -> Vec<(&'static str, DeviceMessage)> {
+    let sample = |k: i16| RawSample {
+        accel: [k, -k, 16384],
+        temp: -3504 + k,
+        gyro: [131 * k, i16::MIN, i16::MAX],
+    };
+    vec![
+        (
+            "Info",
+            DeviceMessage::Info(DeviceInfo {
+                protocol_version: 3,
+                firmware_version: FirmwareVersion {
+                    major: 0,
+                    minor: 1,
+                    patch: 2,
+                },
+                board_id: 0xE660_4130_2B1C_3A25,
+                who_am_i: 0x70,
+                settings: settings(),
+                streaming: true,
+                max_samples_per_batch: 32,
+                reset_reason: ResetReason::Watchdog,
+            }),
+        ),
+        ("Ack", DeviceMessage::Ack { seq: 7 }),
+        (
+            "Nack",
+            DeviceMessage::Nack {
+                seq: 8,
+                error: ErrorCode::VerifyFailed {
+                    register: 0x6B,
+                    wrote: 0x01,
+                    read: 0x40,
+                },
+            },
+        ),
+        (
+            "Samples",
+            DeviceMessage::Samples(SampleBatch {
+                first_index: 1_000_000,
+                first_timestamp_us: 123_456_789,
+                samples: heapless::Vec::from_slice(&[sample(1), sample(2)]).unwrap(),
+            }),
+        ),
+        (
+            "Status",
+            DeviceMessage::Status(Status {
+                streaming: true,
+                uptime_us: 3_600_000_000,
+                samples_acquired: 720_000,
+                fifo_overflows: 1,
+                samples_lost: 416,
+                i2c_errors: 12,
+                batches_dropped: 2,
+                samples_dropped: 64,
+                frames_rejected: 3,
+                replies_dropped: 0,
+                recoveries: 1,
+                loss_certain: true,
+                sample_period_ns: 4_987_654,
+            }),
+        ),
+        ("Pong", DeviceMessage::Pong { seq: 9 }),
+        (
+            "Fault",
+            DeviceMessage::Fault(ErrorCode::GaveUp {
+                attempts: 605,
+                last: FaultKind::SensorNotResponding,
+            }),
+        ),
+        (
+            "Recovered",
+            DeviceMessage::Recovered {
+                attempts: 6,
+                resumed_at_index: 24_483,
+            },
+        ),
+    ]
+}
+
+/// Every error code, each in a Nack (their variant indices are part of the wire too).
+fn error_codes() -> Vec<(&'static str, ErrorCode)> {
+    vec![
+        ("Busy", ErrorCode::Busy),
+        ("NotStreaming", ErrorCode::NotStreaming),
+        ("InvalidSettings", ErrorCode::InvalidSettings),
+        ("SensorNotResponding", ErrorCode::SensorNotResponding),
+        ("WrongSensor", ErrorCode::WrongSensor { who_am_i: 0x71 }),
+        ("I2cFailure", ErrorCode::I2cFailure),
+        (
+            "FifoCountImplausible",
+            ErrorCode::FifoCountImplausible { count: 0x1C0 },
+        ),
+        ("UnknownCommand", ErrorCode::UnknownCommand),
+        ("SensorReset", ErrorCode::SensorReset),
+    ]
+}
+
+const REQUESTS: &[(&str, &str)] = &[
+    ("GetInfo", "00020105be23c25800"),
+    ("Configure", "000b020103040101fd2fcaba00"),
+    ("Start", "000703021020fa8400"),
+    ("Stop", "000704034186bcbc00"),
+    ("Ping", "0008ac02048ddb781a00"),
+    ("GetStatus", "0009ffff03054c4a9e1a00"),
+];
+const MESSAGES: &[(&str, &str)] = &[
+    (
+        "Info",
+        "00010203190102a5f4f0d882a690b0e601700304010101200329b8652d00",
+    ),
+    ("Ack", "000701071db6a6c600"),
+    ("Nack", "000b0208056b01404befe1d000"),
+    (
+        "Samples",
+        "002c03c0843d959aef3a020201808002dd368602ffff03feff030403808002db368c04ffff03feff03c1f3a31a00",
+    ),
+    (
+        "Status",
+        "0012040180c8ceb40d80f92b01a0030c0240030b010186b6b0025f9c20ef00",
+    ),
+    ("Pong", "000705091e5e724500"),
+    ("Fault", "0005060add0405be81e2c700"),
+    ("Recovered", "000a0706a3bf0109150d9e00"),
+];
+const ERROR_CODES: &[(&str, &str)] = &[
+    ("Busy", "00030201053d3cdee500"),
+    ("NotStreaming", "0008020101ab0cd99200"),
+    ("InvalidSettings", "0008020102115dd00b00"),
+    ("SensorNotResponding", "0008020103876dd77c00"),
+    ("WrongSensor", "0009020104710ef9e1c900"),
+    ("I2cFailure", "00080201060899bd0c00"),
+    ("FifoCountImplausible", "000a020107c0036953e25300"),
+    ("UnknownCommand", "00080201080fb405eb00"),
+    ("SensorReset", "00080201099984029c00"),
+];
+
+fn run<T: serde::Serialize>(cases: Vec<(&'static str, T)>, golden: &[(&str, &str)]) {
+    let print = std::env::var_os("GOLDEN_PRINT").is_some();
+    assert!(
+        print || cases.len() == golden.len(),
+        "a case without golden bytes"
+    );
+    for (k, (name, message)) in cases.iter().enumerate() {
+        let want = golden.get(k).map_or("", |g| {
+            assert_eq!(g.0, *name);
+            g.1
+        });
+        check(name, framed(message), want);
+    }
+}
+
+#[test]
+fn every_request_is_on_the_wire_as_it_always_was() {
+    run(requests(), REQUESTS);
+}
+
+#[test]
+fn every_device_message_is_on_the_wire_as_it_always_was() {
+    run(messages(), MESSAGES);
+}
+
+#[test]
+fn every_error_code_is_on_the_wire_as_it_always_was() {
+    let nacks = error_codes()
+        .into_iter()
+        .map(|(name, error)| (name, DeviceMessage::Nack { seq: 1, error }))
+        .collect();
+    run(nacks, ERROR_CODES);
+}
