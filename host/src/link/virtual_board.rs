@@ -402,10 +402,9 @@ mod tests {
         assert_eq!(b.boot_error(), None);
         // Idle until the host starts it again.
         assert!(messages(&mut b, 5).is_empty());
-        assert_eq!(
-            b.time_us(),
-            reboot_us + 50_000,
-            "not streaming: time stands"
+        assert!(
+            b.time_us() > reboot_us + 50_000,
+            "not streaming: the time the host waits in vain passes on the board too"
         );
         send(&mut b, 2, Command::GetInfo);
         send(&mut b, 3, Command::Start);
