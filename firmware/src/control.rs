@@ -121,6 +121,8 @@ pub struct Firmware<I2C, C> {
     counters: Status,
     decoder: FrameDecoder,
     replies: heapless::Deque<Reply, REPLY_QUEUE>,
+    /// The number the next frame sent carries (from 0 at power-up).
+    frames_sent: u32,
 }
 
 impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
@@ -143,6 +145,7 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
             },
             decoder: FrameDecoder::new(),
             replies: heapless::Deque::new(),
+            frames_sent: 0,
         }
     }
 
@@ -264,9 +267,10 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
             return Ok(());
         };
         let (mut batches_dropped, mut samples_dropped) = (0u32, 0u64);
+        let frames_sent = &mut self.frames_sent;
         let mut deliver = |batch: SampleBatch| {
             let len = batch.samples.len() as u64;
-            if !send(out, &DeviceMessage::Samples(batch)) {
+            if !send(out, frames_sent, &DeviceMessage::Samples(batch)) {
                 batches_dropped += 1;
                 samples_dropped += len;
             }
@@ -486,7 +490,7 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
 
     fn flush_replies(&mut self, out: &mut impl FnMut(&[u8]) -> bool) {
         while let Some(reply) = self.replies.front().copied() {
-            if !send(out, &DeviceMessage::from(reply)) {
+            if !send(out, &mut self.frames_sent, &DeviceMessage::from(reply)) {
                 return;
             }
             self.replies.pop_front();
@@ -494,11 +498,19 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
     }
 }
 
-/// Encode one message as a frame and offer it to the link.
-fn send(out: &mut impl FnMut(&[u8]) -> bool, message: &DeviceMessage) -> bool {
+/// Encode one message as a frame numbered `counter` ([`protocol::DeviceFrame`]) and offer it
+/// to the link; the number is used up only if the link takes the frame, so a jump in the
+/// numbers the host sees is a frame lost after it left the board.
+fn send(out: &mut impl FnMut(&[u8]) -> bool, counter: &mut u32, message: &DeviceMessage) -> bool {
     let mut buf = [0u8; MAX_WIRE_LEN];
-    match encode(message, &mut buf) {
-        Ok(len) => out(&buf[..len]),
+    match encode(&(message, *counter), &mut buf) {
+        Ok(len) => {
+            let taken = out(&buf[..len]);
+            if taken {
+                *counter = counter.wrapping_add(1);
+            }
+            taken
+        }
         // Cannot happen for our messages (a test checks the largest batch fits).
         Err(_) => false,
     }

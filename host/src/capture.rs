@@ -16,10 +16,11 @@
 
 use crate::link::accounting::SampleAccounting;
 use crate::record::{Channel, Record};
-use protocol::frame::{self, Decoded, DecoderStats, FrameDecoder, MAX_WIRE_LEN};
+use protocol::frame::{self, DecoderStats, FrameDecoder, MAX_WIRE_LEN};
 use protocol::mpu6050::temperature_celsius;
 use protocol::{
-    DeviceInfo, DeviceMessage, ErrorCode, RawSample, SampleBatch, SensorSettings, Status,
+    DeviceFrame, DeviceInfo, DeviceMessage, ErrorCode, RawSample, SampleBatch, SensorSettings,
+    Status,
 };
 use std::io::Write;
 use std::ops::Range;
@@ -59,11 +60,14 @@ impl HostNote {
     }
 }
 
-/// A frame that is not a current board message but still means something.
-enum Other {
-    /// A version-2 Status or Info.
-    Status(Status),
-    Info(DeviceInfo),
+/// A frame as the capture decoder reads it.
+// One value at a time, on the stack: a box would cost an allocation per frame.
+#[allow(clippy::large_enum_variant)]
+enum Incoming {
+    Frame(DeviceFrame),
+    /// A version-2 Status or Info (stored captures).
+    StatusV2(Status),
+    InfoV2(DeviceInfo),
     Note(HostNote),
 }
 
@@ -140,6 +144,10 @@ pub struct Capture {
     pub recoveries: Vec<RecoveryReport>,
     /// Board restarts the host measured and bridged with a counted gap.
     pub segments: Vec<Segment>,
+    /// Device frames missing by the board's frame numbers: damaged on the line (also in
+    /// `decoder`) or lost whole after they left the board. A version-2 capture has no
+    /// numbers (0).
+    pub frames_missing: u64,
 }
 
 /// The board brought its sensor back after a fault (protocol `Recovered`).
@@ -239,6 +247,9 @@ pub struct StreamDecoder {
     /// A [`HostNote::BoardRestarted`] waiting for the restart it measured.
     silent_before_restart_us: Option<u64>,
     statuses_seen: u64,
+    /// The last frame number seen, and the frames missing by the numbers.
+    last_frame: Option<u32>,
+    frames_missing: u64,
 }
 
 impl Default for StreamDecoder {
@@ -269,6 +280,8 @@ impl StreamDecoder {
             segments: Vec::new(),
             silent_before_restart_us: None,
             statuses_seen: 0,
+            last_frame: None,
+            frames_missing: 0,
         }
     }
 
@@ -276,26 +289,42 @@ impl StreamDecoder {
     pub fn feed(&mut self, bytes: &[u8]) -> usize {
         let mut decoder = std::mem::take(&mut self.decoder);
         let mut infos = 0;
-        let other = |body: &[u8]| {
-            Status::decode_v2(body)
-                .map(Other::Status)
-                .or_else(|| DeviceInfo::decode_v2(body).map(Other::Info))
-                .or_else(|| HostNote::decode(body).map(Other::Note))
+        let read = |body: &[u8]| {
+            DeviceFrame::decode(body)
+                .map(Incoming::Frame)
+                .or_else(|| Status::decode_v2(body).map(Incoming::StatusV2))
+                .or_else(|| DeviceInfo::decode_v2(body).map(Incoming::InfoV2))
+                .or_else(|| HostNote::decode(body).map(Incoming::Note))
         };
-        decoder.feed_or(bytes, other, |frame| match frame {
-            Ok(Decoded::Current(message)) => self.message(message, &mut infos),
-            Ok(Decoded::Other(Other::Status(status))) => {
+        decoder.feed_with(bytes, read, |frame| match frame {
+            Ok(Incoming::Frame(DeviceFrame { message, counter })) => {
+                if let Some(counter) = counter {
+                    self.count_frame(counter);
+                }
+                self.message(message, &mut infos)
+            }
+            Ok(Incoming::StatusV2(status)) => {
                 self.message(DeviceMessage::Status(status), &mut infos)
             }
-            Ok(Decoded::Other(Other::Info(info))) => {
-                self.message(DeviceMessage::Info(info), &mut infos)
-            }
-            Ok(Decoded::Other(Other::Note(note))) => self.note(note),
+            Ok(Incoming::InfoV2(info)) => self.message(DeviceMessage::Info(info), &mut infos),
+            Ok(Incoming::Note(note)) => self.note(note),
             // Damaged frames are in the decoder's stats.
             Err(_) => {}
         });
         self.decoder = decoder;
         infos
+    }
+
+    /// A numbered frame: a jump forward is frames lost after they left the board; a number
+    /// going back is the board's restart (it numbers from 0 at power-up).
+    fn count_frame(&mut self, counter: u32) {
+        if let Some(last) = self.last_frame {
+            let jump = counter.wrapping_sub(last);
+            if jump > 1 && jump < u32::MAX / 2 {
+                self.frames_missing += u64::from(jump - 1);
+            }
+        }
+        self.last_frame = Some(counter);
     }
 
     fn message(&mut self, message: DeviceMessage, infos: &mut usize) {
@@ -465,6 +494,7 @@ impl StreamDecoder {
             board_errors: self.board_errors,
             recoveries: self.recoveries,
             segments: self.segments,
+            frames_missing: self.frames_missing,
         })
     }
 }

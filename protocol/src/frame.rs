@@ -260,7 +260,22 @@ impl FrameDecoder {
         &mut self,
         bytes: &[u8],
         other: impl Fn(&[u8]) -> Option<U>,
-        mut on_message: impl FnMut(Result<Decoded<T, U>, (FrameError, &[u8])>),
+        on_message: impl FnMut(Result<Decoded<T, U>, (FrameError, &[u8])>),
+    ) {
+        let decode = |body: &[u8]| match postcard::from_bytes::<T>(body) {
+            Ok(message) => Some(Decoded::Current(message)),
+            Err(_) => other(body).map(Decoded::Other),
+        };
+        self.feed_with(bytes, decode, on_message);
+    }
+
+    /// The frames in `bytes`, each body read by `decode`; a body it cannot read is
+    /// [`FrameError::Malformed`] (counted, and passed on with the body).
+    pub fn feed_with<T>(
+        &mut self,
+        bytes: &[u8],
+        decode: impl Fn(&[u8]) -> Option<T>,
+        mut on_message: impl FnMut(Result<T, (FrameError, &[u8])>),
     ) {
         for &byte in bytes {
             let Some(frame) = self.push(byte) else {
@@ -268,13 +283,9 @@ impl FrameDecoder {
             };
             match frame {
                 Err(error) => on_message(Err((error, &[]))),
-                Ok(body) => match postcard::from_bytes::<T>(body) {
-                    Ok(message) => on_message(Ok(Decoded::Current(message))),
-                    Err(_) => {
-                        if let Some(message) = other(body) {
-                            on_message(Ok(Decoded::Other(message)));
-                            continue;
-                        }
+                Ok(body) => match decode(body) {
+                    Some(message) => on_message(Ok(message)),
+                    None => {
                         let len = body.len() + CRC_LEN;
                         // push() counted it as a good frame; it is not one after all.
                         self.stats.frames_ok -= 1;

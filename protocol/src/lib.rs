@@ -32,7 +32,8 @@ pub use mpu6050::SensorSettings;
 /// History: 1, the first; 2 added [`ErrorCode::UnknownCommand`] (the board now refuses an
 /// intact frame it cannot read instead of only counting it); 3 made a fault something the
 /// board recovers from ([`DeviceMessage::Recovered`], [`ErrorCode::GaveUp`],
-/// [`ErrorCode::SensorReset`]), accepted clone chips ([`mpu6050::KNOWN_CHIPS`]) and appended
+/// [`ErrorCode::SensorReset`]), numbered every device frame ([`DeviceFrame`]), accepted clone
+/// chips ([`mpu6050::KNOWN_CHIPS`]) and appended
 /// the recovery counters to [`Status`] and the reset reason to [`DeviceInfo`] (a version-2
 /// Status or Info still decodes: [`Status::decode_v2`], [`DeviceInfo::decode_v2`]).
 pub const PROTOCOL_VERSION: u16 = 3;
@@ -111,6 +112,38 @@ pub enum DeviceMessage {
         /// Index of the first sample of the resumed run.
         resumed_at_index: u64,
     },
+}
+
+/// A device frame's body as read: the message, and the frame counter that follows it.
+///
+/// The board numbers the frames it hands to the link (0, 1, 2 ... from power-up, wrapping),
+/// and appends the number to each body as a varint after the message. After the message, so
+/// that a decoder that reads only the message (any earlier host, [`peek_info_version`])
+/// still reads it; the host counts a jump in the numbers as frames lost between the board's
+/// link buffer and its own decoder (a lost Status or Fault included), and a number going
+/// back as the board restarting. Version-2 bodies have no counter.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DeviceFrame {
+    pub message: DeviceMessage,
+    pub counter: Option<u32>,
+}
+
+impl DeviceFrame {
+    /// A frame body: the message, then the counter if any is there; `None` if the body is
+    /// no message, or something other than one varint follows it.
+    pub fn decode(body: &[u8]) -> Option<DeviceFrame> {
+        let (message, rest) = postcard::take_from_bytes::<DeviceMessage>(body).ok()?;
+        let counter = if rest.is_empty() {
+            None
+        } else {
+            let (counter, rest) = postcard::take_from_bytes::<u32>(rest).ok()?;
+            if !rest.is_empty() {
+                return None;
+            }
+            Some(counter)
+        };
+        Some(DeviceFrame { message, counter })
+    }
 }
 
 /// Who the board is and what it is doing.
@@ -524,6 +557,31 @@ mod tests {
         assert!(postcard::from_bytes::<DeviceMessage>(body).is_err());
         let pong = postcard::to_slice(&DeviceMessage::Pong { seq: 3 }, &mut buf).unwrap();
         assert_eq!(Status::decode_v2(pong), None);
+    }
+
+    #[test]
+    fn a_frame_body_is_the_message_then_its_number() {
+        let message = DeviceMessage::Pong { seq: 300 };
+        let mut buf = [0u8; 32];
+        let numbered = postcard::to_slice(&(&message, 70_000u32), &mut buf).unwrap();
+        let frame = DeviceFrame::decode(numbered).unwrap();
+        assert_eq!(frame.message, message);
+        assert_eq!(frame.counter, Some(70_000));
+        // Readers of the message alone still read it.
+        assert_eq!(
+            postcard::from_bytes::<DeviceMessage>(numbered).unwrap(),
+            message
+        );
+        let len = numbered.len();
+        // A version-2 body: no number.
+        let mut buf2 = [0u8; 32];
+        let bare = postcard::to_slice(&message, &mut buf2).unwrap();
+        assert_eq!(DeviceFrame::decode(bare).unwrap().counter, None);
+        // Anything but one varint after the message is not a frame of ours.
+        let mut longer = [0u8; 33];
+        longer[..len].copy_from_slice(&buf[..len]);
+        longer[len] = 5;
+        assert_eq!(DeviceFrame::decode(&longer[..len + 1]), None);
     }
 
     #[test]

@@ -159,32 +159,32 @@ const REQUESTS: &[(&str, &str)] = &[
 const MESSAGES: &[(&str, &str)] = &[
     (
         "Info",
-        "00010203190102a5f4f0d882a690b0e601700304010101200329b8652d00",
+        "000102031c0102a5f4f0d882a690b0e6017003040101012003f0a204957c81f700",
     ),
-    ("Ack", "000701071db6a6c600"),
-    ("Nack", "000b0208056b01404befe1d000"),
+    ("Ack", "000a0107f0a204b68f0d4800"),
+    ("Nack", "000e0208056b0140f0a2048ceffda300"),
     (
         "Samples",
-        "002c03c0843d959aef3a020201808002dd368602ffff03feff030403808002db368c04ffff03feff03c1f3a31a00",
+        "002f03c0843d959aef3a020201808002dd368602ffff03feff030403808002db368c04ffff03feff03f0a204f10cfa3100",
     ),
     (
         "Status",
-        "0012040180c8ceb40d80f92b01a0030c0240030b010186b6b0025f9c20ef00",
+        "0012040180c8ceb40d80f92b01a0030c0240030e010186b6b002f0a2040c3ca35000",
     ),
-    ("Pong", "000705091e5e724500"),
-    ("Fault", "0005060add0405be81e2c700"),
-    ("Recovered", "000a0706a3bf0109150d9e00"),
+    ("Pong", "000a0509f0a204455e525d00"),
+    ("Fault", "0005060add0408f0a2043349857200"),
+    ("Recovered", "000d0706a3bf01f0a20408110c9700"),
 ];
 const ERROR_CODES: &[(&str, &str)] = &[
-    ("Busy", "00030201053d3cdee500"),
-    ("NotStreaming", "0008020101ab0cd99200"),
-    ("InvalidSettings", "0008020102115dd00b00"),
-    ("SensorNotResponding", "0008020103876dd77c00"),
-    ("WrongSensor", "0009020104710ef9e1c900"),
-    ("I2cFailure", "00080201060899bd0c00"),
-    ("FifoCountImplausible", "000a020107c0036953e25300"),
-    ("UnknownCommand", "00080201080fb405eb00"),
-    ("SensorReset", "00080201099984029c00"),
+    ("Busy", "0003020108f0a204ba40f2ef00"),
+    ("NotStreaming", "000b020101f0a204df274e5700"),
+    ("InvalidSettings", "000b020102f0a2043188fb4500"),
+    ("SensorNotResponding", "000b020103f0a20454ef47fd00"),
+    ("WrongSensor", "000c02010471f0a204691534c900"),
+    ("I2cFailure", "000b020106f0a204661f99ca00"),
+    ("FifoCountImplausible", "000d020107c003f0a2048fcd4d4900"),
+    ("UnknownCommand", "000b020108f0a2045568462a00"),
+    ("SensorReset", "000b020109f0a204300ffa9200"),
 ];
 
 fn run<T: serde::Serialize>(cases: Vec<(&'static str, T)>, golden: &[(&str, &str)]) {
@@ -207,16 +207,27 @@ fn every_request_is_on_the_wire_as_it_always_was() {
     run(requests(), REQUESTS);
 }
 
+/// A device frame as the board sends it: the message, then its frame number.
+fn numbered(message: DeviceMessage) -> (DeviceMessage, u32) {
+    (message, 70_000)
+}
+
 #[test]
 fn every_device_message_is_on_the_wire_as_it_always_was() {
-    run(messages(), MESSAGES);
+    run(
+        messages()
+            .into_iter()
+            .map(|(name, m)| (name, numbered(m)))
+            .collect(),
+        MESSAGES,
+    );
 }
 
 #[test]
 fn every_error_code_is_on_the_wire_as_it_always_was() {
     let nacks = error_codes()
         .into_iter()
-        .map(|(name, error)| (name, DeviceMessage::Nack { seq: 1, error }))
+        .map(|(name, error)| (name, numbered(DeviceMessage::Nack { seq: 1, error })))
         .collect();
     run(nacks, ERROR_CODES);
 }

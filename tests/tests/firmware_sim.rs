@@ -12,7 +12,9 @@ use imunoise::sim::imu::ImuModel;
 use imunoise::sim::noise::NoiseTerms;
 use protocol::frame::{FrameDecoder, MAX_WIRE_LEN, encode};
 use protocol::mpu6050::{AccelRange, DEFAULT_ADDRESS, DlpfCfg, GyroRange, SensorSettings, reg};
-use protocol::{Command, DeviceMessage, ErrorCode, RawSample, Request, SampleBatch, Status};
+use protocol::{
+    Command, DeviceFrame, DeviceMessage, ErrorCode, RawSample, Request, SampleBatch, Status,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::ops::Range;
@@ -45,6 +47,8 @@ struct Board {
     link_open: bool,
     replies: Vec<DeviceMessage>,
     batches: Vec<SampleBatch>,
+    /// The number of every frame received, in order.
+    frame_numbers: Vec<u32>,
 }
 
 impl Board {
@@ -68,6 +72,7 @@ impl Board {
             link_open: true,
             replies: Vec::new(),
             batches: Vec::new(),
+            frame_numbers: Vec::new(),
         }
     }
 
@@ -77,9 +82,16 @@ impl Board {
 
     fn receive(&mut self, bytes: &[u8]) {
         let mut msgs = Vec::new();
-        self.decoder
-            .feed::<DeviceMessage>(bytes, |m| msgs.push(m.expect("board frames decode")));
-        for m in msgs {
+        self.decoder.feed_with(bytes, DeviceFrame::decode, |m| {
+            msgs.push(m.expect("board frames decode"))
+        });
+        for DeviceFrame {
+            message: m,
+            counter,
+        } in msgs
+        {
+            self.frame_numbers
+                .push(counter.expect("every frame is numbered"));
             match m {
                 DeviceMessage::Samples(b) => self.batches.push(b),
                 other => self.replies.push(other),
@@ -397,6 +409,10 @@ fn back_pressure_drops_and_counts_whole_batches() {
         "the host sees the same loss"
     );
     assert_eq!(status.samples_lost, 0);
+    // Frames the link refused never got a number: the numbers the host saw run on without a
+    // jump, so a jump would mean a frame lost after it left the board.
+    let numbers = &board.frame_numbers;
+    assert!(numbers.windows(2).all(|w| w[1] == w[0] + 1), "{numbers:?}");
 }
 
 #[test]

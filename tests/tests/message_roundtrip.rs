@@ -107,6 +107,12 @@ fn the_largest_messages_fit_one_frame() {
             range.len()
         );
     }
+    // With the frame number the board appends (a varint, 5 bytes at most), too.
+    for message in &messages {
+        let mut buf = [0u8; protocol::frame::MAX_WIRE_LEN];
+        let n = protocol::frame::encode(&(message, u32::MAX), &mut buf).unwrap();
+        assert!(n - 2 <= MAX_FRAME_LEN, "numbered frame of {n} bytes");
+    }
     // The full batch of worst-case samples: 7 zigzag varints of 3 bytes each per sample.
     assert!(
         stream.frames[0].len() > 32 * 21,

@@ -24,6 +24,7 @@ use protocol::{DeviceInfo, SensorSettings};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
 
 #[derive(clap::Args, Debug)]
 pub struct CaptureArgs {
@@ -84,10 +85,17 @@ pub struct PortSpec<'a> {
     pub seed: u64,
 }
 
-/// Open a board's port: `sim` is the virtual board, anything else a serial port.
+/// How long a serial port may vanish (a board rebooting and enumerating again takes a second
+/// or two; a cable pulled and pushed back by hand, more) before the capture calls it gone.
+pub const RECONNECT_WINDOW: Duration = Duration::from_secs(60);
+
+/// Open a board's port: `sim` is the virtual board, anything else a serial port (which
+/// reconnects within [`RECONNECT_WINDOW`]).
 pub fn open_port(spec: &PortSpec) -> Result<Box<dyn Link>> {
     if spec.port != "sim" {
-        return Ok(Box::new(SerialLink::open(spec.port)?));
+        return Ok(Box::new(
+            SerialLink::open(spec.port)?.reconnect_within(RECONNECT_WINDOW),
+        ));
     }
     Ok(Box::new(virtual_board(spec)?))
 }

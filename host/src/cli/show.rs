@@ -56,6 +56,8 @@ struct Losses {
     recoveries: Vec<RecoveryReport>,
     /// Board restarts the capture bridged, with the silence measured on the host clock.
     segments: Vec<Segment>,
+    /// Device frames missing by the board's frame numbers (damaged or lost whole).
+    frames_missing: u64,
     error: Option<String>,
 }
 
@@ -75,6 +77,7 @@ impl Losses {
                 board_errors: c.board_errors.clone(),
                 recoveries: c.recoveries.clone(),
                 segments: c.segments.clone(),
+                frames_missing: c.frames_missing,
                 error: None,
             },
             Err(e) => Losses {
@@ -157,6 +160,15 @@ fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
     }
     if let Some(e) = &losses.error {
         kv("decoding the file", e.clone());
+    }
+    if losses.frames_missing > 0 {
+        kv(
+            "frames missing",
+            format!(
+                "{} by the board's frame numbers (damaged on the line or lost whole; a lost Status, Fault or Recovered among them)",
+                losses.frames_missing
+            ),
+        );
     }
     if losses.trailing_bytes > 0 {
         kv(
