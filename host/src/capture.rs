@@ -17,7 +17,7 @@
 use crate::link::accounting::SampleAccounting;
 use crate::record::{Channel, Record};
 use protocol::frame::{self, DecoderStats, FrameDecoder, MAX_WIRE_LEN};
-use protocol::mpu6050::temperature_celsius;
+use protocol::mpu6050::chip_or_mpu6050;
 use protocol::{
     DeviceFrame, DeviceInfo, DeviceMessage, ErrorCode, RawSample, SampleBatch, SensorSettings,
     Status,
@@ -543,12 +543,14 @@ impl Capture {
     /// One run's samples in SI units, with the settings the board announced for it.
     pub fn run_record(&self, run: &Run, source: &str) -> Record {
         let settings = run.settings.unwrap_or(self.info.settings);
-        record_of(source, &settings, &run.samples)
+        record_of(source, &settings, self.info.who_am_i, &run.samples)
     }
 }
 
-/// Counts to SI with the board's settings (protocol::mpu6050 sensitivities).
-fn record_of(source: &str, s: &SensorSettings, samples: &[RawSample]) -> Record {
+/// Counts to SI with the board's settings and chip (protocol::mpu6050 sensitivities; the
+/// temperature scale differs between chips).
+fn record_of(source: &str, s: &SensorSettings, who_am_i: u8, samples: &[RawSample]) -> Record {
+    let chip = chip_or_mpu6050(who_am_i);
     let (g, a) = (s.gyro_range.rad_s_per_lsb(), s.accel_range.m_s2_per_lsb());
     let column = |f: &dyn Fn(&RawSample) -> f64| samples.iter().map(f).collect::<Vec<_>>();
     let channels = vec![
@@ -558,7 +560,7 @@ fn record_of(source: &str, s: &SensorSettings, samples: &[RawSample]) -> Record 
         Channel::named("ax", column(&|r| f64::from(r.accel[0]) * a)),
         Channel::named("ay", column(&|r| f64::from(r.accel[1]) * a)),
         Channel::named("az", column(&|r| f64::from(r.accel[2]) * a)),
-        Channel::named("temp", column(&|r| temperature_celsius(r.temp))),
+        Channel::named("temp", column(&|r| chip.temperature_celsius(r.temp))),
     ];
     Record {
         source: source.to_string(),

@@ -292,6 +292,12 @@ mod tests {
         let unread = made.saturating_sub(accounted);
         assert!(unread < 64, "made {made}, accounted for {accounted}");
         assert!(accounted as f64 >= 600.0 * rate);
+        // The clone's temperature is read on its own scale: the example model warms from
+        // 25 degC by up to 6 degC (on the MPU-6050's scale it would read 15 degC high).
+        let record = capture.run_record(&capture.runs[0], "faults");
+        let temp = &record.channel("temp").unwrap().values;
+        let mean = temp.iter().sum::<f64>() / temp.len() as f64;
+        assert!((25.0..31.5).contains(&mean), "{mean} degC");
         let session = store.get(outcome.session_id).unwrap().unwrap();
         assert_eq!(session.counts.samples_lost, capture.accounting.lost());
     }

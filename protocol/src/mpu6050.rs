@@ -17,12 +17,25 @@ use serde::{Deserialize, Serialize};
 pub const WHO_AM_I_VALUE: u8 = 0x68;
 
 /// A chip that answers at the MPU-6050's address with the MPU-6050's register map.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Chip {
     pub who_am_i: u8,
     pub name: &'static str,
     /// FIFO size in bytes: the MPU-6500 family has 512 [PS-MPU-6500A rev 1.1, 6.6].
     pub fifo_size: usize,
+    /// TEMP_OUT scale and the temperature at 0 counts: 340 LSB/degC and 36.53 degC on the
+    /// MPU-6050 [RM, reg 65-66]; 333.87 LSB/degC and 21 degC on the MPU-6500 [PS-MPU-6500A,
+    /// 3.4.2 and RM-MPU-6500A reg 65-66]. The clones publish nothing: the MPU-6050's values
+    /// are assumed.
+    pub temp_lsb_per_c: f64,
+    pub temp_at_zero_c: f64,
+}
+
+impl Chip {
+    /// TEMP_OUT counts to degrees Celsius on this chip.
+    pub fn temperature_celsius(&self, counts: i16) -> f64 {
+        f64::from(counts) / self.temp_lsb_per_c + self.temp_at_zero_c
+    }
 }
 
 /// Chips sold on MPU-6050 breakouts (GY-521 and kin) whose registers 25-28, 35, 56-58,
@@ -35,27 +48,41 @@ pub const KNOWN_CHIPS: [Chip; 4] = [
         who_am_i: WHO_AM_I_VALUE,
         name: "MPU-6050",
         fifo_size: FIFO_SIZE,
+        temp_lsb_per_c: 340.0,
+        temp_at_zero_c: 36.53,
     },
     Chip {
         who_am_i: 0x70,
         name: "MPU-6500 (sold as MPU-6050)",
         fifo_size: 512,
+        temp_lsb_per_c: 333.87,
+        temp_at_zero_c: 21.0,
     },
     Chip {
         who_am_i: 0x72,
         name: "MPU-6050 clone (WHO_AM_I 0x72)",
         fifo_size: FIFO_SIZE,
+        temp_lsb_per_c: 340.0,
+        temp_at_zero_c: 36.53,
     },
     Chip {
         who_am_i: 0x98,
         name: "MPU-6050 clone (WHO_AM_I 0x98)",
         fifo_size: FIFO_SIZE,
+        temp_lsb_per_c: 340.0,
+        temp_at_zero_c: 36.53,
     },
 ];
 
 /// The chip a WHO_AM_I value names, if it is one this project drives.
 pub fn chip(who_am_i: u8) -> Option<Chip> {
     KNOWN_CHIPS.iter().copied().find(|c| c.who_am_i == who_am_i)
+}
+
+/// The chip a board reported, or the MPU-6050 if it reported none this project knows (a
+/// record from before chips were told apart, or a simulated board).
+pub fn chip_or_mpu6050(who_am_i: u8) -> Chip {
+    chip(who_am_i).unwrap_or(KNOWN_CHIPS[0])
 }
 /// 7-bit I2C address with AD0 low; [`ALT_ADDRESS`] with AD0 high.
 pub const DEFAULT_ADDRESS: u8 = 0x68;
@@ -793,6 +820,15 @@ mod tests {
         assert_eq!(temperature_celsius(0), 36.53);
         assert!(abs(temperature_celsius(-3740) - 25.53) < 1e-12); // -3740/340 = -11
         assert!(abs(temperature_celsius(340) - 37.53) < 1e-12);
+        // The MPU-6500: 0 counts is 21 degC, 333.87 counts a degree.
+        let mpu6500 = chip_or_mpu6050(0x70);
+        assert!(abs(mpu6500.temperature_celsius(0) - 21.0) < 1e-12);
+        assert!(abs(mpu6500.temperature_celsius(3339) - (3339.0 / 333.87 + 21.0)) < 1e-12);
+        assert_eq!(
+            chip_or_mpu6050(0x68).temperature_celsius(340),
+            temperature_celsius(340)
+        );
+        assert_eq!(chip_or_mpu6050(0x01).name, "MPU-6050");
     }
 
     #[test]

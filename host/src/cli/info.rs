@@ -40,10 +40,10 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
     }
-    let sensor = match info.who_am_i {
-        0x68 => "MPU-6050 (WHO_AM_I 0x68)".to_string(),
-        0 => "not answering".to_string(),
-        other => format!("unexpected WHO_AM_I {other:#04x}"),
+    let sensor = match (info.who_am_i, protocol::mpu6050::chip(info.who_am_i)) {
+        (0, _) => "not answering".to_string(),
+        (who, Some(chip)) => format!("{} (WHO_AM_I {who:#04x})", chip.name),
+        (who, None) => format!("unknown chip, WHO_AM_I {who:#04x}"),
     };
     let rows = [
         ("port", args.port.clone()),
@@ -57,6 +57,7 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         ("settings", info.settings.to_string()),
         ("streaming", info.streaming.to_string()),
         ("samples per batch", info.max_samples_per_batch.to_string()),
+        ("started by", format!("{:?}", info.reset_reason)),
         ("uptime", format!("{:.3} s", status.uptime_us as f64 / 1e6)),
         ("counters", board_counters(&status)),
     ];

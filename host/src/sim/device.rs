@@ -43,7 +43,8 @@
 use super::imu::{Imu, ImuModel, RawSample, TrueInput};
 use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
 use protocol::mpu6050::{
-    DEFAULT_ADDRESS, FIFO_SIZE, RegisterValues, SensorSettings, WHO_AM_I_VALUE, reg,
+    DEFAULT_ADDRESS, FIFO_SIZE, RegisterValues, SensorSettings, WHO_AM_I_VALUE, chip_or_mpu6050,
+    reg,
 };
 use std::collections::VecDeque;
 use std::time::Duration;
@@ -438,7 +439,9 @@ impl SimMpu6050 {
             let seed = self
                 .seed
                 .wrapping_add(self.runs_started.wrapping_mul(0x9E37_79B9_7F4A_7C15));
-            let mut imu = Imu::new(&self.model, self.settings(), seed, self.duration_hint_s);
+            let chip = chip_or_mpu6050(self.faults.who_am_i.unwrap_or(WHO_AM_I_VALUE));
+            let mut imu =
+                Imu::new(&self.model, self.settings(), seed, self.duration_hint_s).with_chip(chip);
             imu.set_input(self.input);
             let clock = self.faults.clock;
             Some(Run {

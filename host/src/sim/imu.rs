@@ -13,7 +13,8 @@
 //! M the cross-axis misalignment (off-diagonal, rad), b the constant bias, noise the axis's
 //! [`NoiseTerms`] (independent per axis). The deterministic part is evaluated once per
 //! output sample (temperature changes slowly) and held over the internal samples behind it.
-//! TEMP_OUT is `round((T + noise - 36.53) * 340)` sampled at the output rate, without the DLPF.
+//! TEMP_OUT is `round((T + noise - 36.53) * 340)` sampled at the output rate, without the DLPF
+//! (another chip's scale with [`Imu::with_chip`]).
 //!
 //! Timing: output sample n is gyro internal sample n M (M = 1 + SMPLRT_DIV) and accel
 //! internal sample floor(n M 1000 / f_i): above 1 kHz output the accelerometer repeats
@@ -30,7 +31,9 @@ use super::chain::{AxisChain, quantize};
 use super::dlpf::{DlpfDesign, Sensor};
 use super::noise::{AxisNoise, NoiseTerms};
 use super::temperature::{TempCoupling, TemperatureProfile};
-use protocol::mpu6050::{ACCEL_INTERNAL_RATE_HZ, STANDARD_GRAVITY, SensorSettings};
+use protocol::mpu6050::{
+    ACCEL_INTERNAL_RATE_HZ, Chip, STANDARD_GRAVITY, SensorSettings, WHO_AM_I_VALUE, chip_or_mpu6050,
+};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -140,15 +143,21 @@ pub struct SiSample {
 }
 
 impl SiSample {
-    /// Counts to SI with the settings' sensitivities (what a reader of the registers does).
-    pub fn from_raw(raw: &RawSample, settings: &SensorSettings, time: f64) -> SiSample {
+    /// Counts to SI with the settings' sensitivities and the chip's temperature scale (what
+    /// a reader of the registers does).
+    pub fn from_raw(
+        raw: &RawSample,
+        settings: &SensorSettings,
+        chip: &Chip,
+        time: f64,
+    ) -> SiSample {
         let g = settings.gyro_range.rad_s_per_lsb();
         let a = settings.accel_range.m_s2_per_lsb();
         SiSample {
             time,
             gyro: raw.gyro.map(|c| f64::from(c) * g),
             accel: raw.accel.map(|c| f64::from(c) * a),
-            temp: protocol::mpu6050::temperature_celsius(raw.temp),
+            temp: chip.temperature_celsius(raw.temp),
         }
     }
 }
@@ -166,6 +175,8 @@ pub struct Imu {
     input: Option<TrueInput>,
     /// Next output sample index.
     n: u64,
+    /// The chip whose TEMP_OUT scale the counts follow (the MPU-6050's unless told).
+    chip: Chip,
 }
 
 impl Imu {
@@ -198,7 +209,14 @@ impl Imu {
             temp_rng,
             input: None,
             n: 0,
+            chip: chip_or_mpu6050(WHO_AM_I_VALUE),
         }
+    }
+
+    /// The same sensor answering as `chip`: its TEMP_OUT follows that chip's scale.
+    pub fn with_chip(mut self, chip: Chip) -> Self {
+        self.chip = chip;
+        self
     }
 
     /// Turn and rotate the sensor: from the next sample on, `input` is what it senses
@@ -252,7 +270,10 @@ impl Imu {
             )
         });
         let measured_temp = temp + self.temp_noise.next(&mut self.temp_rng);
-        let temp = quantize(measured_temp - 36.53, 1.0 / 340.0);
+        let temp = quantize(
+            measured_temp - self.chip.temp_at_zero_c,
+            1.0 / self.chip.temp_lsb_per_c,
+        );
         self.n += 1;
         RawSample { accel, temp, gyro }
     }
@@ -261,7 +282,7 @@ impl Imu {
     pub fn next_si(&mut self) -> SiSample {
         let t = self.next_time();
         let raw = self.next_raw();
-        SiSample::from_raw(&raw, &self.settings, t)
+        SiSample::from_raw(&raw, &self.settings, &self.chip, t)
     }
 }
 
