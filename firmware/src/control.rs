@@ -348,6 +348,7 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
                 self.reply(Reply::Fault(ErrorCode::GaveUp {
                     attempts: recovery.attempts,
                     last: error.into(),
+                    ended_at: recovery.timeline.index_at(now).0,
                 }));
             }
         }

@@ -339,7 +339,14 @@ impl StreamDecoder {
             }
             DeviceMessage::Samples(batch) => self.batch(&batch),
             DeviceMessage::Nack { seq, error } => self.board_error(Some(seq), error),
-            DeviceMessage::Fault(error) => self.board_error(None, error),
+            DeviceMessage::Fault(error) => {
+                if let ErrorCode::GaveUp { ended_at, .. } = error {
+                    // The run's tail, never delivered: lost, up to where the board stopped.
+                    let end = self.segment_base.saturating_add(ended_at);
+                    self.accounting.close(end);
+                }
+                self.board_error(None, error)
+            }
             DeviceMessage::Recovered {
                 attempts,
                 resumed_at_index,
@@ -351,8 +358,11 @@ impl StreamDecoder {
 
     fn note(&mut self, note: HostNote) {
         match note {
+            // Fruitless restarts write one note each, each measuring the silence since the
+            // one before: together they are the time the board was gone.
             HostNote::BoardRestarted { silent_us } => {
-                self.silent_before_restart_us = Some(silent_us)
+                let pending = self.silent_before_restart_us.unwrap_or(0);
+                self.silent_before_restart_us = Some(pending.saturating_add(silent_us));
             }
         }
     }
@@ -481,7 +491,20 @@ impl StreamDecoder {
     /// The capture so far. Status counters are cumulative since the board powered up, not
     /// since Start, so they cannot close the index range; losses after the last batch show
     /// in them.
-    pub fn finish(self) -> Result<Capture, CaptureError> {
+    /// End of the capture: a silence the host measured that no restart ended (the board
+    /// never came back) is lost at the tail, counted as a gap like any other.
+    pub fn settle(&mut self) {
+        let Some(silent_us) = self.silent_before_restart_us.take() else {
+            return;
+        };
+        let rate_hz = self.settings.map_or(0.0, |s| s.output_rate_hz());
+        let lost = (silent_us as f64 * 1e-6 * rate_hz).round() as u64;
+        let expected = self.accounting.expected();
+        self.accounting.close(expected.saturating_add(lost));
+    }
+
+    pub fn finish(mut self) -> Result<Capture, CaptureError> {
+        self.settle();
         let info = self.first_info.ok_or(CaptureError::NoInfo)?;
         Ok(Capture {
             info,

@@ -14,6 +14,10 @@ use std::time::{Duration, Instant};
 /// How long one read may wait: short, so the writer's one-second sync and a stop request are
 /// served promptly even on a silent link.
 const READ_TIMEOUT: Duration = Duration::from_millis(100);
+/// A watched capture also ends when the host's clock passes the duration by this fraction
+/// (the sensor's clock may be that much slow) plus [`OVERTIME_GRACE_S`].
+const OVERTIME: f64 = 0.05;
+const OVERTIME_GRACE_S: f64 = 60.0;
 
 #[derive(Debug, Clone, Default)]
 pub struct RecordOptions {
@@ -120,9 +124,10 @@ fn run(
     let started = Instant::now();
     let mut buf = vec![0u8; 1 << 16];
     let mut catalog_warned = false;
+    let started_us = link.clock_us();
     let mut keepalive = options
         .watch
-        .map(|settings| Keepalive::new(settings, link.clock_us()));
+        .map(|settings| Keepalive::new(settings, started_us));
     let mut board_errors_shown = 0;
     let mut recoveries_shown = 0;
     let ending = loop {
@@ -186,7 +191,28 @@ fn run(
         if wanted.is_some_and(|w| expected >= w) {
             break Ending::DurationReached;
         }
+        // A board that brings nothing (its sensor gone for good) must not hold the capture
+        // past its time: on the host's clock, the duration plus the sensor clock's tolerance
+        // and a minute ends it too (the silence is counted lost).
+        if keepalive.is_some()
+            && options.duration_s.is_some_and(|d| {
+                let limit_us = (d * (1.0 + OVERTIME) + OVERTIME_GRACE_S) * 1e6;
+                link.clock_us().saturating_sub(started_us) as f64 >= limit_us
+            })
+        {
+            break Ending::DurationReached;
+        }
     };
+    if let Some(note) = keepalive
+        .as_ref()
+        .and_then(|k| k.closing_note(link.clock_us(), decoder))
+    {
+        if let Err(source) = writer.write(&note) {
+            return Err(fail(writer, decoder, source));
+        }
+        decoder.feed(&note);
+    }
+    decoder.settle();
     let counts = Counts::of(decoder, writer.bytes());
     let end = match &ending {
         Ending::LinkFailed(e) => End::Incomplete(format!("link error on {}: {e}", link.describe())),
@@ -224,6 +250,23 @@ mod tests {
     use crate::sim::device::{Outage, SensorClock};
     use crate::sim::model_file::{self, FaultPlan};
 
+    /// A watched capture of `duration_s` into `store`.
+    fn watched(
+        board: &mut VirtualBoard,
+        store: &Store,
+        settings: SensorSettings,
+        duration_s: f64,
+    ) -> Outcome {
+        let options = RecordOptions {
+            duration_s: Some(duration_s),
+            keep_samples: true,
+            watch: Some(settings),
+            ..RecordOptions::default()
+        };
+        let stop = AtomicBool::new(false);
+        record(board, store, &options, &stop, &mut |_| {}).unwrap()
+    }
+
     /// The unattended night in ten minutes: a sensor clock 3000 ppm fast, a 2 s I2C outage at
     /// 120 s, a sensor reset at 300 s, a board reboot at 420 s, a clone chip. The capture
     /// must run to its end, and every sample the sensor made must be received or counted
@@ -255,14 +298,7 @@ mod tests {
             b.begin_stream().unwrap();
         }
         let made_at_start = board.sensor().lock().samples_made();
-        let options = RecordOptions {
-            duration_s: Some(600.0),
-            keep_samples: true,
-            watch: Some(settings),
-            ..RecordOptions::default()
-        };
-        let stop = AtomicBool::new(false);
-        let outcome = record(&mut board, &store, &options, &stop, &mut |_| {}).unwrap();
+        let outcome = watched(&mut board, &store, settings, 600.0);
         assert!(matches!(outcome.ending, Ending::DurationReached));
         assert_eq!(board.reboots(), 1);
         let capture = outcome.capture.unwrap();
@@ -300,5 +336,51 @@ mod tests {
         assert!((25.0..31.5).contains(&mean), "{mean} degC");
         let session = store.get(outcome.session_id).unwrap().unwrap();
         assert_eq!(session.counts.samples_lost, capture.accounting.lost());
+    }
+
+    /// A sensor that never comes back: the board gives up after ten minutes, the watcher
+    /// keeps trying, and the capture still ends at its time with the dead tail counted lost.
+    #[test]
+    fn a_sensor_gone_for_good_ends_the_capture_at_its_time_with_the_loss_counted() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        let plan = FaultPlan {
+            i2c_outages: vec![Outage {
+                at_us: 60_000_000,
+                for_us: u64::MAX / 2,
+            }],
+            ..FaultPlan::default()
+        };
+        let mut board = VirtualBoard::with_faults(model_file::example(), 4, 1, Speed::Max, &plan);
+        let settings = SensorSettings::for_rate_and_bandwidth(50.0, 42.0).unwrap();
+        {
+            let mut b = Board::new(&mut board);
+            b.handshake().unwrap();
+            b.configure(settings).unwrap();
+            b.begin_stream().unwrap();
+        }
+        let start_us = board.time_us();
+        let outcome = watched(&mut board, &store, settings, 720.0);
+        assert!(matches!(outcome.ending, Ending::DurationReached));
+        let span_s = (board.time_us() - start_us) as f64 * 1e-6;
+        assert!((816.0..830.0).contains(&span_s), "ended after {span_s} s");
+        let capture = outcome.capture.unwrap();
+        let rate = settings.output_rate_hz();
+        let (received, lost) = (capture.accounting.received(), capture.accounting.lost());
+        assert!(((received as f64) - 60.0 * rate).abs() < rate, "{received}");
+        // Received + lost is the whole time on the host's clock, within a second.
+        let accounted = (received + lost) as f64;
+        assert!(
+            (accounted - span_s * rate).abs() < rate,
+            "{accounted} for {span_s} s"
+        );
+        assert!(
+            capture
+                .board_errors
+                .iter()
+                .any(|e| matches!(e.error, protocol::ErrorCode::GaveUp { .. }))
+        );
+        let session = store.get(outcome.session_id).unwrap().unwrap();
+        assert_eq!(session.counts.samples_lost, lost);
     }
 }

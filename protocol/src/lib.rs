@@ -403,8 +403,14 @@ pub enum ErrorCode {
     SensorReset,
     /// Recovery failed `attempts` times in a row over [`GAVE_UP_AFTER_S`] seconds, the last
     /// time with `last`'s reason (a code of its own, so only its name is kept): streaming
-    /// has stopped until the host starts it again.
-    GaveUp { attempts: u16, last: FaultKind },
+    /// has stopped until the host starts it again. The sensor's samples up to (not
+    /// including) index `ended_at` are accounted for: those after the last one delivered are
+    /// lost, a gap the host counts at the end of the run.
+    GaveUp {
+        attempts: u16,
+        last: FaultKind,
+        ended_at: u64,
+    },
 }
 
 /// How long the board keeps trying to bring a failed sensor back before it stops streaming
@@ -469,7 +475,7 @@ impl core::fmt::Display for ErrorCode {
             ErrorCode::SensorReset => f.write_str(
                 "the sensor reset itself (its registers read back as power-on defaults)",
             ),
-            ErrorCode::GaveUp { attempts, last } => write!(
+            ErrorCode::GaveUp { attempts, last, .. } => write!(
                 f,
                 "gave up after {attempts} recovery attempts over {GAVE_UP_AFTER_S} s \
                  (last: {last:?}); streaming stopped"

@@ -118,6 +118,7 @@ fn messages() -> Vec<(&'static str, DeviceMessage)> {
             DeviceMessage::Fault(ErrorCode::GaveUp {
                 attempts: 605,
                 last: FaultKind::SensorNotResponding,
+                ended_at: 1_000_000_000,
             }),
         ),
         (
@@ -172,7 +173,7 @@ const MESSAGES: &[(&str, &str)] = &[
         "0012040180c8ceb40d80f92b01a0030c0240030e010186b6b002f0a2040c3ca35000",
     ),
     ("Pong", "000a0509f0a204455e525d00"),
-    ("Fault", "0005060add0408f0a2043349857200"),
+    ("Fault", "0005060add040d8094ebdc03f0a204581c91cc00"),
     ("Recovered", "000d0706a3bf01f0a20408110c9700"),
 ];
 const ERROR_CODES: &[(&str, &str)] = &[

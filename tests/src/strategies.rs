@@ -145,17 +145,20 @@ pub fn error_code() -> impl Strategy<Value = ErrorCode> {
         any::<u16>().prop_map(|count| ErrorCode::FifoCountImplausible { count }),
         Just(ErrorCode::UnknownCommand),
         Just(ErrorCode::SensorReset),
-        (any::<u16>(), 0..7u8).prop_map(|(attempts, k)| ErrorCode::GaveUp {
-            attempts,
-            last: [
-                FaultKind::SensorNotResponding,
-                FaultKind::WrongSensor,
-                FaultKind::VerifyFailed,
-                FaultKind::I2cFailure,
-                FaultKind::FifoCountImplausible,
-                FaultKind::SensorReset,
-                FaultKind::Other,
-            ][usize::from(k)],
+        (any::<u16>(), 0..7u8, any::<u64>()).prop_map(|(attempts, k, ended_at)| {
+            ErrorCode::GaveUp {
+                ended_at,
+                attempts,
+                last: [
+                    FaultKind::SensorNotResponding,
+                    FaultKind::WrongSensor,
+                    FaultKind::VerifyFailed,
+                    FaultKind::I2cFailure,
+                    FaultKind::FifoCountImplausible,
+                    FaultKind::SensorReset,
+                    FaultKind::Other,
+                ][usize::from(k)],
+            }
         }),
     ]
 }

@@ -548,7 +548,15 @@ fn a_sensor_gone_for_good_is_given_up_on_after_ten_minutes() {
     }
     assert!(!board.fw.streaming());
     match board.replies.drain(..).collect::<Vec<_>>()[..] {
-        [DeviceMessage::Fault(ErrorCode::GaveUp { attempts, last })] => {
+        [
+            DeviceMessage::Fault(ErrorCode::GaveUp {
+                attempts,
+                last,
+                ended_at,
+            }),
+        ] => {
+            // The run is accounted for up to the moment it was given up on.
+            assert_eq!(ended_at, next_index(&board) + board.status().samples_lost);
             // A second apart once the backoff is at its cap.
             assert!((590..=620).contains(&attempts), "{attempts}");
             assert_eq!(last, protocol::FaultKind::SensorNotResponding);

@@ -131,6 +131,10 @@ fn main() -> ! {
         timer,
     );
 
+    // A sensor left mid-transfer by a reset of the board alone (the sensor kept its power)
+    // may hold SDA low: free the bus before the first transaction.
+    let mut i2c = i2c;
+    firmware::BusClear::clear_bus(&mut i2c);
     let mut fw = Firmware::new(
         i2c,
         BoardClock(timer),

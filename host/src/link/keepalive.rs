@@ -119,6 +119,16 @@ impl Keepalive {
         Ok(Action::Nothing)
     }
 
+    /// At the end of the capture: if the latest restart brought no samples, the silence
+    /// since then, as a note (the board was gone until the end).
+    pub fn closing_note(&self, now_us: u64, decoder: &StreamDecoder) -> Option<Vec<u8>> {
+        let nothing_since = decoder.accounting().expected() <= self.expected_at_restart;
+        (self.restarts > 0 && self.fruitless > 0 && nothing_since).then(|| {
+            let silent_us = now_us.saturating_sub(self.last_heard_us);
+            HostNote::BoardRestarted { silent_us }.frame()
+        })
+    }
+
     fn send(&mut self, link: &mut dyn Link, command: Command) -> std::io::Result<()> {
         self.seq = self.seq.wrapping_add(1).max(FIRST_SEQ);
         let mut buf = [0u8; MAX_WIRE_LEN];
