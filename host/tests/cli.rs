@@ -9,6 +9,28 @@ fn imunoise(args: &[&str]) -> Output {
         .expect("the imunoise binary runs")
 }
 
+/// A capture from the virtual board at full speed into `store`, which must succeed.
+fn sim_capture(store: &str, rate: &str, bandwidth: &str, duration: &str, name: &str) {
+    let out = imunoise(&[
+        "--store",
+        store,
+        "capture",
+        "--port",
+        "sim",
+        "--rate",
+        rate,
+        "--bandwidth",
+        bandwidth,
+        "--duration",
+        duration,
+        "--speed",
+        "max",
+        "--name",
+        name,
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+}
+
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
@@ -117,4 +139,95 @@ fn demo_accounts_for_every_sample() {
         text.contains("2000 numbered by the board, 1936 received, 64 lost in 2 gaps"),
         "{text}"
     );
+}
+
+/// A reader that goes away (`imunoise export 1 | head -1`) ends the command quietly: exit 0,
+/// nothing on stderr, where println! would panic on the closed pipe.
+#[test]
+fn a_closed_pipe_ends_the_command_quietly() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store");
+    let store = store.to_str().unwrap();
+    sim_capture(store, "1000", "188", "20s", "pipe");
+    for args in [
+        vec!["--store", store, "export", "pipe"],
+        vec!["--store", store, "show", "pipe", "--json"],
+        vec!["--store", store, "sessions"],
+    ] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+            .args(&args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The reader closes its end before (or while) the command writes.
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {:?} {}",
+            out.status,
+            stderr(&out)
+        );
+        assert_eq!(stderr(&out), "", "{args:?}");
+    }
+}
+
+/// No command writes onto its own input or into the store: `export ID --out <the session's
+/// raw file>` is refused and the session stays byte for byte as it was.
+#[test]
+fn outputs_never_overwrite_inputs_or_store_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store");
+    let s = store.to_str().unwrap();
+    sim_capture(s, "200", "42", "5s", "keep");
+    let raw = store.join("sessions/1.imucap");
+    let before = std::fs::read(&raw).unwrap();
+    let out = imunoise(&[
+        "--store",
+        s,
+        "export",
+        "keep",
+        "--out",
+        raw.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("own input"), "{}", stderr(&out));
+    let catalog = store.join("catalog.sqlite");
+    let out = imunoise(&[
+        "--store",
+        s,
+        "analyze",
+        "keep",
+        "--report",
+        catalog.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("inside the store"),
+        "{}",
+        stderr(&out)
+    );
+    // A file analysed onto itself.
+    let csv = dir.path().join("x.csv");
+    let out = imunoise(&[
+        "--store",
+        s,
+        "export",
+        "keep",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let exported = std::fs::read(&csv).unwrap();
+    let out = imunoise(&[
+        "analyze",
+        csv.to_str().unwrap(),
+        "--json",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("own input"), "{}", stderr(&out));
+    assert_eq!(std::fs::read(&csv).unwrap(), exported);
+    assert_eq!(std::fs::read(&raw).unwrap(), before);
 }

@@ -282,3 +282,52 @@ fn an_unwritable_store_is_a_clear_error() {
     let e = err(imunoise(&tmp.path().join("s"), &["show", "nothing"]));
     assert!(e.contains("no session 'nothing'"), "{e}");
 }
+
+/// A lost catalog never mixes data: the next capture gets a new id and a new file, and the
+/// orphaned session's raw file stays byte for byte as it was.
+#[test]
+fn a_lost_catalog_never_reuses_an_id_or_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store");
+    let capture = |name: &str| {
+        ok(imunoise(
+            &store,
+            &[
+                "capture",
+                "--port",
+                "sim",
+                "--rate",
+                "200",
+                "--bandwidth",
+                "42",
+                "--duration",
+                "5s",
+                "--speed",
+                "max",
+                "--name",
+                name,
+            ],
+        ))
+    };
+    capture("first");
+    let first = store.join("sessions/1.imucap");
+    let before = std::fs::read(&first).unwrap();
+    for f in ["catalog.sqlite", "catalog.sqlite-wal", "catalog.sqlite-shm"] {
+        let _ = std::fs::remove_file(store.join(f));
+    }
+    assert!(ok(imunoise(&store, &["sessions"])).contains("no sessions"));
+    capture("second");
+    assert_eq!(
+        std::fs::read(&first).unwrap(),
+        before,
+        "the orphan is untouched"
+    );
+    let listed = json(&ok(imunoise(&store, &["show", "second", "--json"])));
+    assert_eq!(listed["session"]["id"], 2, "{listed}");
+    assert!(store.join("sessions/2.imucap").exists());
+    // Removing the newest session does not free its id either.
+    ok(imunoise(&store, &["rm", "second", "--yes"]));
+    capture("third");
+    let listed = json(&ok(imunoise(&store, &["show", "third", "--json"])));
+    assert_eq!(listed["session"]["id"], 3, "{listed}");
+}

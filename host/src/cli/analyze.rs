@@ -7,6 +7,7 @@ use crate::analysis::pipeline::{self, LowPassChoice, Options};
 use crate::analysis::psd::Window;
 use crate::analysis::taus::TauGrid;
 use crate::analysis::{DataType, Estimator};
+use crate::cli::output;
 use crate::cli::settings::{accel_range, gyro_range};
 use crate::cli::stored;
 use crate::input::{CountScale, LoadOptions};
@@ -138,10 +139,19 @@ fn parse_scale(s: &str) -> Result<(String, f64), String> {
 }
 
 pub fn run(args: &AnalyzeArgs, store: Option<&Path>) -> Result<()> {
+    let store_dir = crate::store::locate(store).ok();
+    for (path, flag) in args.analysis.outputs() {
+        output::check(path, flag, store_dir.as_deref(), &[&args.input])?;
+    }
     let stored::Input {
         mut loaded,
         session,
     } = stored::load(&args.input, &args.analysis.read.load_options()?, store)?;
+    if let Some((_, session)) = &session {
+        for (path, flag) in args.analysis.outputs() {
+            output::check(path, flag, None, &[&session.file])?;
+        }
+    }
     stored::print_notes(&loaded.notes);
     if args.calibrated {
         let Some((store, session)) = &session else {
@@ -200,6 +210,28 @@ impl ReadArgs {
             scales: self.scale.clone(),
             longest_run: self.longest_run,
         })
+    }
+}
+
+impl AnalysisArgs {
+    /// The files the analysis writes, with their flags (`--json -` is stdout, not a file).
+    pub fn outputs(&self) -> Vec<(&Path, &'static str)> {
+        let mut out = Vec::new();
+        if let Some(p) = self.json.as_deref().filter(|p| p.as_os_str() != "-") {
+            out.push((p, "--json"));
+        }
+        let flags = [
+            (&self.plot, "--plot"),
+            (&self.kalibr, "--kalibr"),
+            (&self.report, "--report"),
+        ];
+        out.extend(
+            flags
+                .into_iter()
+                .filter_map(|(p, f)| p.as_deref().map(|p| (p, f))),
+        );
+        out.extend(self.filter.iter().map(|p| (p.as_path(), "--filter")));
+        out
     }
 }
 

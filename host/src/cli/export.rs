@@ -9,6 +9,7 @@
 
 use crate::capture::Capture;
 use crate::cli::calibrations::apply_latest;
+use crate::cli::output;
 use crate::cli::stored::{load_session, open_store};
 use crate::input::LoadOptions;
 use crate::record::Record;
@@ -50,6 +51,9 @@ pub fn run(args: &ExportArgs, store: Option<&Path>) -> Result<()> {
     }
     let store = open_store(store)?;
     let session = store.find(&args.session)?;
+    if let Some(path) = &args.out {
+        output::check(path, "--out", Some(store.dir()), &[&session.file])?;
+    }
     let (out, what): (Box<dyn Write>, String) = match &args.out {
         Some(path) => (
             Box::new(

@@ -11,6 +11,7 @@ mod export;
 mod import;
 mod info;
 mod model;
+mod output;
 mod ports;
 mod replay;
 mod rm;
@@ -87,6 +88,7 @@ pub enum Command {
 
 /// Run the CLI: errors go to stderr with their causes, and the exit code is 1.
 pub fn main() -> ExitCode {
+    quiet_on_closed_pipe();
     let cli = Cli::parse();
     let store = cli.store.as_deref();
     let result = match cli.command {
@@ -113,11 +115,41 @@ pub fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // The reader went away (`imunoise sessions | head -1`): nothing more to say.
+        Err(error) if closed_pipe(&error) => ExitCode::SUCCESS,
         Err(error) => {
             eprintln!("error: {}", describe(&error));
             ExitCode::FAILURE
         }
     }
+}
+
+/// Whether `error` is a write to a pipe whose reader has gone.
+fn closed_pipe(error: &anyhow::Error) -> bool {
+    error.chain().any(|cause| {
+        cause
+            .downcast_ref::<std::io::Error>()
+            .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// `println!` panics when stdout's reader has gone (Rust ignores SIGPIPE). A command whose
+/// output nobody reads any more is done, not broken: end quietly, as `cat` would. Every
+/// other panic is reported as before.
+fn quiet_on_closed_pipe() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let message = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if message.starts_with("failed printing to stdout") && message.contains("Broken pipe") {
+            std::process::exit(0);
+        }
+        default(info);
+    }));
 }
 
 /// An error and its causes, joined by ": ", each cause once: many errors already quote their

@@ -80,6 +80,29 @@ impl StoreError {
     }
 }
 
+/// Copy `source` to a `target` that must not exist yet; the bytes copied.
+fn copy_new(source: &Path, target: &Path) -> Result<u64, StoreError> {
+    let mut from = std::fs::File::open(source).map_err(StoreError::io(source))?;
+    let mut to = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(target)
+        .map_err(StoreError::io(target))?;
+    std::io::copy(&mut from, &mut to).map_err(|e| {
+        let _ = std::fs::remove_file(target);
+        StoreError::Io {
+            path: target.to_owned(),
+            source: e,
+        }
+    })
+}
+
+/// The session id a file in `sessions/` is named by (`12.imucap` -> 12).
+fn file_id(name: &str) -> Option<i64> {
+    let stem = name.split('.').next()?;
+    stem.parse().ok().filter(|&id: &i64| id > 0)
+}
+
 /// An open store: its directory and a connection to its catalog.
 pub struct Store {
     dir: PathBuf,
@@ -184,21 +207,25 @@ impl Store {
             .unwrap_or("dat");
         let relative = catalog::file_name(id, ext);
         let target = self.dir.join(&relative);
-        let copied = std::fs::copy(source, &target)
-            .map_err(StoreError::io(source))
-            .and_then(|bytes| {
-                self.conn
-                    .execute(
-                        "UPDATE sessions SET file = ?2, bytes = ?3, samples_received = ?4, \
-                         rate_hz = ?5, state = 'complete', ended_at = started_at, \
-                         ended_unix = started_unix WHERE id = ?1",
-                        params![id, relative, bytes, samples, rate_hz],
-                    )
-                    .map_err(self.sql())
-            });
-        if let Err(e) = copied {
-            // Best effort: leave no half-imported session behind.
-            let _ = std::fs::remove_file(&target);
+        // The copy removes what it half-wrote itself; a failure to create the file (it
+        // exists: some other session's) must not remove it.
+        let recorded = copy_new(source, &target).map(|bytes| {
+            let updated = self
+                .conn
+                .execute(
+                    "UPDATE sessions SET file = ?2, bytes = ?3, samples_received = ?4, \
+                     rate_hz = ?5, state = 'complete', ended_at = started_at, \
+                     ended_unix = started_unix WHERE id = ?1",
+                    params![id, relative, bytes, samples, rate_hz],
+                )
+                .map_err(self.sql());
+            if updated.is_err() {
+                let _ = std::fs::remove_file(&target);
+            }
+            updated
+        });
+        if let Err(e) = recorded.and_then(|updated| updated) {
+            // Best effort: leave no half-imported session row behind.
             let _ = self
                 .conn
                 .execute("DELETE FROM sessions WHERE id = ?1", [id]);
@@ -230,11 +257,12 @@ impl Store {
             None => catalog::unique_name(&self.conn, &stamp).map_err(self.sql())?,
         };
         let spec = import.map(|(_, s)| serde_json::to_string(s).unwrap_or_default());
+        let id = self.next_id()?;
         self.conn
             .execute(
                 "INSERT INTO sessions (name, kind, file, started_at, started_unix, state, \
-                 recorder_pid, heartbeat_unix, notes, import_source, import_options) \
-                 VALUES (?1, ?2, '', ?3, ?4, 'recording', ?5, ?4, ?6, ?7, ?8)",
+                 recorder_pid, heartbeat_unix, notes, import_source, import_options, id) \
+                 VALUES (?1, ?2, '', ?3, ?4, 'recording', ?5, ?4, ?6, ?7, ?8, ?9)",
                 params![
                     chosen,
                     if kind == Kind::Imported {
@@ -248,10 +276,10 @@ impl Store {
                     notes,
                     import.map(|(p, _)| p.display().to_string()),
                     spec,
+                    id,
                 ],
             )
             .map_err(self.sql())?;
-        let id = self.conn.last_insert_rowid();
         let relative = catalog::file_name(id, CAPTURE_EXT);
         self.conn
             .execute(
@@ -260,6 +288,33 @@ impl Store {
             )
             .map_err(self.sql())?;
         Ok((id, name.map(str::to_string)))
+    }
+
+    /// The id of the next session: above every id the catalog ever gave (AUTOINCREMENT's
+    /// counter) and above every session file in `sessions/`, so that an id is never reused,
+    /// even after the catalog was lost and its files remain.
+    fn next_id(&self) -> Result<i64, StoreError> {
+        let given: i64 = self
+            .conn
+            .query_row(
+                "SELECT MAX(COALESCE((SELECT seq FROM sqlite_sequence WHERE name = 'sessions'), 0), \
+                 COALESCE((SELECT MAX(id) FROM sessions), 0))",
+                [],
+                |r| r.get(0),
+            )
+            .map_err(self.sql())?;
+        Ok(given.max(self.highest_file_id()?) + 1)
+    }
+
+    /// The highest id among the files in `sessions/` (named `<id>.<ext>`), 0 if none.
+    fn highest_file_id(&self) -> Result<i64, StoreError> {
+        let dir = self.dir.join(SESSIONS);
+        let entries = std::fs::read_dir(&dir).map_err(StoreError::io(&dir))?;
+        Ok(entries
+            .filter_map(|e| e.ok())
+            .filter_map(|e| file_id(&e.file_name().to_string_lossy()))
+            .max()
+            .unwrap_or(0))
     }
 
     fn name_taken(&self, name: &str) -> Result<bool, StoreError> {

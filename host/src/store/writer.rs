@@ -60,8 +60,10 @@ impl SessionWriter {
         path: PathBuf,
         started: SystemTime,
     ) -> Result<SessionWriter, StoreError> {
+        // A new session never writes into a file that exists (an orphan of a lost catalog,
+        // say): created here or not at all.
         let file = OpenOptions::new()
-            .create(true)
+            .create_new(true)
             .append(true)
             .open(&path)
             .map_err(StoreError::io(&path))?;
