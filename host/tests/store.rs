@@ -280,6 +280,9 @@ fn an_unwritable_store_is_a_clear_error() {
     let e = err(imunoise(&store, &["sessions"]));
     assert!(e.contains(store.to_str().unwrap()), "{e}");
     let e = err(imunoise(&tmp.path().join("s"), &["show", "nothing"]));
+    assert!(e.contains("no store at"), "{e}");
+    // rm writes: it opens (and creates) the store, then finds no such session.
+    let e = err(imunoise(&tmp.path().join("s"), &["rm", "nothing", "--yes"]));
     assert!(e.contains("no session 'nothing'"), "{e}");
 }
 
@@ -330,4 +333,37 @@ fn a_lost_catalog_never_reuses_an_id_or_a_file() {
     capture("third");
     let listed = json(&ok(imunoise(&store, &["show", "third", "--json"])));
     assert_eq!(listed["session"]["id"], 3, "{listed}");
+}
+
+/// A mistyped `--store` is an error for a reading command (nothing is created); a writing
+/// command creates the store and says so.
+#[test]
+fn only_writing_commands_create_a_store() {
+    let dir = tempfile::tempdir().unwrap();
+    let typo = dir.path().join("stroe");
+    for args in [&["sessions"][..], &["show", "1"], &["export", "1"]] {
+        let text = err(imunoise(&typo, args));
+        assert!(text.contains("no store at"), "{args:?}: {text}");
+    }
+    assert!(!typo.exists());
+    let o = imunoise(
+        &typo,
+        &[
+            "capture",
+            "--port",
+            "sim",
+            "--rate",
+            "50",
+            "--bandwidth",
+            "20",
+            "--duration",
+            "2s",
+            "--speed",
+            "max",
+        ],
+    );
+    let said = String::from_utf8_lossy(&o.stderr).into_owned();
+    ok(o);
+    assert!(said.contains("created a new store at"), "{said}");
+    assert!(ok(imunoise(&typo, &["sessions"])).contains("complete"));
 }

@@ -3,7 +3,7 @@
 
 use crate::calibration::apply::{Applied, apply};
 use crate::calibration::{AXES, Calibration, Correction};
-use crate::cli::stored::{open_store, print_listing};
+use crate::cli::stored::{print_listing, read_store};
 use crate::record::Record;
 use crate::report;
 use crate::store::{CalibrationSettings, Session, Store, StoredCalibration};
@@ -33,7 +33,7 @@ pub enum CalibrationsCommand {
 }
 
 pub fn run(args: &CalibrationsArgs, store: Option<&Path>) -> Result<()> {
-    let store = open_store(store)?;
+    let store = read_store(store)?;
     match &args.command {
         Some(CalibrationsCommand::Show { id }) => {
             let c = store

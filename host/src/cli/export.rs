@@ -10,7 +10,7 @@
 use crate::capture::Capture;
 use crate::cli::calibrations::apply_latest;
 use crate::cli::output;
-use crate::cli::stored::{load_session, open_store};
+use crate::cli::stored::{load_session, read_store};
 use crate::input::LoadOptions;
 use crate::record::Record;
 use crate::store::{Kind, Session};
@@ -49,7 +49,7 @@ pub fn run(args: &ExportArgs, store: Option<&Path>) -> Result<()> {
     if args.format != "csv" {
         bail!("--format {}: unknown format; available: csv", args.format);
     }
-    let store = open_store(store)?;
+    let store = read_store(store)?;
     let session = store.find(&args.session)?;
     if let Some(path) = &args.out {
         output::check(path, "--out", Some(store.dir()), &[&session.file])?;

@@ -1,5 +1,5 @@
 //! Output files a command is asked to write: never one of its own inputs, never a file of
-//! the store (the store writes its files itself, exclusively). `export 3 --out
+//! the store (its catalog and its `sessions/`, which the store writes itself, exclusively). `export 3 --out
 //! <session 3's raw file>` would otherwise truncate the session before reading it.
 
 use anyhow::{Result, bail};
@@ -33,7 +33,7 @@ pub fn check(path: &Path, what: &str, store: Option<&Path>, inputs: &[&Path]) ->
         }
     }
     if let Some(store) = store.and_then(|s| s.canonicalize().ok())
-        && target.starts_with(&store)
+        && store_file(&store, &target)
     {
         bail!(
             "{what} {}: that is inside the store {}, whose files only the store writes; choose a path outside it",
@@ -42,6 +42,16 @@ pub fn check(path: &Path, what: &str, store: Option<&Path>, inputs: &[&Path]) ->
         );
     }
     Ok(())
+}
+
+/// Whether `target` is one of the store's own files: its catalog (with SQLite's journal
+/// files) or anything under `sessions/`. Other files in the store's folder are the user's.
+fn store_file(store: &Path, target: &Path) -> bool {
+    let catalog = crate::store::CATALOG;
+    target.starts_with(store.join(crate::store::SESSIONS))
+        || ["", "-wal", "-shm", "-journal"]
+            .iter()
+            .any(|suffix| target == store.join(format!("{catalog}{suffix}")))
 }
 
 #[cfg(test)]
@@ -66,6 +76,17 @@ mod tests {
         assert!(err.to_string().contains("inside the store"), "{err}");
         let new_in_store = store.join("sessions/new.csv");
         assert!(check(&new_in_store, "--out", Some(&store), &[]).is_err());
+        assert!(
+            check(
+                &store.join("catalog.sqlite-wal"),
+                "--out",
+                Some(&store),
+                &[]
+            )
+            .is_err()
+        );
+        // The store's folder itself may hold the user's own files.
+        assert!(check(&store.join("rest.csv"), "--out", Some(&store), &[]).is_ok());
         // Elsewhere is fine, existing or not; a missing folder is left to the write.
         assert!(
             check(

@@ -1,6 +1,6 @@
 //! `imunoise sessions`: the sessions in the store, one line each (or JSON).
 
-use crate::cli::stored::{open_store, print_listing};
+use crate::cli::stored::{print_listing, read_store};
 use crate::store::Session;
 use anyhow::Result;
 use std::path::Path;
@@ -13,7 +13,7 @@ pub struct SessionsArgs {
 }
 
 pub fn run(args: &SessionsArgs, store: Option<&Path>) -> Result<()> {
-    let store = open_store(store)?;
+    let store = read_store(store)?;
     let sessions = store.list()?;
     print_listing(&sessions, args.json, &store, "sessions", table)
 }

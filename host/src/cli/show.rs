@@ -3,7 +3,7 @@
 
 use crate::capture::{BoardReport, Capture, RecoveryReport, Segment};
 use crate::cli::sessions::{duration, rate_bandwidth};
-use crate::cli::stored::open_store;
+use crate::cli::stored::read_store;
 use crate::store::{Analysis, Kind, Session, State};
 use anyhow::Result;
 use serde_json::json;
@@ -23,7 +23,7 @@ pub struct ShowArgs {
 const GAPS_SHOWN: usize = 20;
 
 pub fn run(args: &ShowArgs, store: Option<&Path>) -> Result<()> {
-    let store = open_store(store)?;
+    let store = read_store(store)?;
     let session = store.find(&args.session)?;
     let analyses = store.analyses(session.id)?;
     let losses = Losses::of(&session);

@@ -8,10 +8,23 @@ use crate::store::{self, Kind, Session, Store};
 use anyhow::{Context, Result};
 use std::path::Path;
 
-/// Open the store the user chose (creating it on first use).
+/// Open the store the user chose for a command that writes to it (capture, import, rm ...),
+/// creating it on first use and saying so.
 pub fn open_store(flag: Option<&Path>) -> Result<Store> {
     let dir = store::locate(flag)?;
-    Store::open(&dir).with_context(|| format!("store {}", dir.display()))
+    let new = !dir.join(store::CATALOG).exists();
+    let store = Store::open(&dir).with_context(|| format!("store {}", dir.display()))?;
+    if new {
+        eprintln!("note: created a new store at {}", dir.display());
+    }
+    Ok(store)
+}
+
+/// Open the store the user chose for a command that only reads it (sessions, show, export
+/// ...): it must exist, and a read-only store is opened read-only.
+pub fn read_store(flag: Option<&Path>) -> Result<Store> {
+    let dir = store::locate(flag)?;
+    Ok(Store::open_existing(&dir)?)
 }
 
 /// A catalog listing: as JSON, or as a table, or a line saying the store has no `what`.
@@ -55,6 +68,14 @@ pub fn keep_analysis(session: Option<&(Store, Session)>, analysed: &Analysed) ->
             "command": std::env::args().skip(1).collect::<Vec<_>>(),
             "options": format!("{:?}", analysed.options),
         });
+        if store.is_read_only() {
+            eprintln!(
+                "note: the analysis is not stored with session {}: the store {} is read-only",
+                session.id,
+                store.dir().display()
+            );
+            return Ok(());
+        }
         let id = store.add_analysis(session.id, &options, &analysed.document)?;
         eprintln!(
             "stored analysis {id} with session {} '{}'",
@@ -73,7 +94,7 @@ pub fn load(input: &Path, options: &LoadOptions, store: Option<&Path>) -> Result
         });
     }
     let key = input.to_string_lossy();
-    let store = open_store(store)?;
+    let store = read_store(store).with_context(|| format!("{key}: no such file"))?;
     let session = store
         .find(&key)
         .with_context(|| format!("{key}: no such file"))?;

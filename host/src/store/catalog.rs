@@ -34,6 +34,32 @@ pub fn connect(path: &Path) -> Result<Connection, StoreError> {
     Ok(conn)
 }
 
+/// Open an existing catalog for reading only (a store on read-only media, or one whose
+/// files this user may not write): no schema change, no recovery, no journal setup.
+pub fn connect_read_only(path: &Path) -> Result<Connection, StoreError> {
+    use rusqlite::OpenFlags;
+    let sql = |source| StoreError::Sql {
+        path: path.to_owned(),
+        source,
+    };
+    let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+    let conn = Connection::open_with_flags(path, flags).map_err(sql)?;
+    conn.busy_timeout(Duration::from_secs(5)).map_err(sql)?;
+    let version: u32 = conn
+        .pragma_query_value(None, "user_version", |r| r.get(0))
+        .map_err(sql)?;
+    if version != schema::VERSION {
+        return Err(StoreError::Schema {
+            path: path.to_owned(),
+            source: schema::MigrateError::ReadOnly {
+                found: version,
+                known: schema::VERSION,
+            },
+        });
+    }
+    Ok(conn)
+}
+
 /// `sessions/<id>.<ext>`, relative to the store directory.
 pub fn file_name(id: i64, ext: &str) -> String {
     format!("{SESSIONS}/{id}.{ext}")

@@ -69,6 +69,10 @@ pub enum StoreError {
     BadName { name: String, reason: &'static str },
     #[error("a session named '{0}' exists already")]
     NameTaken(String),
+    #[error(
+        "no store at {0} (check --store or ${ENV}; `capture`, `import`, `sweep` and `demo` create one)"
+    )]
+    Missing(PathBuf),
 }
 
 impl StoreError {
@@ -77,6 +81,26 @@ impl StoreError {
             path: path.to_owned(),
             source,
         }
+    }
+}
+
+/// Whether opening failed because the store cannot be written.
+fn read_only(error: &StoreError) -> bool {
+    use rusqlite::ErrorCode::{CannotOpen, ReadOnly};
+    match error {
+        StoreError::Io { source, .. } => matches!(
+            source.kind(),
+            std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem
+        ),
+        StoreError::Sql {
+            source: rusqlite::Error::SqliteFailure(e, _),
+            ..
+        }
+        | StoreError::Schema {
+            source: schema::MigrateError::Sql(rusqlite::Error::SqliteFailure(e, _)),
+            ..
+        } => matches!(e.code, ReadOnly | CannotOpen),
+        _ => false,
     }
 }
 
@@ -110,6 +134,26 @@ pub struct Store {
 }
 
 impl Store {
+    /// Open an existing store to read it: as [`Store::open`] where the store can be
+    /// written, read-only where it cannot (read-only media, another user's files). A missing
+    /// store is an error, never created: a mistyped `--store` must not look like an empty
+    /// store.
+    pub fn open_existing(dir: &Path) -> Result<Store, StoreError> {
+        let catalog_path = dir.join(CATALOG);
+        // A store is its catalog or its session files (a store whose catalog was lost is
+        // still one: `store repair` rebuilds the catalog).
+        if !catalog_path.is_file() && !dir.join(SESSIONS).is_dir() {
+            return Err(StoreError::Missing(dir.to_owned()));
+        }
+        match Store::open(dir) {
+            Err(e) if read_only(&e) => Ok(Store {
+                dir: dir.to_owned(),
+                conn: catalog::connect_read_only(&catalog_path)?,
+            }),
+            other => other,
+        }
+    }
+
     /// Open (creating if needed) the store in `dir`, bring its catalog's schema up to date
     /// and recover recordings whose recorder is gone.
     pub fn open(dir: &Path) -> Result<Store, StoreError> {
@@ -126,6 +170,11 @@ impl Store {
 
     pub fn dir(&self) -> &Path {
         &self.dir
+    }
+
+    /// Whether the store was opened read-only ([`Store::open_existing`]).
+    pub fn is_read_only(&self) -> bool {
+        self.conn.is_readonly(rusqlite::MAIN_DB).unwrap_or(true)
     }
 
     pub fn catalog_path(&self) -> PathBuf {
@@ -406,5 +455,50 @@ impl Store {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A store that cannot be written is read through a read-only catalog: listed and shown,
+    /// never written; a missing store is an error, not an empty new one.
+    #[test]
+    fn read_only_and_missing_stores() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("typo");
+        assert!(matches!(
+            Store::open_existing(&missing),
+            Err(StoreError::Missing(_))
+        ));
+        assert!(!missing.exists(), "a reading command creates nothing");
+        let store = Store::open(dir.path()).unwrap();
+        let writer = store.begin_capture(Some("kept"), None).unwrap();
+        writer.finish(End::Complete, &Counts::default()).unwrap();
+        drop(store);
+        // As the fallback opens it when writing fails (root ignores file modes, so the
+        // failure itself cannot be staged here).
+        let store = Store {
+            dir: dir.path().to_owned(),
+            conn: catalog::connect_read_only(&dir.path().join(CATALOG)).unwrap(),
+        };
+        assert!(store.is_read_only());
+        assert_eq!(store.list().unwrap()[0].name, "kept");
+        let doc = serde_json::json!({});
+        assert!(store.add_analysis(1, &doc, &doc).is_err());
+        // The errors that mean "cannot write" and nothing else.
+        let sql = |code| StoreError::Sql {
+            path: PathBuf::new(),
+            source: rusqlite::Error::SqliteFailure(rusqlite::ffi::Error::new(code), None),
+        };
+        assert!(read_only(&sql(rusqlite::ffi::SQLITE_READONLY)));
+        assert!(!read_only(&sql(rusqlite::ffi::SQLITE_CORRUPT)));
+        let io = |kind| StoreError::Io {
+            path: PathBuf::new(),
+            source: std::io::Error::from(kind),
+        };
+        assert!(read_only(&io(std::io::ErrorKind::PermissionDenied)));
+        assert!(!read_only(&io(std::io::ErrorKind::NotFound)));
     }
 }

@@ -97,6 +97,10 @@ pub enum MigrateError {
         "the catalog has schema version {found}, newer than this imunoise knows ({known}): update imunoise"
     )]
     Newer { found: u32, known: u32 },
+    #[error(
+        "the catalog has schema version {found} and cannot be brought to {known}: it is read-only; open it once where it is writable"
+    )]
+    ReadOnly { found: u32, known: u32 },
     #[error(transparent)]
     Sql(#[from] rusqlite::Error),
 }
