@@ -315,6 +315,8 @@ fn a_lost_catalog_never_reuses_an_id_or_a_file() {
     capture("first");
     let first = store.join("sessions/1.imucap");
     let before = std::fs::read(&first).unwrap();
+    let exported = ok(imunoise(&store, &["export", "first"]));
+    let shown = json(&ok(imunoise(&store, &["show", "first", "--json"])));
     for f in ["catalog.sqlite", "catalog.sqlite-wal", "catalog.sqlite-shm"] {
         let _ = std::fs::remove_file(store.join(f));
     }
@@ -328,6 +330,49 @@ fn a_lost_catalog_never_reuses_an_id_or_a_file() {
     let listed = json(&ok(imunoise(&store, &["show", "second", "--json"])));
     assert_eq!(listed["session"]["id"], 2, "{listed}");
     assert!(store.join("sessions/2.imucap").exists());
+    // The catalog against the files: session 1's file is an orphan; repair gives it its
+    // row back, from its bytes, and the two agree again.
+    let problems = err(imunoise(&store, &["store", "check"]));
+    assert!(problems.contains("1 problem(s)"), "{problems}");
+    let listed = json(&String::from_utf8_lossy(
+        &imunoise(&store, &["store", "check", "--json"]).stdout,
+    ));
+    assert_eq!(listed[0]["problem"], "orphan");
+    assert_eq!(listed[0]["id"], 1);
+    assert!(
+        ok(imunoise(&store, &["store", "repair"])).contains("restored session 1 'recovered-1'")
+    );
+    assert!(ok(imunoise(&store, &["store", "check"])).contains("agree"));
+    assert_eq!(
+        std::fs::read(&first).unwrap(),
+        before,
+        "repair rewrites nothing"
+    );
+    assert_eq!(ok(imunoise(&store, &["export", "1"])), exported);
+    let restored = json(&ok(imunoise(&store, &["show", "1", "--json"])));
+    for key in ["samples_received", "samples_lost", "bytes"] {
+        assert_eq!(
+            restored["session"]["counts"][key], shown["session"]["counts"][key],
+            "{key}"
+        );
+    }
+    assert_eq!(restored["session"]["board"], shown["session"]["board"]);
+    assert!(ok(imunoise(&store, &["sessions"])).contains("second"));
+    // Stale counts (a catalog restored from an old backup, say) are found and recounted.
+    let catalog = rusqlite::Connection::open(store.join("catalog.sqlite")).unwrap();
+    catalog
+        .execute("UPDATE sessions SET samples_received = 5 WHERE id = 2", [])
+        .unwrap();
+    drop(catalog);
+    let checked = imunoise(&store, &["store", "check"]);
+    assert!(!checked.status.success());
+    let problems = String::from_utf8_lossy(&checked.stdout);
+    assert!(
+        problems.contains("counts: session 2 'second'"),
+        "{problems}"
+    );
+    assert!(ok(imunoise(&store, &["store", "repair"])).contains("recounted session 2"));
+    assert!(ok(imunoise(&store, &["store", "check"])).contains("agree"));
     // Removing the newest session does not free its id either.
     ok(imunoise(&store, &["rm", "second", "--yes"]));
     capture("third");

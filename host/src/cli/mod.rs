@@ -22,6 +22,7 @@ mod sim_device;
 mod simulate;
 mod stored;
 mod sweep;
+mod upkeep;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -60,7 +61,7 @@ pub enum Command {
     /// Serve the simulated MPU-6050 to an I2C bus model in another process (the emulated board)
     #[command(name = "sim-device")]
     SimDevice(sim_device::SimDeviceArgs),
-    /// Record a session into the store from a board's byte stream (now: a replayed capture file)
+    /// Record a session into the store from a board (a serial port or the virtual board) or a replayed capture file
     Capture(capture::CaptureArgs),
     /// The paper's experiment: one session per setting, then N, B, K per axis per setting
     Sweep(sweep::SweepArgs),
@@ -84,6 +85,8 @@ pub enum Command {
     Calibrate(Box<calibrate::CalibrateArgs>),
     /// The stored calibrations (per board), or one in full
     Calibrations(calibrations::CalibrationsArgs),
+    /// Check the store's catalog against its files, or repair it from them
+    Store(upkeep::StoreArgs),
 }
 
 /// Run the CLI: errors go to stderr with their causes, and the exit code is 1.
@@ -112,6 +115,7 @@ pub fn main() -> ExitCode {
         Command::Compare(args) => compare::run(&args, store),
         Command::Calibrate(args) => calibrate::run(&args, store),
         Command::Calibrations(args) => calibrations::run(&args, store),
+        Command::Store(args) => upkeep::run(&args, store),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -15,6 +15,7 @@
 mod calibrations;
 mod catalog;
 pub mod clock;
+mod integrity;
 pub mod location;
 mod lookup;
 mod schema;
@@ -22,6 +23,7 @@ mod session;
 mod writer;
 
 pub use calibrations::{CalibrationSettings, StoredCalibration};
+pub use integrity::{CountsSeen, Problem, Repair};
 pub use location::{ENV, locate};
 pub use schema::VERSION as SCHEMA_VERSION;
 pub use session::{Analysis, Board, Counts, ImportSpec, Kind, Session, State};
