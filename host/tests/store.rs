@@ -317,6 +317,11 @@ fn a_lost_catalog_never_reuses_an_id_or_a_file() {
     let before = std::fs::read(&first).unwrap();
     let exported = ok(imunoise(&store, &["export", "first"]));
     let shown = json(&ok(imunoise(&store, &["show", "first", "--json"])));
+    // The duration is the record's (5 s of samples), not the capture's wall time (a
+    // fraction of a second at --speed max).
+    let record_s = shown["session"]["duration_s"].as_f64().unwrap();
+    assert!((5.0..5.2).contains(&record_s), "{record_s}");
+    assert!(shown["session"]["wall_s"].as_f64().unwrap() < 5.0);
     for f in ["catalog.sqlite", "catalog.sqlite-wal", "catalog.sqlite-shm"] {
         let _ = std::fs::remove_file(store.join(f));
     }

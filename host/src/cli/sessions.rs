@@ -24,6 +24,7 @@ fn table(sessions: &[Session]) -> String {
         "name",
         "start (UTC)",
         "duration",
+        "wall",
         "rate/bw",
         "samples",
         "lost",
@@ -40,6 +41,7 @@ fn table(sessions: &[Session]) -> String {
                     .unwrap_or(&s.started_at)
                     .replace('T', " "),
                 s.duration_s.map_or("-".into(), duration),
+                s.wall_s.map_or("-".into(), duration),
                 rate_bandwidth(s),
                 s.counts.samples_received.to_string(),
                 s.counts.samples_lost.to_string(),

@@ -111,7 +111,17 @@ fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
     kv("file", s.file.display().to_string());
     kv("start (UTC)", s.started_at.clone());
     kv("end (UTC)", s.ended_at.clone().unwrap_or("-".into()));
-    kv("duration", s.duration_s.map_or("-".into(), duration));
+    kv(
+        "duration",
+        s.duration_s.map_or("-".into(), |d| {
+            format!("{} (samples received and lost / rate)", duration(d))
+        }),
+    );
+    kv(
+        "wall time",
+        s.wall_s
+            .map_or("-".into(), |w| format!("{} (start to end)", duration(w))),
+    );
     kv("rate/bandwidth", rate_bandwidth(s));
     if let Some(b) = &s.board {
         kv("board id", b.board_id.clone());

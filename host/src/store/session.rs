@@ -127,8 +127,12 @@ pub struct Session {
     pub file: PathBuf,
     pub started_at: String,
     pub ended_at: Option<String>,
-    /// Seconds from start to end (or to the last heartbeat while recording).
+    /// The record's length: samples received and lost over the output rate, seconds (the
+    /// sensor's time, whatever the speed of the capture).
     pub duration_s: Option<f64>,
+    /// Wall time from start to end (or to the last heartbeat while recording), seconds: a
+    /// capture at `--speed max` or an import takes far less than its record's length.
+    pub wall_s: Option<f64>,
     pub state: State,
     pub end_reason: Option<String>,
     pub board: Option<Board>,
@@ -195,7 +199,10 @@ impl Session {
             bytes_discarded: row.get("bytes_discarded")?,
             board_status: json("board_status")?.and_then(|t| serde_json::from_str(&t).ok()),
         };
+        let rate_hz: Option<f64> = row.get("rate_hz")?;
+        let samples = counts.samples_received + counts.samples_lost;
         Ok(Session {
+            duration_s: rate_hz.filter(|r| *r > 0.0).map(|r| samples as f64 / r),
             id: row.get("id")?,
             name: row.get("name")?,
             kind: if kind == "imported" {
@@ -206,7 +213,7 @@ impl Session {
             file: dir.join(file),
             started_at: row.get("started_at")?,
             ended_at: row.get("ended_at")?,
-            duration_s: ended.or(heartbeat).map(|end| (end - started).max(0.0)),
+            wall_s: ended.or(heartbeat).map(|end| (end - started).max(0.0)),
             state: match state.as_str() {
                 "recording" => State::Recording,
                 "complete" => State::Complete,
@@ -214,7 +221,7 @@ impl Session {
             },
             end_reason: row.get("end_reason")?,
             board,
-            rate_hz: row.get("rate_hz")?,
+            rate_hz,
             counts,
             notes: row.get("notes")?,
             import_source: row.get("import_source")?,
