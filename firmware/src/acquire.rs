@@ -86,12 +86,11 @@ pub fn period_us(settings: &SensorSettings) -> u32 {
     internal_period * (1 + u32::from(settings.smplrt_div))
 }
 
-/// Where a run resumed after a fault starts: its first index and the period measured so far.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Where a run resumed after a fault starts: on the old run's sample grid, at the moment
+/// the FIFO takes samples again.
+#[derive(Debug, Clone)]
 pub struct Resume {
-    pub first_index: u64,
-    /// [`SampleGrid::period_scaled`] of the run before.
-    pub period_scaled: i128,
+    pub timeline: Timeline,
 }
 
 /// What is left of a run that ended: where its samples stood on the sensor's grid, to count
@@ -122,12 +121,15 @@ impl Timeline {
         self.grid.period_ns()
     }
 
-    /// Where a run started at `now_us` resumes.
-    pub fn resume_at(&self, now_us: u64) -> Resume {
-        Resume {
-            first_index: self.index_at(now_us).0,
-            period_scaled: self.grid.period_scaled(),
-        }
+    /// The index of the first sample made after a moment between `before_us` and
+    /// `after_us`, and whether the grid makes it certain (no sample of the grid falls
+    /// between the two).
+    pub fn index_between(&self, before_us: u64, after_us: u64) -> (u64, bool) {
+        let (produced, certain) = self.grid.produced(before_us, after_us);
+        (
+            self.base.saturating_add(produced).max(self.next_index),
+            certain,
+        )
     }
 }
 
@@ -138,6 +140,8 @@ pub struct Acquisition {
     /// Index of the grid's sample 1 minus one: 0 for a fresh run, the resume index after a
     /// fault.
     base: u64,
+    /// Whether the resume index is certain (always, for a fresh run).
+    resume_certain: bool,
     /// The chip's FIFO size, bytes: a count this large means the FIFO is full.
     fifo_capacity: usize,
     period_us: u32,
@@ -174,19 +178,20 @@ impl Acquisition {
     ) -> Result<Self, ErrorCode> {
         check_supported(settings)?;
         let period_us = period_us(settings);
-        let before = clock.now_us();
-        dev.reset_fifo()?;
-        let after = clock.now_us();
-        let (grid, base) = match resume {
-            Some(r) => (
-                SampleGrid::with_period(before, after, period_us, r.period_scaled),
-                r.first_index,
-            ),
-            None => (SampleGrid::new(before, after, period_us), 0),
+        let (before, after) = dev.reset_fifo_timed(|| clock.now_us())?;
+        let (grid, base, resume_certain) = match resume {
+            Some(r) => {
+                let (first, certain) = r.timeline.index_between(before, after);
+                let measured = r.timeline.grid.period_scaled();
+                let grid = SampleGrid::with_period(before, after, period_us, measured);
+                (grid, first, certain)
+            }
+            None => (SampleGrid::new(before, after, period_us), 0, true),
         };
         Ok(Acquisition {
             grid,
             base,
+            resume_certain,
             fifo_capacity: dev.fifo_capacity(),
             period_us,
             next_index: base,
@@ -216,6 +221,12 @@ impl Acquisition {
 
     pub fn grid(&self) -> &SampleGrid {
         &self.grid
+    }
+
+    /// Whether the run's first index is certain: a resumed run's is unless a sample of the
+    /// old grid fell within the bus time of the write that restarted the FIFO.
+    pub fn resume_certain(&self) -> bool {
+        self.resume_certain
     }
 
     /// The run's place on the sensor's grid, kept when the run ends.

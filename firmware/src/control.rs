@@ -27,7 +27,7 @@
 //! A reply that finds the reply queue full is dropped and counted
 //! ([`Status::replies_dropped`]).
 
-use crate::acquire::{Acquisition, Timeline, check_supported};
+use crate::acquire::{Acquisition, Resume, Timeline, check_supported};
 use crate::driver::{BusClear, Mpu6050};
 use crate::recovery::{Recovery, STABLE_RUN_US};
 use crate::timing::Clock;
@@ -322,13 +322,16 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
             .and_then(|()| self.set_up(settings))
             .and_then(|()| self.dev.check_awake())
             .and_then(|()| {
-                let resume = recovery.timeline.resume_at(self.clock.now_us());
+                let resume = Resume {
+                    timeline: recovery.timeline.clone(),
+                };
                 Acquisition::start(&mut self.dev, &mut self.clock, &settings, Some(resume))
             });
         let now = self.clock.now_us();
         match started {
             Ok(run) => {
                 self.count_loss(&recovery.timeline, now, Some(run.next_index()));
+                self.counters.loss_certain &= run.resume_certain();
                 self.reply(Reply::Recovered {
                     attempts: recovery.attempts,
                     resumed_at_index: run.next_index(),

@@ -192,10 +192,31 @@ impl<I2C: I2c> Mpu6050<I2C> {
     /// INT_STATUS: an overflow flag latched before the reset would otherwise condemn the
     /// next, good, drain.
     pub fn reset_fifo(&mut self) -> Result<(), ErrorCode> {
+        self.reset_fifo_timed(|| 0).map(|_| ())
+    }
+
+    /// [`Mpu6050::reset_fifo`], with `now()` read just before and just after the write that
+    /// enables the FIFO again: the first sample the FIFO holds is the first one the sensor
+    /// made after that moment, so the two times bracket where the new run's numbering starts.
+    pub fn reset_fifo_timed(
+        &mut self,
+        mut now: impl FnMut() -> u64,
+    ) -> Result<(u64, u64), ErrorCode> {
         self.write_reg(reg::USER_CTRL, 0)?;
         self.write_reg(reg::USER_CTRL, USER_FIFO_RESET)?;
-        self.write_verified(reg::USER_CTRL, USER_FIFO_EN)?;
-        self.int_status().map(|_| ())
+        let before = now();
+        self.write_reg(reg::USER_CTRL, USER_FIFO_EN)?;
+        let after = now();
+        let read = self.read_reg(reg::USER_CTRL)?;
+        if read != USER_FIFO_EN {
+            return Err(ErrorCode::VerifyFailed {
+                register: reg::USER_CTRL,
+                wrote: USER_FIFO_EN,
+                read,
+            });
+        }
+        self.int_status()?;
+        Ok((before, after))
     }
 
     /// Stop filling the FIFO (streaming stopped).
