@@ -207,14 +207,7 @@ impl<I2C: I2c> Mpu6050<I2C> {
         let before = now();
         self.write_reg(reg::USER_CTRL, USER_FIFO_EN)?;
         let after = now();
-        let read = self.read_reg(reg::USER_CTRL)?;
-        if read != USER_FIFO_EN {
-            return Err(ErrorCode::VerifyFailed {
-                register: reg::USER_CTRL,
-                wrote: USER_FIFO_EN,
-                read,
-            });
-        }
+        self.verify(reg::USER_CTRL, USER_FIFO_EN)?;
         self.int_status()?;
         Ok((before, after))
     }
@@ -266,6 +259,11 @@ impl<I2C: I2c> Mpu6050<I2C> {
     /// Write, read back, compare.
     pub fn write_verified(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
         self.write_reg(register, value)?;
+        self.verify(register, value)
+    }
+
+    /// Read `register` back: [`ErrorCode::VerifyFailed`] unless it holds `value`.
+    fn verify(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
         let read = self.read_reg(register)?;
         if read != value {
             return Err(ErrorCode::VerifyFailed {

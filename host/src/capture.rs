@@ -396,9 +396,8 @@ impl StreamDecoder {
         let expected = self.accounting.expected();
         match self.silent_before_restart_us.take() {
             Some(silent_us) => {
-                let rate_hz = self.settings.map_or(0.0, |s| s.output_rate_hz());
                 let silent_s = silent_us as f64 * 1e-6;
-                let samples_lost = (silent_s * rate_hz).round() as u64;
+                let samples_lost = self.samples_in(silent_us);
                 self.segment_base = expected.saturating_add(samples_lost);
                 self.segments.push(Segment {
                     first_index: self.segment_base,
@@ -413,6 +412,12 @@ impl StreamDecoder {
         }
         self.samples_in_segment = false;
         self.new_run = true;
+    }
+
+    /// Samples the sensor makes in `us` microseconds at the announced output rate.
+    fn samples_in(&self, us: u64) -> u64 {
+        let rate_hz = self.settings.map_or(0.0, |s| s.output_rate_hz());
+        (us as f64 * 1e-6 * rate_hz).round() as u64
     }
 
     /// Status messages seen so far (a watcher asks for one and waits for the count to move).
@@ -497,8 +502,7 @@ impl StreamDecoder {
         let Some(silent_us) = self.silent_before_restart_us.take() else {
             return;
         };
-        let rate_hz = self.settings.map_or(0.0, |s| s.output_rate_hz());
-        let lost = (silent_us as f64 * 1e-6 * rate_hz).round() as u64;
+        let lost = self.samples_in(silent_us);
         let expected = self.accounting.expected();
         self.accounting.close(expected.saturating_add(lost));
     }

@@ -155,10 +155,9 @@ fn run(
             match k.after_read(n, link.clock_us(), decoder, link) {
                 Ok(Action::Nothing) => {}
                 Ok(Action::Note(note)) => {
-                    if let Err(source) = writer.write(&note) {
+                    if let Err(source) = record_note(&mut writer, decoder, &note) {
                         return Err(fail(writer, decoder, source));
                     }
-                    decoder.feed(&note);
                 }
                 Err(e) => break Ending::LinkFailed(e),
             }
@@ -206,11 +205,9 @@ fn run(
     if let Some(note) = keepalive
         .as_ref()
         .and_then(|k| k.closing_note(link.clock_us(), decoder))
+        && let Err(source) = record_note(&mut writer, decoder, &note)
     {
-        if let Err(source) = writer.write(&note) {
-            return Err(fail(writer, decoder, source));
-        }
-        decoder.feed(&note);
+        return Err(fail(writer, decoder, source));
     }
     decoder.settle();
     let counts = Counts::of(decoder, writer.bytes());
@@ -223,6 +220,17 @@ fn run(
         .finish(end, &counts)
         .map_err(|source| RecordError::Store { session, source })?;
     Ok((ending, counts))
+}
+
+/// A host note into the session and through the decoder, like the board's frames.
+fn record_note(
+    writer: &mut SessionWriter,
+    decoder: &mut StreamDecoder,
+    note: &[u8],
+) -> Result<(), StoreError> {
+    writer.write(note)?;
+    decoder.feed(note);
+    Ok(())
 }
 
 /// A disk error: close the session as incomplete (keeping what reached the disk) and say so.
