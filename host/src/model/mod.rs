@@ -616,23 +616,40 @@ pub fn run(
     })
 }
 
-/// The candidate to name: the smallest p-value (the largest z, which is clamped where p
-/// underflows) among the passing deterministic candidates, else among the passing
-/// stochastic ones, leaving out those `taken_back` in this round. Ties (p = 0 when no
-/// realisation shows the view's effect at all) go to the earlier probe: lines first, whose
-/// removal can change what the roll-off and the regressions see.
+/// The candidate to name, leaving out those `taken_back` in this round: a passing
+/// temperature coupling first, then the smallest p-value (the largest z, which is clamped
+/// where p underflows) among the other passing deterministic candidates, else among the
+/// passing stochastic ones. Ties (p = 0 when no realisation shows the view's effect at all)
+/// go to the earlier probe: lines first, whose removal can change what the roll-off and
+/// the regressions see.
+///
+/// Why the coupling first: it has a measured cause, and a rate that follows the temperature
+/// carries the temperature's own cycles as slow lines, which the line detectors see as
+/// strongly as the regression does (a line's statistic is often the larger: it is judged
+/// against the open model with the coupling removed). Named first, the coupling takes those
+/// lines with it; a line at another frequency stays in the cleaned record and is named in
+/// the next round. A slow sinusoid does not make a coupling pass: one at least
+/// two periodogram bins from the temperature's cycles is nearly
+/// orthogonal to the temperature and its derivative, and the regression's noise model is
+/// fitted with the strongest slow line removed (`open_noise`).
 fn choose(round: &Round, taken_back: &[Probe]) -> Option<usize> {
+    let open = |i: usize| !taken_back.contains(&round.probes[i]);
+    let coupling = round
+        .evidence
+        .iter()
+        .enumerate()
+        .position(|(i, e)| open(i) && e.passes && round.probes[i] == Probe::Temperature);
     let best = |deterministic: bool| {
         round
             .evidence
             .iter()
             .enumerate()
-            .filter(|&(i, _)| !taken_back.contains(&round.probes[i]))
+            .filter(|&(i, _)| open(i))
             .filter(|(_, e)| e.passes && e.view.is_deterministic() == deterministic)
             .min_by(|a, b| a.1.p_value.total_cmp(&b.1.p_value))
             .map(|(i, _)| i)
     };
-    best(true).or_else(|| best(false))
+    coupling.or_else(|| best(true)).or_else(|| best(false))
 }
 
 /// The candidates the model can still take.
