@@ -39,6 +39,19 @@ fn scratch(name: &str) -> PathBuf {
     dir.join(name)
 }
 
+/// A channel's fitted white-noise term N, checked to be in a gyro's or an accelerometer's
+/// SI unit.
+fn noise_n(channel: &Value, gyro: bool) -> &Value {
+    let n = &channel["noise"]["N"];
+    let unit = if gyro {
+        "rad/s/sqrt(Hz)"
+    } else {
+        "m/s^2/sqrt(Hz)"
+    };
+    assert_eq!(n["unit"], unit, "{}", channel["name"]);
+    n
+}
+
 fn floats(v: &Value) -> Vec<f64> {
     v.as_array()
         .expect("an array")
@@ -94,15 +107,7 @@ fn the_real_mpu6050_record_in_raw_counts() {
         // The fit's N agrees with the authors' value from a separate, 48 times longer log
         // of the same setup: accelerometers within 10 %, gyros within 30 % (their longer
         // log sees more low-frequency noise in its white-noise variance).
-        let n = &c["noise"]["N"];
-        assert_eq!(
-            n["unit"],
-            if gyro {
-                "rad/s/sqrt(Hz)"
-            } else {
-                "m/s^2/sqrt(Hz)"
-            }
-        );
+        let n = noise_n(c, gyro);
         let ratio = n["value"].as_f64().unwrap() / published_n(name);
         let tolerance = if gyro { 0.3 } else { 0.1 };
         assert!(
@@ -496,15 +501,7 @@ fn a_host_stamped_gzipped_log_with_units_analyses_with_no_preparation() {
             ACCEL_G * 9.80665
         };
         let truth = sigma / rate.sqrt();
-        let n = &c["noise"]["N"];
-        assert_eq!(
-            n["unit"],
-            if gyro {
-                "rad/s/sqrt(Hz)"
-            } else {
-                "m/s^2/sqrt(Hz)"
-            }
-        );
+        let n = noise_n(c, gyro);
         let (lo, hi) = (n["lo"].as_f64().unwrap(), n["hi"].as_f64().unwrap());
         assert!(
             lo <= truth && truth <= hi,
