@@ -20,10 +20,11 @@
 //! would splice two stretches of data together, so such gaps are refused. A step of at least
 //! 1.5 periods is a candidate; it is a gap when the least offset over the stamps after it
 //! exceeds the least offset over the stamps before it by half a period or more. Least offsets
-//! over windows of [`window`] stamps compare the undelayed baseline on either side: a burst
-//! is only ever late, so its catch-up settles back onto the baseline within the window, while
-//! a gap moves the baseline itself. Judging the cumulative offset, not single steps, is what
-//! tells a burst's long step from a lost sample.
+//! over windows of [`window`] stamps (two seconds' worth) compare the undelayed baseline on
+//! either side: a burst is only ever late, so its catch-up settles back onto the baseline
+//! within the window, while a gap moves the baseline itself (a host that stalls for longer
+//! and then delivers its backlog at once is taken for a gap). Judging the cumulative offset,
+//! not single steps, is what tells a burst's long step from a lost sample.
 
 use serde::Serialize;
 
@@ -145,13 +146,18 @@ pub fn analyse(column: &str, times: &[f64]) -> Result<Timing, TimingError> {
     if times[n - 1] == times[0] {
         return Err(TimingError::NotIncreasing);
     }
-    let (_, mut period) = fit(times, &[]);
+    let plain = fit(times, &[]);
+    let mut period = plain.1;
     // Missing samples lengthen the fitted period, and the offsets then drift by that error
     // per stamp, which long windows would mistake for a level. Short windows see through a
     // drift of up to 1 / (2 SHORT_WINDOW) periods per stamp (a loss of 1 sample in 16), and the
     // gaps they find (a long burst among them, harmlessly) only refine the period.
     for _ in 0..REFITS {
-        period = fit(times, &find_gaps(times, period, SHORT_WINDOW)).1;
+        let found = find_gaps(times, period, SHORT_WINDOW);
+        if found.is_empty() {
+            break;
+        }
+        period = fit(times, &found).1;
     }
     let mut gaps = Vec::new();
     for _ in 0..REFITS {
@@ -169,7 +175,7 @@ pub fn analyse(column: &str, times: &[f64]) -> Result<Timing, TimingError> {
         });
     }
     // No sample is missing: the row index is the sample index.
-    let (intercept, period) = fit(times, &[]);
+    let (intercept, period) = plain;
     let deviation = |i: usize| (times[i] - times[i - 1] - period).abs();
     let mut deviations: Vec<f64> = (1..n).map(deviation).collect();
     let worst_row = (1..n)
