@@ -10,8 +10,7 @@ use crate::analysis::{DataType, Estimator};
 use crate::cli::output;
 use crate::cli::settings::{accel_range, gyro_range};
 use crate::cli::stored;
-use crate::input::{CountScale, LoadOptions};
-use crate::record::Record;
+use crate::input::{CountScale, LoadOptions, Loaded};
 use crate::report;
 use anyhow::{Context, Result};
 use protocol::mpu6050::SensorSettings;
@@ -20,7 +19,8 @@ use std::path::{Path, PathBuf};
 #[derive(clap::Args, Debug)]
 pub struct AnalyzeArgs {
     /// A capture file, a text/CSV table (optional header, `#` comments, optional time column)
-    /// or a NumPy .npy; or a stored session's id or name (an existing path wins)
+    /// or a NumPy .npy, either gzipped; or a stored session's id or name (an existing path
+    /// wins)
     pub input: PathBuf,
     /// Correct a stored session with its board's newest calibrations first (in memory; the
     /// stored data are not altered)
@@ -162,16 +162,20 @@ pub fn run(args: &AnalyzeArgs, store: Option<&Path>) -> Result<()> {
         };
         crate::cli::calibrations::apply_latest(store, session, &mut loaded.record)?;
     }
-    let analysed = analyse(loaded.record, loaded.settings, &args.analysis)?;
+    let analysed = analyse(loaded, &args.analysis)?;
     stored::keep_analysis(session.as_ref(), &analysed)
 }
 
 /// How to read a record: shared by every command that takes one (analyze, replay, model).
 #[derive(clap::Args, Debug)]
 pub struct ReadArgs {
-    /// Sample rate in Hz (needed when the file has no time column and no rate in its header)
+    /// Sample rate in Hz (needed when the file has no time column and no rate in its header;
+    /// overrides a time column)
     #[arg(long)]
     pub rate: Option<f64>,
+    /// Ignore the file's time column: the rows are uniformly sampled at --rate
+    #[arg(long)]
+    pub ignore_time: bool,
     /// Channel names, comma-separated, for inputs without a header (e.g. gx,gy,gz,ax,ay,az)
     #[arg(long, value_delimiter = ',')]
     pub names: Vec<String>,
@@ -205,6 +209,7 @@ impl ReadArgs {
         };
         Ok(LoadOptions {
             rate_hz: self.rate,
+            ignore_time: self.ignore_time,
             names: self.names.clone(),
             counts,
             scales: self.scale.clone(),
@@ -242,14 +247,16 @@ pub struct Analysed {
 }
 
 /// Analyse a record as `args` ask and write every requested output; returns the JSON
-/// document (whether or not it was written). `settings`: the sensor settings the input
-/// states (a capture's), whose low-pass filter the fit models unless `--bandwidth` says
-/// otherwise.
-pub fn analyse(
-    record: Record,
-    settings: Option<SensorSettings>,
-    args: &AnalysisArgs,
-) -> Result<Analysed> {
+/// document (whether or not it was written). The input's sensor settings (a capture's) give
+/// the low-pass filter the fit models unless `--bandwidth` says otherwise; how it was read
+/// (time base, units) is shown with the results.
+pub fn analyse(loaded: Loaded, args: &AnalysisArgs) -> Result<Analysed> {
+    let Loaded {
+        record,
+        settings,
+        report: read,
+        ..
+    } = loaded;
     let record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
     let mut options = options(args)?;
     options.low_pass = low_pass_choice(args.bandwidth, settings);
@@ -262,8 +269,10 @@ pub fn analyse(
         eprintln!("warning: {warning}");
     }
     let mut document = report::json::document(&record, &options, &results);
+    document["input"] = serde_json::to_value(&read)?;
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     if !json_to_stdout {
+        read.lines().iter().for_each(|line| println!("{line}"));
         print!("{}", report::table::render(&record, &options, &results));
     }
     if args.filter_period.is_some() || !args.filter.is_empty() {

@@ -15,11 +15,15 @@ use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct ImportArgs {
-    /// A text/CSV table, a NumPy .npy or a capture file
+    /// A text/CSV table, a NumPy .npy (either gzipped) or a capture file
     pub file: PathBuf,
-    /// Sample rate in Hz (needed when the file has no time column and no rate in its header)
+    /// Sample rate in Hz (needed when the file has no time column and no rate in its header;
+    /// overrides a time column)
     #[arg(long)]
     pub rate: Option<f64>,
+    /// Ignore the file's time column: the rows are uniformly sampled at --rate
+    #[arg(long)]
+    pub ignore_time: bool,
     /// Session name (default: the date and time of the import)
     #[arg(long)]
     pub name: Option<String>,
@@ -40,16 +44,19 @@ pub fn run(args: &ImportArgs, store: Option<&Path>) -> Result<()> {
     } else {
         let spec = ImportSpec {
             rate_hz: args.rate,
+            ignore_time: args.ignore_time,
             names: args.names.clone(),
             scales: Vec::new(),
         };
         let options = LoadOptions {
             rate_hz: spec.rate_hz,
+            ignore_time: spec.ignore_time,
             names: spec.names.clone(),
             ..LoadOptions::default()
         };
         // Read it once now: a file that cannot be read must not become a session.
         let loaded = input::load(file, &options)?;
+        crate::cli::stored::print_warnings(&loaded.report.warnings);
         let r = &loaded.record;
         store
             .import(

@@ -26,6 +26,6 @@ pub fn run(args: &ReplayArgs, store: Option<&Path>) -> Result<()> {
         protocol::mpu6050::Hz(r.rate_hz)
     );
     stored::print_notes(&loaded.notes);
-    let analysed = analyse(loaded.record, loaded.settings, &args.analysis)?;
+    let analysed = analyse(loaded, &args.analysis)?;
     stored::keep_analysis(session.as_ref(), &analysed)
 }

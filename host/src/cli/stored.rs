@@ -58,6 +58,14 @@ pub fn print_notes(notes: &[String]) {
     }
 }
 
+/// What the user must know before trusting a record read (jitter, an overridden rate), on
+/// stderr.
+pub fn print_warnings(warnings: &[String]) {
+    for warning in warnings {
+        eprintln!("warning: {warning}");
+    }
+}
+
 /// Keep an analysis of a stored session in its catalog row.
 pub fn keep_analysis(session: Option<&(Store, Session)>, analysed: &Analysed) -> Result<()> {
     {
@@ -113,6 +121,7 @@ pub fn load_session(session: &Session, options: &LoadOptions) -> Result<Loaded> 
         && let Some(spec) = &session.import_options
     {
         options.rate_hz = options.rate_hz.or(spec.rate_hz);
+        options.ignore_time |= spec.ignore_time;
         if options.names.is_empty() {
             options.names = spec.names.clone();
         }
@@ -128,5 +137,7 @@ fn read(path: &Path, options: &LoadOptions) -> Result<Loaded> {
     let reading = report::progress::spinner(format!("reading {}", path.display()));
     let loaded = input::load(path, options);
     reading.finish_and_clear();
-    Ok(loaded?)
+    let loaded = loaded?;
+    print_warnings(&loaded.report.warnings);
+    Ok(loaded)
 }

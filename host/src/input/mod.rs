@@ -1,24 +1,36 @@
-//! Reading records from files: text/CSV tables and NumPy `.npy` arrays, with the conversions a
-//! user may ask for on the way (raw MPU-6050 counts to SI, a factor per column).
+//! Reading records from files: text/CSV tables and NumPy `.npy` arrays, either of them
+//! gzip-compressed, with the conversions a user may ask for on the way (raw MPU-6050 counts
+//! to SI, units from column-name suffixes, a factor per column) and the time base a time
+//! column gives ([`timing`]).
 //!
 //! Every error names the file and, where there is one, the line and column at fault.
 
 mod npy;
 mod text;
+pub mod timing;
+mod units;
 
 pub use npy::write_f64 as write_npy;
+pub use timing::Timing;
+pub use units::UnitConversion;
 
 use crate::capture::{self, Capture};
 use crate::record::{Channel, Quantity, Record};
 use protocol::mpu6050::SensorSettings;
+use serde::Serialize;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// How to turn a file into a record.
 #[derive(Debug, Clone, Default)]
 pub struct LoadOptions {
     /// Sample rate in Hz; required when the file has neither a time column nor a rate in its
-    /// header, and checked against them when it has.
+    /// header. It overrides a time column (with a warning when they disagree) and must agree
+    /// with a header's or a capture's rate.
     pub rate_hz: Option<f64>,
+    /// Ignore the file's time column: the rows are samples at `rate_hz` (or the header's rate)
+    /// whatever their stamps say.
+    pub ignore_time: bool,
     /// Channel names for inputs without a header (NumPy arrays, headerless text); replaces a
     /// header's names when given.
     pub names: Vec<String>,
@@ -40,6 +52,44 @@ pub struct Loaded {
     /// The sensor settings the samples were taken with, when the input states them (a
     /// capture's Info for the run read).
     pub settings: Option<SensorSettings>,
+    /// How the file was read: compression, time base, unit conversions, warnings.
+    pub report: ReadReport,
+}
+
+/// What reading a file involved, for the analysis output and its JSON document.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct ReadReport {
+    /// `gzip` when the file was compressed.
+    pub compression: Option<&'static str>,
+    /// The time column's rate and jitter, when one was used.
+    pub timing: Option<Timing>,
+    /// A time column `--ignore-time` set aside.
+    pub ignored_time_column: Option<String>,
+    /// Units taken from column-name suffixes.
+    pub units: Vec<UnitConversion>,
+    /// What the user should know before trusting the result (jitter, an overridden rate).
+    pub warnings: Vec<String>,
+}
+
+impl ReadReport {
+    /// The report as lines of text (empty for a plain file read as it is).
+    pub fn lines(&self) -> Vec<String> {
+        let mut lines = Vec::new();
+        if let Some(c) = self.compression {
+            lines.push(format!("input: {c}-compressed"));
+        }
+        if let Some(t) = &self.timing {
+            lines.push(t.to_string());
+        }
+        if let Some(name) = &self.ignored_time_column {
+            lines.push(format!("time column '{name}' ignored (--ignore-time)"));
+        }
+        if !self.units.is_empty() {
+            let units: Vec<String> = self.units.iter().map(|u| u.to_string()).collect();
+            lines.push(format!("units from column names: {}", units.join("; ")));
+        }
+        lines
+    }
 }
 
 /// Sensitivities for raw counts; see `protocol::mpu6050` for where they come from.
@@ -89,6 +139,10 @@ impl InputError {
 struct Table {
     channels: Vec<(String, Vec<f64>)>,
     rate_hz: Option<RateSource>,
+    /// A time column's fit (its rate, jitter and lines).
+    timing: Option<Timing>,
+    /// A time column `--ignore-time` set aside, by name.
+    ignored_time: Option<String>,
 }
 
 /// A sample rate the file itself states, and how it says it (for error messages).
@@ -98,16 +152,26 @@ struct RateSource {
     from: String,
 }
 
-/// Read a record from `path`: a capture (the board's framed bytes, recognised by its leading
-/// frame delimiter), `.npy` as a NumPy array, anything else as a text table.
+/// The two bytes every gzip member starts with (RFC 1952, 2.3.1).
+const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
+
+/// Read a record from `path`, gunzipped first if it starts with gzip's magic bytes: a capture
+/// (the board's framed bytes, recognised by its leading frame delimiter), a NumPy array (its
+/// magic bytes, or a name ending `.npy`), anything else as a text table.
 pub fn load(path: &Path, options: &LoadOptions) -> Result<Loaded, InputError> {
-    let bytes = std::fs::read(path).map_err(|source| InputError::Io {
+    let mut bytes = std::fs::read(path).map_err(|source| InputError::Io {
         path: path.to_owned(),
         source,
     })?;
-    let is_npy = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+    let mut report = ReadReport::default();
+    if bytes.starts_with(&GZIP_MAGIC) {
+        bytes = gunzip(path, &bytes)?;
+        report.compression = Some("gzip");
+    }
+    let is_npy = bytes.starts_with(npy::MAGIC)
+        || path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
     let mut notes = Vec::new();
     let mut settings = None;
     let table = if capture::looks_like_capture(&bytes) {
@@ -117,14 +181,24 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Loaded, InputError> {
     } else if is_npy {
         npy::parse(path, &bytes)?
     } else {
-        text::parse(path, &bytes)?
+        text::parse(path, &bytes, options.ignore_time)?
     };
-    let record = build_record(path, table, options)?;
+    let record = build_record(path, table, options, &mut report)?;
     Ok(Loaded {
         record,
         notes,
         settings,
+        report,
     })
+}
+
+/// The uncompressed bytes of a gzip file (every member of a concatenated one).
+fn gunzip(path: &Path, bytes: &[u8]) -> Result<Vec<u8>, InputError> {
+    let mut out = Vec::with_capacity(bytes.len().saturating_mul(4));
+    flate2::read::MultiGzDecoder::new(bytes)
+        .read_to_end(&mut out)
+        .map_err(|e| InputError::file(path, format!("gzip: {e}")))?;
+    Ok(out)
 }
 
 /// A capture's samples in SI (with the board's own settings), and notes on every loss; with
@@ -158,6 +232,8 @@ fn capture_table(
             hz: record.rate_hz,
             from: format!("board's settings ({})", capture.info.settings),
         }),
+        timing: None,
+        ignored_time: None,
         channels: record
             .channels
             .into_iter()
@@ -194,8 +270,21 @@ fn capture_notes(capture: &Capture, analysed: usize) -> Vec<String> {
     notes
 }
 
-fn build_record(path: &Path, table: Table, options: &LoadOptions) -> Result<Record, InputError> {
-    let rate_hz = resolve_rate(path, table.rate_hz, options.rate_hz)?;
+/// The record a table makes with the options applied; what was done goes into `report`.
+fn build_record(
+    path: &Path,
+    table: Table,
+    options: &LoadOptions,
+    report: &mut ReadReport,
+) -> Result<Record, InputError> {
+    let rate_hz = resolve_rate(
+        path,
+        table.rate_hz,
+        table.timing.as_ref(),
+        options,
+        &mut report.warnings,
+    )?;
+    report.ignored_time_column = table.ignored_time;
     let mut channels = table.channels;
     if !options.names.is_empty() {
         if options.names.len() != channels.len() {
@@ -212,10 +301,21 @@ fn build_record(path: &Path, table: Table, options: &LoadOptions) -> Result<Reco
             *name = new.clone();
         }
     }
-    let mut channels: Vec<Channel> = channels
-        .into_iter()
-        .map(|(name, values)| Channel::named(name, values))
-        .collect();
+    let (mut channels, conversions) = units::channels(path, channels)?;
+    if let (Some(_), Some(u)) = (options.counts, conversions.first()) {
+        return Err(InputError::file(
+            path,
+            format!(
+                "--counts: column '{}' states its unit ({}); drop --counts",
+                u.column, u.from
+            ),
+        ));
+    }
+    report.units = conversions;
+    if let Some(t) = table.timing.as_ref().filter(|t| !t.uniform) {
+        report.warnings.push(t.to_string());
+    }
+    report.timing = table.timing;
     if let Some(scale) = options.counts {
         channels.iter_mut().for_each(|c| counts_to_si(c, scale));
     }
@@ -238,13 +338,26 @@ fn build_record(path: &Path, table: Table, options: &LoadOptions) -> Result<Reco
     })
 }
 
-/// The rate is the file's (time column or header) or `--rate`; both present must agree to
-/// 0.1 %, and neither is an error saying what to add.
+/// Two rates further apart than this (relative) disagree.
+const RATE_AGREEMENT: f64 = 1e-3;
+
+fn disagree(a: f64, b: f64) -> bool {
+    ((a - b) / b).abs() > RATE_AGREEMENT
+}
+
+/// The rate: `--rate` if given, else a time column's fit, else the header's (or a capture's
+/// settings). A stated rate (header, capture) is a fact about the file and must agree with
+/// `--rate` and with the time column to 0.1 %; a time column is a measurement that `--rate`
+/// overrides, with a warning when they disagree. No rate at all is an error saying what to
+/// add.
 fn resolve_rate(
     path: &Path,
     stated: Option<RateSource>,
-    given: Option<f64>,
+    timing: Option<&Timing>,
+    options: &LoadOptions,
+    warnings: &mut Vec<String>,
 ) -> Result<f64, InputError> {
+    let given = options.rate_hz;
     if let Some(hz) = given
         && !(hz.is_finite() && hz > 0.0)
     {
@@ -253,14 +366,42 @@ fn resolve_rate(
             format!("--rate {hz}: a positive number of Hz"),
         ));
     }
-    match (stated, given) {
-        (Some(s), Some(hz)) if ((s.hz - hz) / hz).abs() > 1e-3 => Err(InputError::file(
+    if let (Some(s), Some(hz)) = (&stated, given)
+        && disagree(s.hz, hz)
+    {
+        return Err(InputError::file(
             path,
             format!("--rate {hz} Hz disagrees with the {} ({} Hz)", s.from, s.hz),
+        ));
+    }
+    match (given, timing, &stated) {
+        (Some(hz), Some(t), _) => {
+            if disagree(t.rate_hz, hz) {
+                warnings.push(format!(
+                    "--rate {hz} Hz overrides the time column '{}' ({} Hz by least squares), {:.3} % apart",
+                    t.column,
+                    t.rate_hz,
+                    (hz / t.rate_hz - 1.0) * 100.0
+                ));
+            }
+            Ok(hz)
+        }
+        (Some(hz), None, _) => Ok(hz),
+        (None, Some(t), Some(s)) if disagree(s.hz, t.rate_hz) => Err(InputError::file(
+            path,
+            format!(
+                "the {} ({} Hz) disagrees with the time column '{}' ({} Hz by least squares): \
+                 choose with --rate HZ, or --ignore-time to use the {}",
+                s.from, s.hz, t.column, t.rate_hz, s.from
+            ),
         )),
-        (Some(s), _) => Ok(s.hz),
-        (None, Some(hz)) => Ok(hz),
-        (None, None) => Err(InputError::file(
+        (None, Some(t), _) => Ok(t.rate_hz),
+        (None, None, Some(s)) => Ok(s.hz),
+        (None, None, None) if options.ignore_time => Err(InputError::file(
+            path,
+            "--ignore-time and no rate in the file: give --rate HZ",
+        )),
+        (None, None, None) => Err(InputError::file(
             path,
             "no time column and no rate in the file: give --rate HZ",
         )),
@@ -295,7 +436,15 @@ mod tests {
                 hz,
                 from: "header".into(),
             }),
+            timing: None,
+            ignored_time: None,
         }
+    }
+
+    fn build(table: Table, options: &LoadOptions) -> Result<(Record, ReadReport), InputError> {
+        let mut report = ReadReport::default();
+        let record = build_record(Path::new("f.csv"), table, options, &mut report)?;
+        Ok((record, report))
     }
 
     #[test]
@@ -309,7 +458,7 @@ mod tests {
             scales: vec![("x".into(), 10.0)],
             ..LoadOptions::default()
         };
-        let r = build_record(Path::new("f"), table(Some(100.0)), &options).unwrap();
+        let (r, _) = build(table(Some(100.0)), &options).unwrap();
         assert_eq!(r.rate_hz, 100.0);
         assert!((r.channels[0].values[0] - 9.80665).abs() < 1e-12);
         assert!((r.channels[1].values[1] + 1f64.to_radians()).abs() < 1e-12);
@@ -319,22 +468,150 @@ mod tests {
 
     #[test]
     fn rate_conflicts_and_absence_are_errors() {
-        let path = Path::new("f.csv");
         let opts = |rate| LoadOptions {
             rate_hz: rate,
             ..LoadOptions::default()
         };
-        let err = build_record(path, table(Some(100.0)), &opts(Some(200.0))).unwrap_err();
+        let err = build(table(Some(100.0)), &opts(Some(200.0))).unwrap_err();
         assert!(
             err.to_string()
                 .contains("--rate 200 Hz disagrees with the header (100 Hz)")
         );
-        let err = build_record(path, table(None), &opts(None)).unwrap_err();
+        let err = build(table(None), &opts(None)).unwrap_err();
         assert!(err.to_string().contains("give --rate HZ"), "{err}");
-        let r = build_record(path, table(None), &opts(Some(50.0))).unwrap();
+        let (r, _) = build(table(None), &opts(Some(50.0))).unwrap();
         assert_eq!(r.rate_hz, 50.0);
-        let err = build_record(path, table(None), &opts(Some(-1.0))).unwrap_err();
+        let err = build(table(None), &opts(Some(-1.0))).unwrap_err();
         assert!(err.to_string().contains("positive"), "{err}");
+        let ignoring = LoadOptions {
+            ignore_time: true,
+            ..LoadOptions::default()
+        };
+        let err = build(table(None), &ignoring).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("--ignore-time and no rate in the file: give --rate HZ"),
+            "{err}"
+        );
+    }
+
+    /// A table whose time column was fitted to `hz`, with a header rate `header`.
+    fn timed(hz: f64, header: Option<f64>) -> Table {
+        let times: Vec<f64> = (0..100).map(|i| i as f64 / hz).collect();
+        let mut t = table(header);
+        t.timing = Some(timing::analyse("t", &times).unwrap());
+        t
+    }
+
+    #[test]
+    fn rate_overrides_a_time_column_with_a_warning() {
+        let opts = |rate| LoadOptions {
+            rate_hz: rate,
+            ..LoadOptions::default()
+        };
+        let (r, report) = build(timed(100.5, None), &opts(Some(100.0))).unwrap();
+        assert_eq!(r.rate_hz, 100.0);
+        assert_eq!(
+            report.warnings,
+            [
+                "--rate 100 Hz overrides the time column 't' (100.5 Hz by least squares), -0.498 % apart"
+            ]
+        );
+        // Within 0.1 %: no warning.
+        let (r, report) = build(timed(100.05, None), &opts(Some(100.0))).unwrap();
+        assert_eq!(r.rate_hz, 100.0);
+        assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+        // Without --rate the column's rate, and a header that disagrees with it is an error.
+        let (r, report) = build(timed(100.5, None), &opts(None)).unwrap();
+        assert_eq!(r.rate_hz, 100.5);
+        assert_eq!(report.timing.unwrap().rate_hz, 100.5);
+        let err = build(timed(100.5, Some(100.0)), &opts(None)).unwrap_err();
+        assert!(
+            err.to_string().contains(
+                "the header (100 Hz) disagrees with the time column 't' (100.5 Hz by least squares)"
+            ),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn unit_suffixes_and_counts_exclude_each_other() {
+        let mut t = table(Some(100.0));
+        t.channels[0].0 = "ax_g".into();
+        let opts = LoadOptions {
+            counts: Some(CountScale {
+                rad_s_per_lsb: 1.0,
+                m_s2_per_lsb: 1.0,
+            }),
+            ..LoadOptions::default()
+        };
+        let err = build(t, &opts).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "f.csv: --counts: column 'ax_g' states its unit (g); drop --counts"
+        );
+    }
+
+    fn gzip(bytes: &[u8]) -> Vec<u8> {
+        use std::io::Write;
+        let mut z = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        z.write_all(bytes).unwrap();
+        z.finish().unwrap()
+    }
+
+    /// Gzip is recognised by its magic bytes whatever the name, and the table inside reads as
+    /// if uncompressed; errors name the compressed file and the line inside.
+    #[test]
+    fn gzip_inputs_read_as_their_contents() {
+        let dir = tempfile::tempdir().unwrap();
+        let csv = dir.path().join("log.csv.gz");
+        std::fs::write(&csv, gzip(b"t,gx_dps\n0,1\n0.01,2\n0.02,3\n")).unwrap();
+        let loaded = load(&csv, &LoadOptions::default()).unwrap();
+        assert_eq!(loaded.record.rate_hz, 100.0);
+        assert_eq!(loaded.record.channels[0].name, "gx");
+        assert_eq!(loaded.record.channels[0].values[2], 3f64.to_radians());
+        assert_eq!(loaded.report.compression, Some("gzip"));
+        let lines = loaded.report.lines();
+        assert_eq!(lines[0], "input: gzip-compressed");
+        assert!(
+            lines[2].contains("gx_dps: deg/s -> rad/s x 0.0174533"),
+            "{lines:?}"
+        );
+
+        let npy = dir.path().join("a.dat");
+        write_npy(&dir.path().join("a.npy"), &[1.0, 2.0]).unwrap();
+        std::fs::write(
+            &npy,
+            gzip(&std::fs::read(dir.path().join("a.npy")).unwrap()),
+        )
+        .unwrap();
+        let opts = LoadOptions {
+            rate_hz: Some(10.0),
+            names: vec!["az_mg".into()],
+            ..LoadOptions::default()
+        };
+        let loaded = load(&npy, &opts).unwrap();
+        assert_eq!(loaded.record.channels[0].name, "az");
+        assert_eq!(
+            loaded.record.channels[0].values,
+            [9.80665e-3, 2.0 * 9.80665e-3]
+        );
+
+        let bad = dir.path().join("bad.txt.gz");
+        std::fs::write(&bad, gzip(b"gx gy\n1 2\n3 x\n")).unwrap();
+        let err = load(&bad, &opts).unwrap_err().to_string();
+        assert_eq!(
+            err,
+            format!("{}:3: column 'gy': 'x' is not a number", bad.display())
+        );
+        let cut = dir.path().join("cut.csv.gz");
+        let whole = gzip(&b"gx\n1\n".repeat(1000));
+        std::fs::write(&cut, &whole[..whole.len() / 2]).unwrap();
+        let err = load(&cut, &opts).unwrap_err().to_string();
+        assert!(
+            err.starts_with(&format!("{}: gzip: ", cut.display())),
+            "{err}"
+        );
     }
 
     #[test]
@@ -344,7 +621,7 @@ mod tests {
             names: vec!["gx".into(), "gy".into()],
             ..LoadOptions::default()
         };
-        let err = build_record(Path::new("f"), table(None), &opts).unwrap_err();
+        let err = build(table(None), &opts).unwrap_err();
         assert!(
             err.to_string()
                 .contains("--names gives 2 names but the file has 4")

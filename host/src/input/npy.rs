@@ -5,7 +5,8 @@
 use super::{InputError, Table};
 use std::path::Path;
 
-const MAGIC: &[u8] = b"\x93NUMPY";
+/// The bytes every `.npy` file starts with.
+pub(super) const MAGIC: &[u8] = b"\x93NUMPY";
 
 pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<Table, InputError> {
     let err = |m: String| InputError::file(path, m);
@@ -70,6 +71,8 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<Table, InputError> {
     Ok(Table {
         channels,
         rate_hz: None,
+        timing: None,
+        ignored_time: None,
     })
 }
 

@@ -1,12 +1,15 @@
 //! Text tables: numeric columns separated by commas, semicolons, tabs or spaces; `#` comments
 //! and blank lines anywhere; before the data, optional `key,value` metadata lines (the
 //! MPU-6050 logger's `Fs,100` gives the rate) and an optional header line of column names.
-//! A `time` column (seconds; `time_ms`, `time_us` scaled) gives the rate and must be uniform.
+//! A `time` column (seconds; `time_ms`, `time_us` scaled) gives the rate by least squares;
+//! jitter is accepted and gaps of missing samples are refused ([`super::timing`]).
 //!
 //! The data lines are parsed in parallel chunks: a 300 MB 8-hour log is read in about a second.
 
+use super::timing::{self, Timing, TimingError};
 use super::{InputError, RateSource, Table};
 use rayon::prelude::*;
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// A parsed chunk: its line count, and its columns or the chunk-relative line of the first
@@ -16,44 +19,130 @@ type Chunk = (usize, Result<Vec<Vec<f64>>, (usize, String)>);
 /// Chunk size for parallel parsing; each chunk ends at a line end.
 const CHUNK_BYTES: usize = 1 << 20;
 
-/// Relative tolerance on each time step against the record's mean step.
-const TIME_STEP_TOLERANCE: f64 = 0.01;
+/// Gaps listed by line in an error; the rest are counted.
+const GAPS_LISTED: usize = 10;
 
-pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<Table, InputError> {
-    let preamble = read_preamble(path, bytes)?;
+/// The table in `bytes`; a time column is fitted unless `ignore_time` sets it aside.
+pub(super) fn parse(path: &Path, bytes: &[u8], ignore_time: bool) -> Result<Table, InputError> {
+    let mut preamble = read_preamble(path, bytes)?;
     let width = preamble.names.len();
     let columns = parse_data(path, bytes, &preamble)?;
     let rows = columns.first().map_or(0, Vec::len);
     if rows == 0 {
         return Err(InputError::file(path, "no data lines"));
     }
-    let mut channels: Vec<(String, Vec<f64>)> = preamble.names.into_iter().zip(columns).collect();
+    let mut channels: Vec<(String, Vec<f64>)> =
+        preamble.names.iter().cloned().zip(columns).collect();
     debug_assert_eq!(channels.len(), width);
-    let mut rate_hz = preamble.rate_hz;
+    let (mut timing, mut ignored_time) = (None, None);
     if let Some(at) = channels.iter().position(|(n, _)| time_scale(n).is_some()) {
-        let (name, times) = channels.remove(at);
-        let scale = time_scale(&name).unwrap_or(1.0);
-        let hz = uniform_rate(path, &times, scale, preamble.first_data_line, &name)?;
-        if let Some(stated) = &rate_hz
-            && ((stated.hz - hz) / hz).abs() > 1e-3
-        {
-            return Err(InputError::file(
-                path,
-                format!(
-                    "the {} ({} Hz) disagrees with the time column '{name}' ({hz} Hz)",
-                    stated.from, stated.hz
-                ),
-            ));
+        let (name, mut times) = channels.remove(at);
+        if ignore_time {
+            ignored_time = Some(name);
+        } else {
+            let scale = time_scale(&name).unwrap_or(1.0);
+            times.iter_mut().for_each(|t| *t *= scale);
+            timing = Some(time_base(path, bytes, &preamble, &name, &times)?);
         }
-        rate_hz = Some(RateSource {
-            hz,
-            from: format!("time column '{name}'"),
-        });
     }
     if channels.is_empty() {
         return Err(InputError::file(path, "no data columns besides time"));
     }
-    Ok(Table { channels, rate_hz })
+    Ok(Table {
+        channels,
+        rate_hz: preamble.rate_hz.take(),
+        timing,
+        ignored_time,
+    })
+}
+
+/// The time column's fit with its worst step's line, or an error naming the lines at fault.
+fn time_base(
+    path: &Path,
+    bytes: &[u8],
+    pre: &Preamble,
+    name: &str,
+    times: &[f64],
+) -> Result<Timing, InputError> {
+    let line_of = |rows: &[usize]| row_lines(bytes, pre, rows);
+    match timing::analyse(name, times) {
+        Ok(mut t) => {
+            t.worst_step.line = line_of(&[t.worst_step.row])(t.worst_step.row);
+            Ok(t)
+        }
+        Err(TimingError::TooShort) => Err(InputError::file(
+            path,
+            format!("time column '{name}' needs at least two rows"),
+        )),
+        Err(TimingError::NotIncreasing) => Err(InputError::file(
+            path,
+            format!("time column '{name}' does not increase"),
+        )),
+        Err(TimingError::Backwards { row, step_s }) => Err(InputError::line(
+            path,
+            line_of(&[row])(row),
+            format!(
+                "time column '{name}' steps back by {} s (a clock reset or wrap-around?): \
+                 split the file here, or give --ignore-time --rate HZ",
+                -step_s
+            ),
+        )),
+        Err(TimingError::Gaps { gaps, period_s }) => {
+            let rows: Vec<usize> = gaps.iter().map(|g| g.row).collect();
+            let lines = line_of(&rows);
+            let mut listed: Vec<String> = gaps
+                .iter()
+                .take(GAPS_LISTED)
+                .map(|g| {
+                    format!(
+                        "line {} (t = {} s): {} sample(s) missing",
+                        lines(g.row),
+                        g.time_s,
+                        g.missing
+                    )
+                })
+                .collect();
+            if gaps.len() > GAPS_LISTED {
+                listed.push(format!("and {} more", gaps.len() - GAPS_LISTED));
+            }
+            let missing: u64 = gaps.iter().map(|g| g.missing).sum();
+            Err(InputError::file(
+                path,
+                format!(
+                    "time column '{name}': {missing} sample(s) missing in {} gap(s) that the fitted \
+                     period ({:.4} ms) cannot absorb: {}; split the file at the gaps, or give \
+                     --ignore-time --rate HZ to take the rows as contiguous",
+                    gaps.len(),
+                    period_s * 1e3,
+                    listed.join("; ")
+                ),
+            ))
+        }
+    }
+}
+
+/// The file line of each data row (0-based) in `rows`, as a lookup: data lines are counted as
+/// the parser counts them, skipping blank and comment lines.
+fn row_lines(bytes: &[u8], pre: &Preamble, rows: &[usize]) -> impl Fn(usize) -> usize + use<> {
+    let mut wanted: Vec<usize> = rows.to_vec();
+    wanted.sort_unstable();
+    wanted.dedup();
+    let mut wanted = wanted.into_iter().peekable();
+    let mut found = BTreeMap::new();
+    let mut row = 0;
+    for (i, (_, raw)) in lines(bytes, pre.data_start).enumerate() {
+        let Some(&next) = wanted.peek() else { break };
+        if clean(raw).is_empty() {
+            continue;
+        }
+        if row == next {
+            found.insert(row, pre.first_data_line + i);
+            wanted.next();
+        }
+        row += 1;
+    }
+    let first = pre.first_data_line;
+    move |row| found.get(&row).copied().unwrap_or(first)
 }
 
 /// A time column's factor to seconds, or None if the name is not a time column's.
@@ -270,63 +359,12 @@ fn parse_chunk(chunk: &[u8], width: usize, delimiter: Delimiter, names: &[String
     (count, Ok(columns))
 }
 
-/// The rate of a time column, which must step uniformly: every step within 1 % of the median
-/// step (a dropped sample or a jump is an error naming its line).
-fn uniform_rate(
-    path: &Path,
-    times: &[f64],
-    scale: f64,
-    first_line: usize,
-    name: &str,
-) -> Result<f64, InputError> {
-    if times.len() < 2 {
-        return Err(InputError::file(
-            path,
-            format!("time column '{name}' needs at least two rows"),
-        ));
-    }
-    // The median step is the nominal one: a single gap cannot shift it.
-    let mut steps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
-    let mid = steps.len() / 2;
-    let step = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
-    drop(steps);
-    if step.is_nan() || step <= 0.0 {
-        return Err(InputError::file(
-            path,
-            format!("time column '{name}' does not increase"),
-        ));
-    }
-    if let Some(i) = times
-        .windows(2)
-        .position(|w| ((w[1] - w[0]) - step).abs() > TIME_STEP_TOLERANCE * step)
-    {
-        // Data lines may be interleaved with comments; name the row and its time.
-        return Err(InputError::file(
-            path,
-            format!(
-                "time column '{name}' is not uniform: data row {} (first data line is {first_line}) \
-                 at t = {} steps by {} where the nominal (median) step is {}; resample the data or split the file",
-                i + 2,
-                times[i + 1],
-                times[i + 1] - times[i],
-                step
-            ),
-        ));
-    }
-    // The rate from the whole span (the mean step) is exact to the last digit the times
-    // were printed with; rounding to 9 significant digits removes the binary residue
-    // (0.005 s steps give 200 Hz, not 200.00000000000423 Hz).
-    let mean_step = (times[times.len() - 1] - times[0]) / (times.len() - 1) as f64;
-    let hz = 1.0 / (mean_step * scale);
-    Ok(format!("{hz:.8e}").parse().unwrap_or(hz))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn parse_str(s: &str) -> Result<Table, InputError> {
-        parse(Path::new("t.csv"), s.as_bytes())
+        parse(Path::new("t.csv"), s.as_bytes(), false)
     }
 
     #[test]
@@ -349,10 +387,11 @@ mod tests {
     #[test]
     fn time_column_gives_the_rate() {
         let t = parse_str("time,gx\n0.00,1\n0.01,2\n0.02,3\n").unwrap();
-        assert!((t.rate_hz.unwrap().hz - 100.0).abs() < 1e-9);
+        assert_eq!(t.timing.unwrap().rate_hz, 100.0);
         assert_eq!(t.channels.len(), 1);
         let t = parse_str("time_ms;gx\n0;1\n5;2\n10;3\n").unwrap();
-        assert!((t.rate_hz.unwrap().hz - 200.0).abs() < 1e-9);
+        assert_eq!(t.timing.unwrap().rate_hz, 200.0);
+        assert!(t.rate_hz.is_none());
     }
 
     #[test]
@@ -365,10 +404,6 @@ mod tests {
         assert_eq!(err, "t.csv:3: column 'gy' is NaN");
         let err = parse_str("gx\n").unwrap_err().to_string();
         assert_eq!(err, "t.csv: no data lines");
-        let err = parse_str("time,gx\n0,1\n1,1\n3,1\n4,1\n")
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("not uniform: data row 3"), "{err}");
         let err = parse_str("gx\ngy\n1\n").unwrap_err().to_string();
         assert!(err.starts_with("t.csv:2: expected numbers"), "{err}");
     }
@@ -389,6 +424,88 @@ mod tests {
         assert_eq!(
             err,
             format!("t.csv:{}: column 'gx': 'oops' is not a number", rows + 2)
+        );
+    }
+
+    /// `n` rows `t,gx` at 100 Hz with a comment line after every 100th data row, so that file
+    /// lines and data rows differ; `stamp` gives row i's time.
+    fn timed(n: usize, stamp: impl Fn(usize) -> Option<f64>) -> String {
+        let mut s = String::from("# logger v2\nt,gx\n");
+        for i in 0..n {
+            if let Some(t) = stamp(i) {
+                s.push_str(&format!("{t:.6},{}\n", i % 7));
+            }
+            if i % 100 == 99 {
+                s.push_str("# marker\n");
+            }
+        }
+        s
+    }
+
+    /// The line of the row `timed` wrote for `i`, `dropped` rows before it left out: two
+    /// header lines, the data rows and the markers before it.
+    fn line_of_row(i: usize, dropped: usize) -> usize {
+        3 + (i - dropped) + i / 100
+    }
+
+    #[test]
+    fn jitter_is_accepted_and_its_worst_step_named_by_line() {
+        // +-100 us of deterministic jitter (steps within 200 us of the period), and from row
+        // 1234 on every stamp 500 us later: one step 300 us beyond any other.
+        let jitter = |i: usize| ((i * 7919) % 201) as f64 * 1e-6 - 100e-6;
+        let text = timed(3000, |i| {
+            Some(i as f64 * 0.01 + jitter(i) + if i >= 1234 { 500e-6 } else { 0.0 })
+        });
+        let t = parse_str(&text).unwrap();
+        let timing = t.timing.unwrap();
+        // The 0.05-period step at 41 % of the record tilts the line by 6 h p (1 - p) / n =
+        // 2.4e-5 of the period: 2.4 mHz.
+        assert!((timing.rate_hz - 100.0).abs() < 5e-3, "{timing:?}");
+        assert!(!timing.uniform);
+        assert_eq!(timing.worst_step.row, 1234);
+        assert_eq!(timing.worst_step.line, line_of_row(1234, 0));
+        let shown = timing.to_string();
+        assert!(
+            shown.contains(&format!("at line {}", line_of_row(1234, 0))),
+            "{shown}"
+        );
+    }
+
+    #[test]
+    fn gaps_are_refused_by_line_time_and_count() {
+        // Rows 500..503 and 2100 never made it into the file.
+        let text = timed(3000, |i| {
+            let lost = (500..503).contains(&i) || i == 2100;
+            (!lost).then_some(i as f64 * 0.01)
+        });
+        let err = parse_str(&text).unwrap_err().to_string();
+        let expected = format!(
+            "t.csv: time column 't': 4 sample(s) missing in 2 gap(s) that the fitted period (10.0000 ms) \
+             cannot absorb: line {} (t = 5.03 s): 3 sample(s) missing; line {} (t = 21.01 s): \
+             1 sample(s) missing;",
+            line_of_row(503, 3),
+            line_of_row(2101, 4)
+        );
+        assert!(err.starts_with(&expected), "{err}\n{expected}");
+        // The time column set aside, the rows are taken as they are.
+        let t = parse(Path::new("t.csv"), text.as_bytes(), true).unwrap();
+        assert!(t.timing.is_none());
+        assert_eq!(t.ignored_time.as_deref(), Some("t"));
+        assert_eq!(t.channels[0].1.len(), 2996);
+    }
+
+    #[test]
+    fn a_clock_going_back_is_refused_at_its_line() {
+        let text = timed(500, |i| {
+            Some(i as f64 * 0.01 - if i >= 321 { 5.0 } else { 0.0 })
+        });
+        let err = parse_str(&text).unwrap_err().to_string();
+        assert!(
+            err.starts_with(&format!(
+                "t.csv:{}: time column 't' steps back by 4.99",
+                line_of_row(321, 0)
+            )),
+            "{err}"
         );
     }
 }

@@ -113,6 +113,9 @@ impl Counts {
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct ImportSpec {
     pub rate_hz: Option<f64>,
+    /// The file's time column is ignored (`--ignore-time`).
+    #[serde(default)]
+    pub ignore_time: bool,
     pub names: Vec<String>,
     pub scales: Vec<(String, f64)>,
 }
