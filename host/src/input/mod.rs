@@ -331,6 +331,15 @@ fn build_record(
             })?;
         channel.values.iter_mut().for_each(|v| *v *= factor);
     }
+    if options.counts.is_none() && options.scales.is_empty() {
+        let stated: Vec<&str> = report.units.iter().map(|u| u.column.as_str()).collect();
+        report.warnings.extend(
+            channels
+                .iter()
+                .filter(|c| !stated.contains(&c.name.as_str()))
+                .filter_map(looks_like_counts),
+        );
+    }
     Ok(Record {
         source: path.display().to_string(),
         rate_hz,
@@ -410,6 +419,38 @@ fn resolve_rate(
 
 /// Raw MPU-6050 counts to SI: gyro counts times rad/s per LSB, accel counts times m/s^2 per
 /// LSB, TEMP_OUT by the datasheet's `counts / 340 + 36.53` (register map rev 4.2, 4.18).
+/// The largest magnitude an IMU channel can have in SI: the widest full scale of the
+/// sensors this tool knows (MPU-6050 +-2000 deg/s and +-16 g; `protocol::mpu6050`), with a
+/// margin of two for other parts.
+fn si_ceiling(quantity: Quantity) -> Option<f64> {
+    use protocol::mpu6050::{AccelRange, GyroRange};
+    match quantity {
+        Quantity::AngularRate => Some(2.0 * GyroRange::Dps2000.full_scale_dps().to_radians()),
+        Quantity::Acceleration => {
+            Some(2.0 * AccelRange::G16.full_scale_g() * units::STANDARD_GRAVITY)
+        }
+        Quantity::Temperature | Quantity::Other => None,
+    }
+}
+
+/// A warning when a rate or acceleration channel read as SI holds only whole numbers beyond
+/// any sensor's full scale: raw register counts given without `--counts`, which would
+/// otherwise be analysed as rad/s or m/s^2 and give noise terms thousands of times too large.
+fn looks_like_counts(channel: &Channel) -> Option<String> {
+    let ceiling = si_ceiling(channel.quantity)?;
+    let largest = channel.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let whole = channel.values.iter().all(|v| v.fract() == 0.0);
+    (whole && largest > ceiling).then(|| {
+        format!(
+            "{}: whole numbers up to {largest} cannot be {unit} (no sensor reads beyond {ceiling:.0} {unit}): \
+             raw counts? give --counts (MPU-6050 register counts) or --scale {}=FACTOR",
+            channel.name,
+            channel.name,
+            unit = channel.unit(),
+        )
+    })
+}
+
 fn counts_to_si(channel: &mut Channel, scale: CountScale) {
     let convert: Box<dyn Fn(f64) -> f64> = match channel.quantity {
         Quantity::AngularRate => Box::new(move |c| c * scale.rad_s_per_lsb),
@@ -423,6 +464,21 @@ fn counts_to_si(channel: &mut Channel, scale: CountScale) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Raw counts read as SI are flagged (an MPU-6050 at rest: az near 16384 LSB, a gyro bias
+    /// of a few hundred LSB); SI values, fractional or within any full scale, are not.
+    #[test]
+    fn whole_numbers_beyond_full_scale_are_flagged_as_counts() {
+        let flagged =
+            |name: &str, values: Vec<f64>| looks_like_counts(&Channel::named(name, values));
+        let az = flagged("az", vec![15708.0, 14772.0, 14432.0]).unwrap();
+        assert!(az.contains("--counts") && az.contains("m/s^2"), "{az}");
+        assert!(flagged("gx", vec![-480.0, -439.0, -386.0]).is_some());
+        assert!(flagged("az", vec![9.0, 10.0, 9.0]).is_none());
+        assert!(flagged("gx", vec![-480.5, -439.0]).is_none());
+        assert!(flagged("gx", vec![0.01, -0.02]).is_none());
+        assert!(flagged("temp", vec![12000.0]).is_none());
+    }
 
     fn table(rate: Option<f64>) -> Table {
         Table {
@@ -499,6 +555,8 @@ mod tests {
     fn timed(hz: f64, header: Option<f64>) -> Table {
         let times: Vec<f64> = (0..100).map(|i| i as f64 / hz).collect();
         let mut t = table(header);
+        // SI values, so the only warnings are about the rate.
+        t.channels.retain(|(name, _)| name == "x");
         t.timing = Some(timing::analyse("t", &times).unwrap());
         t
     }
