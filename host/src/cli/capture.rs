@@ -161,6 +161,16 @@ pub fn stop_board(link: &mut dyn Link) {
     }
 }
 
+/// A flag that Ctrl-C raises instead of killing the process: the capture loop then ends its
+/// session cleanly (complete, "interrupted by the user"). Once per process.
+pub fn stop_on_ctrl_c() -> Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
+        .context("installing the Ctrl-C handler")?;
+    Ok(stop)
+}
+
 pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
     let duration_s = args
         .duration
@@ -185,10 +195,7 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
             info.protocol_version
         );
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
-        .context("installing the Ctrl-C handler")?;
+    let stop = stop_on_ctrl_c()?;
     let options = RecordOptions {
         name: args.name.clone(),
         notes: args.note.clone(),

@@ -8,7 +8,9 @@
 use crate::analysis::fit::Term;
 use crate::analysis::pipeline::{self, ChannelResult, Options};
 use crate::analysis::units::{self, NoiseTerm, rad_to_deg};
-use crate::cli::capture::{PortSpec, VirtualBoardArgs, open_port, start_board, stop_board};
+use crate::cli::capture::{
+    PortSpec, VirtualBoardArgs, open_port, start_board, stop_board, stop_on_ctrl_c,
+};
 use crate::cli::settings::aliases;
 use crate::cli::simulate::parse_duration;
 use crate::cli::stored::open_store;
@@ -25,7 +27,6 @@ use protocol::SensorSettings;
 use protocol::mpu6050::Hz;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
 
 #[derive(clap::Args, Debug)]
 pub struct SweepArgs {
@@ -115,8 +116,8 @@ pub fn sweep(
     prefix: &str,
 ) -> Result<Vec<SweepRow>> {
     let mut link = open_port(spec)?;
-    let stop = AtomicBool::new(false);
-    let mut rows = Vec::new();
+    let stop = stop_on_ctrl_c()?;
+    let mut rows: Vec<SweepRow> = Vec::new();
     for (i, s) in settings.iter().enumerate() {
         let name = format!(
             "{prefix}-{}hz-{}hz",
@@ -145,12 +146,14 @@ pub fn sweep(
         bar.finish_and_clear();
         stop_board(link.as_mut());
         let outcome = outcome?;
-        if let Ending::LinkFailed(e) = &outcome.ending {
-            bail!(
+        match &outcome.ending {
+            Ending::LinkFailed(e) => bail!(
                 "{}: {e}; session {} kept as incomplete",
                 link.describe(),
                 outcome.session_id
-            );
+            ),
+            Ending::Stopped => bail!(stopped(store, &rows, outcome.session_id, i, settings)),
+            Ending::SourceEnded | Ending::DurationReached => {}
         }
         let session = store
             .get(outcome.session_id)?
@@ -178,6 +181,33 @@ pub fn sweep(
         });
     }
     Ok(rows)
+}
+
+/// What a sweep stopped by the user (Ctrl-C) at setting `at` leaves: the sessions made so
+/// far, the last one shorter than asked for and not analysed.
+fn stopped(
+    store: &Store,
+    rows: &[SweepRow],
+    last: i64,
+    at: usize,
+    settings: &[SensorSettings],
+) -> String {
+    let mut made: Vec<String> = rows
+        .iter()
+        .map(|r| format!("{} '{}' (analysed)", r.session_id, r.session_name))
+        .collect();
+    let last_name = store
+        .get(last)
+        .ok()
+        .flatten()
+        .map_or_else(String::new, |s| format!(" '{}'", s.name));
+    made.push(format!("{last}{last_name} (cut short, not analysed)"));
+    format!(
+        "sweep stopped by the user at setting {}/{}; sessions made: {}",
+        at + 1,
+        settings.len(),
+        made.join(", ")
+    )
 }
 
 /// The gyro bandwidth of a setting, Hz (what the settings study names settings by).
