@@ -128,7 +128,10 @@ fn unreachable_settings_fail_with_the_nearest_choices() {
 
 #[test]
 fn demo_accounts_for_every_sample() {
-    let out = imunoise(&["demo"]);
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store");
+    let store = store.to_str().unwrap();
+    let out = imunoise(&["--store", store, "demo", "--duration", "2m"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let text = stdout(&out);
     // 10 s at 200 Hz = 2000 samples in 63 batches; one flipped and one truncated frame lose
@@ -139,6 +142,15 @@ fn demo_accounts_for_every_sample() {
         text.contains("2000 numbered by the board, 1936 received, 64 lost in 2 gaps"),
         "{text}"
     );
+    // Its sessions' analyses keep the command that made them and their options, as JSON.
+    let shown = imunoise(&["--store", store, "show", "demo-200hz-42hz", "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&shown)).unwrap();
+    let made = &v["analyses"][0]["options"];
+    assert_eq!(
+        made["command"],
+        serde_json::json!(["--store", store, "demo", "--duration", "2m"])
+    );
+    assert_eq!(made["options"]["confidence"], 0.683);
 }
 
 /// A reader that goes away (`imunoise export 1 | head -1`) ends the command quietly: exit 0,

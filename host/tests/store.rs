@@ -492,3 +492,65 @@ fn ctrl_c_stops_a_sweep_with_its_sessions_closed() {
     assert_eq!(list[0]["end_reason"], "interrupted by the user");
     assert!(list[0]["counts"]["samples_received"].as_u64().unwrap() > 0);
 }
+
+/// Every stored analysis keeps the command line that made it and its options as JSON (a
+/// sweep's too); analyses stored with the options as text (older stores) still show.
+#[test]
+fn stored_analyses_keep_their_command_and_options_as_json() {
+    let tmp = tempfile::tempdir().unwrap();
+    let store = tmp.path().join("store");
+    let sweep = [
+        "sweep",
+        "--port",
+        "sim",
+        "--settings",
+        "200:42",
+        "--duration",
+        "30s",
+        "--speed",
+        "max",
+    ];
+    ok(imunoise(&store, &sweep));
+    ok(imunoise(
+        &store,
+        &["analyze", "1", "--psd-window", "hamming"],
+    ));
+    let shown = json(&ok(imunoise(&store, &["show", "1", "--json"])));
+    let made = |i: usize| shown["analyses"][i]["options"].clone();
+    let mut command = vec![serde_json::json!("--store"), serde_json::json!(store)];
+    command.extend(sweep.iter().map(|a| serde_json::json!(a)));
+    assert_eq!(made(0)["command"], serde_json::Value::Array(command));
+    assert_eq!(
+        made(0)["options"]["taus"],
+        serde_json::json!({"per_decade": 10})
+    );
+    assert_eq!(made(0)["options"]["psd_window"], "hann");
+    assert_eq!(made(1)["options"]["psd_window"], "hamming");
+    assert_eq!(made(1)["command"][2], "analyze");
+    let text = ok(imunoise(&store, &["show", "1"]));
+    assert!(
+        text.contains("sweep --port sim --settings 200:42"),
+        "{text}"
+    );
+
+    // An analysis as older versions stored it: the command's name, the options as text.
+    let catalog = rusqlite::Connection::open(store.join("catalog.sqlite")).unwrap();
+    catalog
+        .execute(
+            "INSERT INTO analyses (session_id, created_at, options, document) VALUES \
+             (1, '2025-01-01T00:00:00Z', ?1, '{}')",
+            [r#"{"command":"sweep","options":"Options { data_type: Rate, confidence: 0.683 }"}"#],
+        )
+        .unwrap();
+    drop(catalog);
+    let shown = json(&ok(imunoise(&store, &["show", "1", "--json"])));
+    assert_eq!(
+        shown["analyses"][2]["options"]["options"],
+        "Options { data_type: Rate, confidence: 0.683 }"
+    );
+    let text = ok(imunoise(&store, &["show", "1"]));
+    assert!(
+        text.contains("2025-01-01T00:00:00Z: imunoise sweep\n"),
+        "{text}"
+    );
+}

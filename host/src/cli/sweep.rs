@@ -13,7 +13,7 @@ use crate::cli::capture::{
 };
 use crate::cli::settings::aliases;
 use crate::cli::simulate::parse_duration;
-use crate::cli::stored::open_store;
+use crate::cli::stored::{open_store, provenance};
 use crate::link::replay::Speed;
 use crate::recorder::{self, Ending, RecordOptions};
 use crate::report::html::escape;
@@ -167,11 +167,7 @@ pub fn sweep(
         let analysis = Options::default();
         let results = pipeline::analyze(&record, &analysis, &|| {})?;
         let document = json::document(&record, &analysis, &results);
-        store.add_analysis(
-            session.id,
-            &serde_json::json!({ "command": "sweep", "options": format!("{analysis:?}") }),
-            &document,
-        )?;
+        store.add_analysis(session.id, &provenance(&analysis), &document)?;
         rows.push(SweepRow {
             settings: *s,
             session_id: session.id,
