@@ -1,5 +1,6 @@
 //! The `imunoise` binary as a user runs it: output, JSON, errors and exit codes.
 
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn imunoise(args: &[&str]) -> Output {
@@ -242,4 +243,98 @@ fn outputs_never_overwrite_inputs_or_store_files() {
     assert!(stderr(&out).contains("own input"), "{}", stderr(&out));
     assert_eq!(std::fs::read(&csv).unwrap(), exported);
     assert_eq!(std::fs::read(&raw).unwrap(), before);
+}
+
+/// Values that start with '-' are values: `--rate -100` is a rate, refused as one (exit 1,
+/// not a usage error), and `--position -x=FILE` names the position -x.
+#[test]
+fn hyphen_values_are_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store");
+    let store = store.to_str().unwrap();
+    let model = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/mpu6050.toml");
+    let out_csv = dir.path().join("x.csv");
+    let rate = ["--rate", "-100", "--bandwidth", "42"];
+    let runs: [Vec<&str>; 3] = [
+        ["settings"].iter().chain(&rate).copied().collect(),
+        ["--store", store, "capture", "--port", "sim"]
+            .iter()
+            .chain(&rate)
+            .copied()
+            .collect(),
+        ["simulate", "--model", model, "--duration", "1s", "--out"]
+            .iter()
+            .copied()
+            .chain([out_csv.to_str().unwrap()])
+            .chain(rate)
+            .collect(),
+    ];
+    for args in runs {
+        let out = imunoise(&args);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains("the output rate must be a positive number of Hz, not -100"),
+            "{args:?}: {}",
+            stderr(&out)
+        );
+    }
+    assert!(!Path::new(store).exists() && !out_csv.exists());
+    let positions: Vec<String> = ["+x", "-x", "+y", "-y", "+z", "-z"]
+        .iter()
+        .map(|p| format!("{p}=/nowhere/{p}.csv"))
+        .collect();
+    let mut args = vec!["--store", store, "calibrate", "accel"];
+    for p in &positions {
+        args.extend(["--position", p]);
+    }
+    let out = imunoise(&args);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("/nowhere/+x.csv: no such file"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+/// The sensor can be set to 2 kHz (`settings` resolves it), the board's firmware does not
+/// stream it: `capture` says so, naming the firmware's limit, before it opens anything.
+#[test]
+fn capture_names_the_firmwares_rate_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store");
+    let store = store.to_str().unwrap();
+    let fast = ["--rate", "2000", "--bandwidth", "256"];
+    let out = imunoise(&["settings", fast[0], fast[1], fast[2], fast[3]]);
+    assert!(
+        stdout(&out).contains("2000 Hz output (SMPLRT_DIV 3)"),
+        "{}",
+        stdout(&out)
+    );
+    let mut args = vec!["--store", store, "capture", "--port", "sim"];
+    args.extend(fast);
+    let out = imunoise(&args);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains(&format!(
+            "--rate 2000: 2000 Hz is above the board firmware's output-rate limit of {} Hz",
+            firmware::acquire::MAX_RATE_HZ
+        )),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!Path::new(store).exists());
+    let out = imunoise(&[
+        "--store",
+        store,
+        "sweep",
+        "--port",
+        "sim",
+        "--settings",
+        "2000:256",
+    ]);
+    assert!(
+        stderr(&out).contains("--settings 2000:256: 2000 Hz is above"),
+        "{}",
+        stderr(&out)
+    );
 }

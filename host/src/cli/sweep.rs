@@ -9,7 +9,7 @@ use crate::analysis::fit::Term;
 use crate::analysis::pipeline::{self, ChannelResult, Options};
 use crate::analysis::units::{self, NoiseTerm, rad_to_deg};
 use crate::cli::capture::{
-    PortSpec, VirtualBoardArgs, open_port, start_board, stop_board, stop_on_ctrl_c,
+    PortSpec, VirtualBoardArgs, open_port, start_board, stop_board, stop_on_ctrl_c, streamable,
 };
 use crate::cli::settings::aliases;
 use crate::cli::simulate::parse_duration;
@@ -77,8 +77,10 @@ pub fn parse_settings(text: &str) -> Result<Vec<SensorSettings>> {
                     .map_err(|_| anyhow!("--settings '{pair}': '{v}' is not a number"))
             };
             let (rate, bw) = (parse(rate)?, parse(bw)?);
-            SensorSettings::for_rate_and_bandwidth(rate, bw)
-                .map_err(|e| anyhow!("--settings {rate}:{bw}: {e}"))
+            let settings = SensorSettings::for_rate_and_bandwidth(rate, bw)
+                .map_err(|e| anyhow!("--settings {rate}:{bw}: {e}"))?;
+            streamable(&settings).map_err(|e| anyhow!("--settings {rate}:{bw}: {e}"))?;
+            Ok(settings)
         })
         .collect()
 }
