@@ -8,9 +8,11 @@
 use crate::analysis::fit::Term;
 use crate::analysis::pipeline::{self, ChannelResult, Options};
 use crate::analysis::units::{self, NoiseTerm, rad_to_deg};
+use crate::cli::analyze::check_plot;
 use crate::cli::capture::{
     PortSpec, VirtualBoardArgs, open_port, start_board, stop_board, stop_on_ctrl_c, streamable,
 };
+use crate::cli::output;
 use crate::cli::settings::aliases;
 use crate::cli::simulate::parse_duration;
 use crate::cli::stored::{open_store, provenance};
@@ -88,6 +90,12 @@ pub fn parse_settings(text: &str) -> Result<Vec<SensorSettings>> {
 pub fn run(args: &SweepArgs, store: Option<&Path>) -> Result<()> {
     let settings = parse_settings(&args.settings)?;
     let seconds = parse_duration(&args.duration).map_err(|e| anyhow!("--duration: {e}"))?;
+    if let Some(path) = &args.plot {
+        check_plot(path)?;
+    }
+    if let Some(path) = &args.report {
+        output::check_folder(path, "--report")?;
+    }
     let store = open_store(store)?;
     let spec = PortSpec {
         port: &args.port,
