@@ -338,3 +338,23 @@ fn capture_names_the_firmwares_rate_limit() {
         stderr(&out)
     );
 }
+
+/// `info --json` gives what a JSON reader takes as it is: the 64-bit board id as a hex string
+/// (as a number it would lose its last digits above 2^53), the settings as numbers with
+/// their units in the key names.
+#[test]
+fn info_json_has_a_hex_board_id_and_numeric_ranges() {
+    let out = imunoise(&["info", "--port", "sim", "--seed", "5", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let info = &v["info"];
+    // The virtual board's id is "SIM" in ASCII, then its seed.
+    assert_eq!(info["board_id"], "0x53494d0000000005");
+    assert_eq!(info["firmware_version"], "0.1.0");
+    assert_eq!(info["rate_hz"], 100.0);
+    assert_eq!(info["gyro_bandwidth_hz"], 42.0);
+    assert_eq!(info["gyro_range_dps"], 250.0);
+    assert_eq!(info["accel_range_g"], 2.0);
+    assert_eq!(info["chip"], "MPU-6050");
+    assert_eq!(v["status"]["samples_lost"], 0);
+}
