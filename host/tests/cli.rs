@@ -358,3 +358,42 @@ fn info_json_has_a_hex_board_id_and_numeric_ranges() {
     assert_eq!(info["chip"], "MPU-6050");
     assert_eq!(v["status"]["samples_lost"], 0);
 }
+
+/// The help and the README say what the program does, not when it did what: no "now:", "comes
+/// next", "next issue", "works today"; simulate names every format it writes; every sweep of
+/// the virtual board in the README runs at `--speed max` (else it takes hours).
+#[test]
+fn help_and_readme_say_what_is() {
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap();
+    let mut texts = vec![("README.md".to_string(), readme.clone())];
+    for command in ["", "demo", "simulate", "capture", "sweep"] {
+        let args: Vec<&str> = [command, "--help"]
+            .into_iter()
+            .filter(|a| !a.is_empty())
+            .collect();
+        let out = imunoise(&args);
+        assert!(out.status.success());
+        texts.push((format!("imunoise {command} --help"), stdout(&out)));
+    }
+    for (name, text) in &texts {
+        for stale in ["now:", "comes next", "next issue", "works today"] {
+            assert!(!text.contains(stale), "{name} says '{stale}'");
+        }
+    }
+    let top = &texts[1].1;
+    let simulate = top
+        .lines()
+        .find(|l| l.trim_start().starts_with("simulate"))
+        .unwrap();
+    assert!(
+        simulate.contains("CSV, or the bytes a board would send"),
+        "{simulate}"
+    );
+    for line in readme
+        .lines()
+        .filter(|l| l.contains("imunoise sweep --port"))
+    {
+        assert!(line.contains("--speed max"), "{line}");
+    }
+}
