@@ -20,7 +20,7 @@ use crate::link::replay::Speed;
 use crate::recorder::{self, Ending, RecordOptions};
 use crate::report::html::escape;
 use crate::report::plot::{self, Figure, Line, Panel};
-use crate::report::{self, json, sig};
+use crate::report::{self, json, sig, sig_interval};
 use crate::sim::chain::white_noise_inflation;
 use crate::sim::dlpf::{DlpfDesign, Sensor};
 use crate::store::Store;
@@ -263,13 +263,9 @@ pub fn table(rows: &[SweepRow]) -> String {
             }
             let cell = |term: NoiseTerm, t: &crate::analysis::fit::Term| {
                 let c = |v| units::conventional(r.kind, term, v);
-                format!(
-                    "{} [{}..{}] {}",
-                    sig(c(t.value).value, 3),
-                    sig(c(t.lo).value, 2),
-                    sig(c(t.hi).value, 2),
-                    c(t.value).unit
-                )
+                let [value, lo, hi] =
+                    sig_interval(c(t.value).value, c(t.lo).value, c(t.hi).value, 3);
+                format!("{value} [{lo}..{hi}] {}", c(t.value).unit)
             };
             let _ = writeln!(
                 out,
@@ -416,7 +412,10 @@ pub fn paper_table(rows: &[PaperComparison]) -> String {
         );
         let sweep = r.simulated.map_or_else(
             || "-".to_string(),
-            |t| format!("{} [{}..{}]", sig(t.value, 4), sig(t.lo, 4), sig(t.hi, 4)),
+            |t| {
+                let [value, lo, hi] = sig_interval(t.value, t.lo, t.hi, 4);
+                format!("{value} [{lo}..{hi}]")
+            },
         );
         let _ = writeln!(
             out,
