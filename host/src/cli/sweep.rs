@@ -29,6 +29,7 @@ use protocol::SensorSettings;
 use protocol::mpu6050::Hz;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
 
 #[derive(clap::Args, Debug)]
 pub struct SweepArgs {
@@ -129,6 +130,10 @@ pub fn sweep(
     let stop = stop_on_ctrl_c()?;
     let mut rows: Vec<SweepRow> = Vec::new();
     for (i, s) in settings.iter().enumerate() {
+        // Ctrl-C while the last setting was analysed: no new session.
+        if stop.load(Ordering::Relaxed) {
+            bail!(stopped(store, &rows, None, i, settings));
+        }
         let name = format!(
             "{prefix}-{}hz-{}hz",
             Hz(s.output_rate_hz()),
@@ -162,7 +167,7 @@ pub fn sweep(
                 link.describe(),
                 outcome.session_id
             ),
-            Ending::Stopped => bail!(stopped(store, &rows, outcome.session_id, i, settings)),
+            Ending::Stopped => bail!(stopped(store, &rows, Some(outcome.session_id), i, settings)),
             Ending::SourceEnded | Ending::DurationReached => {}
         }
         let session = store
@@ -190,11 +195,11 @@ pub fn sweep(
 }
 
 /// What a sweep stopped by the user (Ctrl-C) at setting `at` leaves: the sessions made so
-/// far, the last one shorter than asked for and not analysed.
+/// far, and `cut` (the session of setting `at`, shorter than asked for and not analysed).
 fn stopped(
     store: &Store,
     rows: &[SweepRow],
-    last: i64,
+    cut: Option<i64>,
     at: usize,
     settings: &[SensorSettings],
 ) -> String {
@@ -202,12 +207,17 @@ fn stopped(
         .iter()
         .map(|r| format!("{} '{}' (analysed)", r.session_id, r.session_name))
         .collect();
-    let last_name = store
-        .get(last)
-        .ok()
-        .flatten()
-        .map_or_else(String::new, |s| format!(" '{}'", s.name));
-    made.push(format!("{last}{last_name} (cut short, not analysed)"));
+    if let Some(id) = cut {
+        let name = store
+            .get(id)
+            .ok()
+            .flatten()
+            .map_or_else(String::new, |s| format!(" '{}'", s.name));
+        made.push(format!("{id}{name} (cut short, not analysed)"));
+    }
+    if made.is_empty() {
+        made.push("none".into());
+    }
     format!(
         "sweep stopped by the user at setting {}/{}; sessions made: {}",
         at + 1,
