@@ -76,6 +76,16 @@ pub enum RecordError {
         "session {session}: {source}; the session is kept as incomplete with what was written before"
     )]
     Store { session: i64, source: StoreError },
+    /// The store failed and the catalog could not even record the end: the session will be
+    /// shown as interrupted, with what reached its file.
+    #[error(
+        "session {session}: {source}; closing it in the catalog failed too ({closing}): it will be listed as interrupted, with what was written before"
+    )]
+    Unclosed {
+        session: i64,
+        source: StoreError,
+        closing: Box<StoreError>,
+    },
     #[error(transparent)]
     Begin(StoreError),
 }
@@ -213,7 +223,8 @@ fn run(
     let counts = Counts::of(decoder, writer.bytes());
     let end = match &ending {
         Ending::LinkFailed(e) => End::Incomplete(format!("link error on {}: {e}", link.describe())),
-        _ => End::Complete,
+        Ending::Stopped => End::Stopped,
+        Ending::SourceEnded | Ending::DurationReached => End::Complete,
     };
     let session = writer.id();
     writer
@@ -237,8 +248,14 @@ fn record_note(
 fn fail(writer: SessionWriter, decoder: &StreamDecoder, source: StoreError) -> RecordError {
     let session = writer.id();
     let counts = Counts::of(decoder, writer.bytes());
-    let _ = writer.finish(End::Incomplete(format!("disk error: {source}")), &counts);
-    RecordError::Store { session, source }
+    match writer.write_failed(&source, &counts) {
+        Err(closing @ StoreError::Sql { .. }) => RecordError::Unclosed {
+            session,
+            source,
+            closing: Box::new(closing),
+        },
+        _ => RecordError::Store { session, source },
+    }
 }
 
 /// The catalog is only a description of the raw file: a failure to update it must not stop

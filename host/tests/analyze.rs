@@ -52,6 +52,17 @@ fn noise_n(channel: &Value, gyro: bool) -> &Value {
     n
 }
 
+/// Uniform numbers in [0, 1) from a fixed-seed 64-bit LCG (Knuth's MMIX constants).
+fn uniform(seed: u64) -> impl FnMut() -> f64 {
+    let mut s = seed;
+    move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 fn floats(v: &Value) -> Vec<f64> {
     v.as_array()
         .expect("an array")
@@ -142,12 +153,9 @@ fn the_real_mpu6050_record_in_raw_counts() {
 fn every_estimator_and_grid_on_a_csv_with_a_time_column() {
     let path = scratch("timed.csv");
     let mut text = String::from("# a comment\ntime,gx,temp\n");
-    let mut s = 12345u64;
+    let mut uniform = uniform(12345);
     for i in 0..4000 {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        let u = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        let u = uniform() - 0.5;
         text.push_str(&format!("{:.3},{u},{}\n", i as f64 * 0.005, 25.0 + u));
     }
     std::fs::write(&path, text).unwrap();
@@ -597,4 +605,94 @@ fn rate_overrides_and_ignore_time_sets_aside_a_time_column() {
     ]));
     assert_eq!(doc["samples"], 2995);
     assert_eq!(doc["input"]["ignored_time_column"], "t");
+}
+
+/// Outputs that cannot be written and options out of range fail before the analysis: exit 1
+/// and nothing on stdout (not a whole table, then the error). The PSD segment is checked
+/// against the record (2000 samples), never dropped in silence.
+#[test]
+fn bad_outputs_and_ranges_fail_before_anything_is_printed() {
+    let path = scratch("outputs.csv");
+    let mut text = String::from("gx\n");
+    let mut uniform = uniform(99);
+    for _ in 0..2000 {
+        text.push_str(&format!("{}\n", uniform()));
+    }
+    std::fs::write(&path, text).unwrap();
+    let path = path.to_str().unwrap();
+    let jpg = scratch("x.jpg");
+    let cases: [(&[&str], String); 7] = [
+        (
+            &["--plot", jpg.to_str().unwrap()],
+            format!(
+                "--plot {}: plots are written as .svg or .png",
+                jpg.display()
+            ),
+        ),
+        (
+            &["--report", "/nonexistent/x.html"],
+            "--report /nonexistent/x.html: the folder /nonexistent does not exist".into(),
+        ),
+        (
+            &["--filter-period", "0"],
+            "--filter-period 0: the filter period must be a positive number of seconds, not 0"
+                .into(),
+        ),
+        (
+            &["--filter", "noise.txt"],
+            "--filter noise.txt: the file name must end in .json, .yaml or .yml".into(),
+        ),
+        (
+            &["--psd-segment", "0"],
+            "--psd-segment 0: a segment length in samples, from 2 to the record's length".into(),
+        ),
+        (
+            &["--psd-segment", "1"],
+            "--psd-segment 1: a segment length in samples, from 2 to".into(),
+        ),
+        (
+            &["--psd-segment", "2001"],
+            "--psd-segment 2001: a segment length in samples, from 2 to 2000, the record's length"
+                .into(),
+        ),
+    ];
+    for (extra, expected) in cases {
+        let mut args = vec!["analyze", path, "--rate", "100"];
+        args.extend_from_slice(extra);
+        let out = imunoise(&args);
+        assert_eq!(out.status.code(), Some(1), "{extra:?}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains(&expected),
+            "{extra:?}: {}",
+            stderr(&out)
+        );
+        assert!(out.stdout.is_empty(), "{extra:?} printed before failing");
+        assert!(!jpg.exists());
+    }
+    // The whole record is a valid segment: the PSD has one.
+    let doc = json_of(&imunoise(&[
+        "analyze",
+        path,
+        "--rate",
+        "100",
+        "--psd-segment",
+        "2000",
+        "--json",
+        "-",
+    ]));
+    assert_eq!(doc["channels"][0]["psd"]["segments"], 1);
+    // A sweep checks its outputs before it captures for hours.
+    let store = scratch("sweep-store");
+    let out = imunoise(&[
+        "--store",
+        store.to_str().unwrap(),
+        "sweep",
+        "--port",
+        "sim",
+        "--plot",
+        "x.jpg",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(stderr(&out).contains("--plot x.jpg: plots are written as .svg or .png"));
+    assert!(!store.exists());
 }

@@ -1,5 +1,6 @@
 //! The `imunoise` binary as a user runs it: output, JSON, errors and exit codes.
 
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn imunoise(args: &[&str]) -> Output {
@@ -128,7 +129,10 @@ fn unreachable_settings_fail_with_the_nearest_choices() {
 
 #[test]
 fn demo_accounts_for_every_sample() {
-    let out = imunoise(&["demo"]);
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store");
+    let store = store.to_str().unwrap();
+    let out = imunoise(&["--store", store, "demo", "--duration", "2m"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let text = stdout(&out);
     // 10 s at 200 Hz = 2000 samples in 63 batches; one flipped and one truncated frame lose
@@ -139,6 +143,15 @@ fn demo_accounts_for_every_sample() {
         text.contains("2000 numbered by the board, 1936 received, 64 lost in 2 gaps"),
         "{text}"
     );
+    // Its sessions' analyses keep the command that made them and their options, as JSON.
+    let shown = imunoise(&["--store", store, "show", "demo-200hz-42hz", "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&shown)).unwrap();
+    let made = &v["analyses"][0]["options"];
+    assert_eq!(
+        made["command"],
+        serde_json::json!(["--store", store, "demo", "--duration", "2m"])
+    );
+    assert_eq!(made["options"]["confidence"], 0.683);
 }
 
 /// A reader that goes away (`imunoise export 1 | head -1`) ends the command quietly: exit 0,
@@ -230,4 +243,157 @@ fn outputs_never_overwrite_inputs_or_store_files() {
     assert!(stderr(&out).contains("own input"), "{}", stderr(&out));
     assert_eq!(std::fs::read(&csv).unwrap(), exported);
     assert_eq!(std::fs::read(&raw).unwrap(), before);
+}
+
+/// Values that start with '-' are values: `--rate -100` is a rate, refused as one (exit 1,
+/// not a usage error), and `--position -x=FILE` names the position -x.
+#[test]
+fn hyphen_values_are_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store");
+    let store = store.to_str().unwrap();
+    let model = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/mpu6050.toml");
+    let out_csv = dir.path().join("x.csv");
+    let rate = ["--rate", "-100", "--bandwidth", "42"];
+    let runs: [Vec<&str>; 3] = [
+        ["settings"].iter().chain(&rate).copied().collect(),
+        ["--store", store, "capture", "--port", "sim"]
+            .iter()
+            .chain(&rate)
+            .copied()
+            .collect(),
+        ["simulate", "--model", model, "--duration", "1s", "--out"]
+            .iter()
+            .copied()
+            .chain([out_csv.to_str().unwrap()])
+            .chain(rate)
+            .collect(),
+    ];
+    for args in runs {
+        let out = imunoise(&args);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains("the output rate must be a positive number of Hz, not -100"),
+            "{args:?}: {}",
+            stderr(&out)
+        );
+    }
+    assert!(!Path::new(store).exists() && !out_csv.exists());
+    let positions: Vec<String> = ["+x", "-x", "+y", "-y", "+z", "-z"]
+        .iter()
+        .map(|p| format!("{p}=/nowhere/{p}.csv"))
+        .collect();
+    let mut args = vec!["--store", store, "calibrate", "accel"];
+    for p in &positions {
+        args.extend(["--position", p]);
+    }
+    let out = imunoise(&args);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("/nowhere/+x.csv: no such file"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+/// The sensor can be set to 2 kHz (`settings` resolves it), the board's firmware does not
+/// stream it: `capture` says so, naming the firmware's limit, before it opens anything.
+#[test]
+fn capture_names_the_firmwares_rate_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store");
+    let store = store.to_str().unwrap();
+    let fast = ["--rate", "2000", "--bandwidth", "256"];
+    let out = imunoise(&["settings", fast[0], fast[1], fast[2], fast[3]]);
+    assert!(
+        stdout(&out).contains("2000 Hz output (SMPLRT_DIV 3)"),
+        "{}",
+        stdout(&out)
+    );
+    let mut args = vec!["--store", store, "capture", "--port", "sim"];
+    args.extend(fast);
+    let out = imunoise(&args);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains(&format!(
+            "--rate 2000: 2000 Hz is above the board firmware's output-rate limit of {} Hz",
+            firmware::acquire::MAX_RATE_HZ
+        )),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!Path::new(store).exists());
+    let out = imunoise(&[
+        "--store",
+        store,
+        "sweep",
+        "--port",
+        "sim",
+        "--settings",
+        "2000:256",
+    ]);
+    assert!(
+        stderr(&out).contains("--settings 2000:256: 2000 Hz is above"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+/// `info --json` gives what a JSON reader takes as it is: the 64-bit board id as a hex string
+/// (as a number it would lose its last digits above 2^53), the settings as numbers with
+/// their units in the key names.
+#[test]
+fn info_json_has_a_hex_board_id_and_numeric_ranges() {
+    let out = imunoise(&["info", "--port", "sim", "--seed", "5", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let info = &v["info"];
+    // The virtual board's id is "SIM" in ASCII, then its seed.
+    assert_eq!(info["board_id"], "0x53494d0000000005");
+    assert_eq!(info["firmware_version"], "0.1.0");
+    assert_eq!(info["rate_hz"], 100.0);
+    assert_eq!(info["gyro_bandwidth_hz"], 42.0);
+    assert_eq!(info["gyro_range_dps"], 250.0);
+    assert_eq!(info["accel_range_g"], 2.0);
+    assert_eq!(info["chip"], "MPU-6050");
+    assert_eq!(v["status"]["samples_lost"], 0);
+}
+
+/// The help and the README say what the program does, not when it did what: no "now:", "comes
+/// next", "next issue", "works today"; simulate names every format it writes; every sweep of
+/// the virtual board in the README runs at `--speed max` (else it takes hours).
+#[test]
+fn help_and_readme_say_what_is() {
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap();
+    let mut texts = vec![("README.md".to_string(), readme.clone())];
+    for command in ["", "demo", "simulate", "capture", "sweep"] {
+        let args: Vec<&str> = [command, "--help"]
+            .into_iter()
+            .filter(|a| !a.is_empty())
+            .collect();
+        let out = imunoise(&args);
+        assert!(out.status.success());
+        texts.push((format!("imunoise {command} --help"), stdout(&out)));
+    }
+    for (name, text) in &texts {
+        for stale in ["now:", "comes next", "next issue", "works today"] {
+            assert!(!text.contains(stale), "{name} says '{stale}'");
+        }
+    }
+    let top = &texts[1].1;
+    let simulate = top
+        .lines()
+        .find(|l| l.trim_start().starts_with("simulate"))
+        .unwrap();
+    assert!(
+        simulate.contains("CSV, or the bytes a board would send"),
+        "{simulate}"
+    );
+    for line in readme
+        .lines()
+        .filter(|l| l.contains("imunoise sweep --port"))
+    {
+        assert!(line.contains("--speed max"), "{line}");
+    }
 }

@@ -119,6 +119,7 @@ fn ctrl_c_ends_a_capture_as_complete() {
     assert!(out.contains("complete"), "{out}");
     let list = json(&ok(imunoise(&store, &["sessions", "--json"])));
     assert_eq!(list[0]["state"], "complete");
+    assert_eq!(list[0]["end_reason"], "interrupted by the user");
     assert!(list[0]["ended_at"].is_string());
     assert!(list[0]["name"].as_str().unwrap().ends_with("-200hz-42hz"));
 }
@@ -416,4 +417,140 @@ fn only_writing_commands_create_a_store() {
     ok(o);
     assert!(said.contains("created a new store at"), "{said}");
     assert!(ok(imunoise(&typo, &["sessions"])).contains("complete"));
+}
+
+/// A capture that fills the disk ends with that reason, in the catalog on the same full disk
+/// (not "interrupted", which blames a killed recorder). The disk is a 512 KiB tmpfs in a
+/// private mount namespace (`unshare`), gone with it; where user namespaces are not allowed
+/// the test says so and passes (`recorder.rs` covers the reason with an injected disk).
+#[test]
+fn a_full_disk_ends_a_capture_with_that_reason() {
+    let namespace = Command::new("unshare").args(["-rm", "true"]).status();
+    if !namespace.is_ok_and(|s| s.success()) {
+        eprintln!("skipped: no private mount namespace (unshare -rm) on this machine");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let script = r#"mount -t tmpfs -o size=512k tmpfs "$1" || exit 90
+        "$2" --store "$1/s" capture --port sim --rate 1000 --bandwidth 188 --speed max --duration 1h
+        echo "capture exit $?" >&2
+        "$2" --store "$1/s" sessions --json"#;
+    let o = Command::new("unshare")
+        .args(["-rm", "sh", "-c", script, "sh"])
+        .arg(dir.path())
+        .arg(env!("CARGO_BIN_EXE_imunoise"))
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_ne!(o.status.code(), Some(90), "{said}");
+    assert!(said.contains("capture exit 1"), "{said}");
+    assert!(said.contains("No space left on device"), "{said}");
+    let list = json(&ok(o));
+    assert_eq!(list[0]["state"], "incomplete");
+    assert_eq!(
+        list[0]["end_reason"],
+        "write failed: No space left on device (os error 28)"
+    );
+    assert!(list[0]["counts"]["samples_received"].as_u64().unwrap() > 1000);
+}
+
+/// Ctrl-C in a sweep ends the session being captured cleanly ("interrupted by the user"),
+/// starts no other, and says which sessions it made.
+#[test]
+fn ctrl_c_stops_a_sweep_with_its_sessions_closed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let store = tmp.path().join("store");
+    let child = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        .arg("--store")
+        .arg(&store)
+        .args(["sweep", "--port", "sim", "--settings", "200:42,50:42"])
+        .args(["--duration", "10m", "--speed", "1"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Until the first session is recording (the handler is in place before it begins).
+    let recording = (0..200).any(|_| {
+        std::thread::sleep(Duration::from_millis(100));
+        let o = imunoise(&store, &["sessions", "--json"]);
+        o.status.success() && json(&String::from_utf8_lossy(&o.stdout))[0]["state"] == "recording"
+    });
+    assert!(recording, "the sweep never started its first session");
+    signal(child.id(), "-INT");
+    let out = child.wait_with_output().unwrap();
+    let said = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    assert!(
+        said.contains(
+            "sweep stopped by the user at setting 1/2; sessions made: 1 'sweep-200hz-42hz' (cut short, not analysed)"
+        ),
+        "{said}"
+    );
+    let list = json(&ok(imunoise(&store, &["sessions", "--json"])));
+    assert_eq!(list.as_array().unwrap().len(), 1, "{list}");
+    assert_eq!(list[0]["state"], "complete");
+    assert_eq!(list[0]["end_reason"], "interrupted by the user");
+    assert!(list[0]["counts"]["samples_received"].as_u64().unwrap() > 0);
+}
+
+/// Every stored analysis keeps the command line that made it and its options as JSON (a
+/// sweep's too); analyses stored with the options as text (older stores) still show.
+#[test]
+fn stored_analyses_keep_their_command_and_options_as_json() {
+    let tmp = tempfile::tempdir().unwrap();
+    let store = tmp.path().join("store");
+    let sweep = [
+        "sweep",
+        "--port",
+        "sim",
+        "--settings",
+        "200:42",
+        "--duration",
+        "30s",
+        "--speed",
+        "max",
+    ];
+    ok(imunoise(&store, &sweep));
+    ok(imunoise(
+        &store,
+        &["analyze", "1", "--psd-window", "hamming"],
+    ));
+    let shown = json(&ok(imunoise(&store, &["show", "1", "--json"])));
+    let made = |i: usize| shown["analyses"][i]["options"].clone();
+    let mut command = vec![serde_json::json!("--store"), serde_json::json!(store)];
+    command.extend(sweep.iter().map(|a| serde_json::json!(a)));
+    assert_eq!(made(0)["command"], serde_json::Value::Array(command));
+    assert_eq!(
+        made(0)["options"]["taus"],
+        serde_json::json!({"per_decade": 10})
+    );
+    assert_eq!(made(0)["options"]["psd_window"], "hann");
+    assert_eq!(made(1)["options"]["psd_window"], "hamming");
+    assert_eq!(made(1)["command"][2], "analyze");
+    let text = ok(imunoise(&store, &["show", "1"]));
+    assert!(
+        text.contains("sweep --port sim --settings 200:42"),
+        "{text}"
+    );
+
+    // An analysis as older versions stored it: the command's name, the options as text.
+    let catalog = rusqlite::Connection::open(store.join("catalog.sqlite")).unwrap();
+    catalog
+        .execute(
+            "INSERT INTO analyses (session_id, created_at, options, document) VALUES \
+             (1, '2025-01-01T00:00:00Z', ?1, '{}')",
+            [r#"{"command":"sweep","options":"Options { data_type: Rate, confidence: 0.683 }"}"#],
+        )
+        .unwrap();
+    drop(catalog);
+    let shown = json(&ok(imunoise(&store, &["show", "1", "--json"])));
+    assert_eq!(
+        shown["analyses"][2]["options"]["options"],
+        "Options { data_type: Rate, confidence: 0.683 }"
+    );
+    let text = ok(imunoise(&store, &["show", "1"]));
+    assert!(
+        text.contains("2025-01-01T00:00:00Z: imunoise sweep\n"),
+        "{text}"
+    );
 }

@@ -103,11 +103,7 @@ fn serialize_gm<S: serde::Serializer>(
 
 /// The filter parameters of every channel with a noise fit (the others are left out).
 pub fn for_channels(results: &[ChannelResult], period_s: f64) -> Result<Vec<FilterNoise>, String> {
-    if !(period_s.is_finite() && period_s > 0.0) {
-        return Err(format!(
-            "the filter period must be a positive number of seconds, not {period_s}"
-        ));
-    }
+    check_period(period_s)?;
     Ok(results
         .iter()
         .filter_map(|c| {
@@ -116,6 +112,16 @@ pub fn for_channels(results: &[ChannelResult], period_s: f64) -> Result<Vec<Filt
             Some(filter_noise(&c.name, c.kind, c.unit, fit, gm, period_s))
         })
         .collect())
+}
+
+/// A filter period must be a positive, finite number of seconds.
+pub fn check_period(period_s: f64) -> Result<(), String> {
+    if !(period_s.is_finite() && period_s > 0.0) {
+        return Err(format!(
+            "the filter period must be a positive number of seconds, not {period_s}"
+        ));
+    }
+    Ok(())
 }
 
 /// The table of the module documentation for one channel.

@@ -19,7 +19,7 @@ use serde::Serialize;
 use std::borrow::Cow;
 
 /// What to compute.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct Options {
     pub data_type: DataType,
     /// Estimators to report; the noise fit always uses the overlapping Allan variance.
@@ -42,7 +42,8 @@ pub struct Options {
 }
 
 /// Where the noise fit's low-pass filter comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum LowPassChoice {
     /// Detected per channel from its spectrum ([`low_pass::detect`]); none when the record
     /// shows no roll-off below Nyquist.

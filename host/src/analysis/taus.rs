@@ -4,7 +4,8 @@ use std::fmt;
 use std::str::FromStr;
 
 /// A grid of averaging factors.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum TauGrid {
     /// 1, 2, 4, 8, ... (Stable32 "octave").
     Octave,

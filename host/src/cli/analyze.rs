@@ -139,6 +139,7 @@ fn parse_scale(s: &str) -> Result<(String, f64), String> {
 }
 
 pub fn run(args: &AnalyzeArgs, store: Option<&Path>) -> Result<()> {
+    args.analysis.check()?;
     let store_dir = crate::store::locate(store).ok();
     for (path, flag) in args.analysis.outputs() {
         output::check(path, flag, store_dir.as_deref(), &[&args.input])?;
@@ -238,6 +239,48 @@ impl AnalysisArgs {
         out.extend(self.filter.iter().map(|p| (p.as_path(), "--filter")));
         out
     }
+
+    /// What can be checked before reading and analysing anything: every output's folder
+    /// exists and its name picks a format this writes, the filter period and the PSD
+    /// segment are in range (the segment against the record: [`check_psd_segment`]).
+    pub fn check(&self) -> Result<()> {
+        for (path, flag) in self.outputs() {
+            output::check_folder(path, flag)?;
+        }
+        if let Some(path) = &self.plot {
+            check_plot(path)?;
+        }
+        for path in &self.filter {
+            report::filter::check_format(path)?;
+        }
+        if let Some(period) = self.filter_period {
+            filter::check_period(period)
+                .map_err(|e| anyhow::anyhow!("--filter-period {period}: {e}"))?;
+        }
+        if let Some(segment) = self.psd_segment {
+            check_psd_segment(segment, None)?;
+        }
+        Ok(())
+    }
+}
+
+/// `--plot PATH`: its folder exists and its extension names a format the figures are
+/// written in.
+pub fn check_plot(path: &Path) -> Result<()> {
+    output::check_folder(path, "--plot")?;
+    report::plot::check_format(path).map_err(|e| anyhow::anyhow!("--plot {e}"))?;
+    Ok(())
+}
+
+/// `--psd-segment`: a Welch segment holds at least 2 samples and at most the record's
+/// (`samples`, when known).
+pub fn check_psd_segment(segment: usize, samples: Option<usize>) -> Result<()> {
+    let most = samples.map_or(String::new(), |n| format!("{n}, "));
+    anyhow::ensure!(
+        segment >= 2 && samples.is_none_or(|n| segment <= n),
+        "--psd-segment {segment}: a segment length in samples, from 2 to {most}the record's length"
+    );
+    Ok(())
 }
 
 /// An analysis done: its JSON document and the options that made it (kept with a session).
@@ -258,6 +301,9 @@ pub fn analyse(loaded: Loaded, args: &AnalysisArgs) -> Result<Analysed> {
         ..
     } = loaded;
     let record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
+    if let Some(segment) = args.psd_segment {
+        check_psd_segment(segment, Some(record.len()))?;
+    }
     let mut options = options(args)?;
     options.low_pass = low_pass_choice(args.bandwidth, settings);
     let steps = record.channels.len() * pipeline::steps_per_channel(&options);

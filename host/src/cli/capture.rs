@@ -19,7 +19,9 @@ use crate::link::virtual_board::VirtualBoard;
 use crate::recorder::{self, Ending, Progress, RecordOptions};
 use crate::sim::model_file;
 use anyhow::{Context, Result, anyhow, bail};
+use firmware::acquire::MAX_RATE_HZ;
 use indicatif::{ProgressBar, ProgressStyle};
+use protocol::mpu6050::Hz;
 use protocol::{DeviceInfo, SensorSettings};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -39,7 +41,12 @@ pub struct CaptureArgs {
     #[arg(long, value_name = "FILE")]
     pub from_file: Option<PathBuf>,
     /// Output rate in Hz (with --port), e.g. 200
-    #[arg(long, requires = "port", required_unless_present = "from_file")]
+    #[arg(
+        long,
+        requires = "port",
+        required_unless_present = "from_file",
+        allow_negative_numbers = true
+    )]
     pub rate: Option<f64>,
     /// DLPF bandwidth in Hz (with --port): gyro 256 188 98 42 20 10 5 or accel 260 184 94 44 21 10 5
     #[arg(long, requires = "port", required_unless_present = "from_file")]
@@ -141,6 +148,35 @@ fn open_link(args: &CaptureArgs) -> Result<Box<dyn Link>> {
     }
 }
 
+/// The settings a board is asked for (`--rate`, `--bandwidth`, `--gyro-range`,
+/// `--accel-range`): the sensor's registers for them, within what the firmware streams.
+pub fn board_settings(
+    rate_hz: f64,
+    bandwidth_hz: f64,
+    gyro_range_dps: u32,
+    accel_range_g: u32,
+) -> Result<SensorSettings> {
+    let settings = SensorSettings::for_rate_and_bandwidth(rate_hz, bandwidth_hz)
+        .map_err(|e| anyhow!("--rate {rate_hz} --bandwidth {bandwidth_hz}: {e}"))?;
+    streamable(&settings).map_err(|e| anyhow!("--rate {rate_hz}: {e}"))?;
+    Ok(settings.with_ranges(gyro_range(gyro_range_dps)?, accel_range(accel_range_g)?))
+}
+
+/// Whether the board's firmware streams `settings`: the sensor may be set faster than the
+/// firmware's output-rate limit (`imunoise settings` resolves such rates), the board not.
+pub fn streamable(settings: &SensorSettings) -> Result<(), String> {
+    let rate = settings.output_rate_hz();
+    if rate > MAX_RATE_HZ {
+        return Err(format!(
+            "{} Hz is above the board firmware's output-rate limit of {} Hz (the MPU-6050 \
+             itself can be set to it: `imunoise settings` shows how)",
+            Hz(rate),
+            Hz(MAX_RATE_HZ)
+        ));
+    }
+    Ok(())
+}
+
 /// Handshake (protocol version), configure and start a board; the capture loop then records
 /// its `Info`, the acks and the samples.
 pub fn start_board(link: &mut dyn Link, settings: SensorSettings) -> Result<DeviceInfo> {
@@ -161,6 +197,16 @@ pub fn stop_board(link: &mut dyn Link) {
     }
 }
 
+/// A flag that Ctrl-C raises instead of killing the process: the capture loop then ends its
+/// session cleanly (complete, "interrupted by the user"). Once per process.
+pub fn stop_on_ctrl_c() -> Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
+        .context("installing the Ctrl-C handler")?;
+    Ok(stop)
+}
+
 pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
     let duration_s = args
         .duration
@@ -168,13 +214,19 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         .map(parse_duration)
         .transpose()
         .map_err(|e| anyhow!("--duration: {e}"))?;
+    let settings = match (args.rate, args.bandwidth) {
+        (Some(rate), Some(bandwidth)) => Some(board_settings(
+            rate,
+            bandwidth,
+            args.gyro_range,
+            args.accel_range,
+        )?),
+        _ => None,
+    };
     let mut link = open_link(args)?;
     let store = open_store(store)?;
     let mut watch = None;
-    if let (Some(rate), Some(bandwidth)) = (args.rate, args.bandwidth) {
-        let settings = SensorSettings::for_rate_and_bandwidth(rate, bandwidth)
-            .map_err(|e| anyhow!("--rate {rate} --bandwidth {bandwidth}: {e}"))?
-            .with_ranges(gyro_range(args.gyro_range)?, accel_range(args.accel_range)?);
+    if let Some(settings) = settings {
         let info = start_board(link.as_mut(), settings)?;
         watch = args.port.is_some().then_some(settings);
         eprintln!(
@@ -185,10 +237,7 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
             info.protocol_version
         );
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
-        .context("installing the Ctrl-C handler")?;
+    let stop = stop_on_ctrl_c()?;
     let options = RecordOptions {
         name: args.name.clone(),
         notes: args.note.clone(),

@@ -5,8 +5,10 @@ use crate::cli::capture::{PortSpec, VirtualBoardArgs, open_port};
 use crate::cli::show::board_counters;
 use crate::link::board::Board;
 use crate::link::replay::Speed;
+use crate::store::Board as StoredBoard;
 use anyhow::Result;
-use protocol::PROTOCOL_VERSION;
+use protocol::{PROTOCOL_VERSION, ResetReason, Status};
+use serde::Serialize;
 
 #[derive(clap::Args, Debug)]
 pub struct InfoArgs {
@@ -20,6 +22,29 @@ pub struct InfoArgs {
     pub json: bool,
 }
 
+/// `info --json`: numbers a JSON reader takes as they are. The board id is a hex string
+/// (above 2^53 a double loses its last digits), the settings are rates, bandwidths and
+/// ranges with their units in the key names (as the store keeps a board).
+#[derive(Serialize)]
+struct InfoDocument<'a> {
+    port: &'a str,
+    host_protocol_version: u16,
+    info: BoardInfo,
+    status: Status,
+}
+
+#[derive(Serialize)]
+struct BoardInfo {
+    #[serde(flatten)]
+    board: StoredBoard,
+    who_am_i: u8,
+    /// The chip WHO_AM_I names, if known.
+    chip: Option<&'static str>,
+    streaming: bool,
+    max_samples_per_batch: u16,
+    reset_reason: ResetReason,
+}
+
 pub fn run(args: &InfoArgs) -> Result<()> {
     let mut link = open_port(&PortSpec {
         port: &args.port,
@@ -31,12 +56,19 @@ pub fn run(args: &InfoArgs) -> Result<()> {
     let info = board.handshake()?;
     let status = board.status()?;
     if args.json {
-        let doc = serde_json::json!({
-            "port": args.port,
-            "host_protocol_version": PROTOCOL_VERSION,
-            "info": info,
-            "status": status,
-        });
+        let doc = InfoDocument {
+            port: &args.port,
+            host_protocol_version: PROTOCOL_VERSION,
+            info: BoardInfo {
+                board: StoredBoard::of(&info),
+                who_am_i: info.who_am_i,
+                chip: protocol::mpu6050::chip(info.who_am_i).map(|c| c.name),
+                streaming: info.streaming,
+                max_samples_per_batch: info.max_samples_per_batch,
+                reset_reason: info.reset_reason,
+            },
+            status,
+        };
         println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
     }

@@ -46,7 +46,7 @@ pub struct Cli {
 pub enum Command {
     /// Show what the sensor settings mean: the DLPF table, or the registers for a rate and bandwidth
     Settings(settings::SettingsArgs),
-    /// A tour of what works today, on generated data: settings, framing, loss accounting
+    /// The whole chain with no hardware: the settings study's settings, a damaged framed stream accounted for, the study's experiment on the virtual board
     Demo(demo::DemoArgs),
     /// Allan deviations with confidence intervals, PSD and IEEE-952 noise terms of a record
     Analyze(Box<analyze::AnalyzeArgs>),
@@ -56,7 +56,7 @@ pub enum Command {
     Info(info::InfoArgs),
     /// List serial ports (USB vendor/product, our board marked)
     Ports(ports::PortsArgs),
-    /// Simulate an MPU-6050 at rest through its signal chain and write the samples (CSV)
+    /// Simulate an MPU-6050 at rest through its signal chain and write the samples (CSV, or the bytes a board would send)
     Simulate(simulate::SimulateArgs),
     /// Serve the simulated MPU-6050 to an I2C bus model in another process (the emulated board)
     #[command(name = "sim-device")]

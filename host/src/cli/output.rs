@@ -44,6 +44,23 @@ pub fn check(path: &Path, what: &str, store: Option<&Path>, inputs: &[&Path]) ->
     Ok(())
 }
 
+/// Refuse `path` (named `what`, e.g. "--report") when its folder does not exist: said before
+/// the work whose results it would hold, not after.
+pub fn check_folder(path: &Path, what: &str) -> Result<()> {
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !folder.is_dir() {
+        bail!(
+            "{what} {}: the folder {} does not exist",
+            path.display(),
+            folder.display()
+        );
+    }
+    Ok(())
+}
+
 /// Whether `target` is one of the store's own files: its catalog (with SQLite's journal
 /// files) or anything under `sessions/`. Other files in the store's folder are the user's.
 fn store_file(store: &Path, target: &Path) -> bool {

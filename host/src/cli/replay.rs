@@ -16,6 +16,7 @@ pub struct ReplayArgs {
 }
 
 pub fn run(args: &ReplayArgs, store: Option<&Path>) -> Result<()> {
+    args.analysis.check()?;
     let stored::Input { loaded, session } =
         stored::load(&args.input, &args.analysis.read.load_options()?, store)?;
     let r = &loaded.record;

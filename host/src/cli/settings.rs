@@ -8,7 +8,7 @@ use serde_json::json;
 #[derive(clap::Args, Debug)]
 pub struct SettingsArgs {
     /// Output sample rate in Hz (e.g. 200); with --bandwidth, resolves to register values
-    #[arg(long, requires = "bandwidth")]
+    #[arg(long, requires = "bandwidth", allow_negative_numbers = true)]
     pub rate: Option<f64>,
     /// DLPF bandwidth in Hz, gyro (256 188 98 42 20 10 5) or accel (260 184 94 44 21 10 5)
     #[arg(long, requires = "rate")]

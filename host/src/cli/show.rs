@@ -220,21 +220,31 @@ fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
         kv("restart", format!("the board restarted at index {r}"));
     }
     for a in analyses {
-        let command = a.options["command"]
-            .as_array()
-            .map(|v| {
-                v.iter()
-                    .filter_map(|x| x.as_str())
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            })
-            .unwrap_or_default();
         kv(
             "analysis",
-            format!("{} at {}: imunoise {command}", a.id, a.created_at),
+            format!(
+                "{} at {}: imunoise {}",
+                a.id,
+                a.created_at,
+                command(&a.options["command"])
+            ),
         );
     }
     o
+}
+
+/// A stored analysis's command line as text: its arguments (a list), or the bare command
+/// name older stores kept.
+fn command(stored: &serde_json::Value) -> String {
+    match stored {
+        serde_json::Value::Array(args) => args
+            .iter()
+            .filter_map(|x| x.as_str())
+            .collect::<Vec<_>>()
+            .join(" "),
+        serde_json::Value::String(name) => name.clone(),
+        _ => String::new(),
+    }
 }
 
 /// A board's cumulative counters (its Status) in one line.

@@ -20,7 +20,7 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub model: PathBuf,
     /// Output sample rate in Hz (must be exactly internal rate / (1 + SMPLRT_DIV))
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub rate: f64,
     /// DLPF bandwidth in Hz, gyro (256 188 98 42 20 10 5) or accel (260 184 94 44 21 10 5)
     #[arg(long)]

@@ -1,6 +1,7 @@
 //! What the session commands share: opening the store (`--store`, `$IMUNOISE_STORE`, the
 //! platform data directory) and reading an input that is a file or a stored session.
 
+use crate::analysis::pipeline::Options;
 use crate::cli::analyze::Analysed;
 use crate::input::{self, LoadOptions, Loaded};
 use crate::report;
@@ -66,16 +67,22 @@ pub fn print_warnings(warnings: &[String]) {
     }
 }
 
+/// How a stored analysis was made: this process's command line (its arguments, without the
+/// program name) and the analysis options, both JSON.
+pub fn provenance(options: &Options) -> serde_json::Value {
+    serde_json::json!({
+        "command": std::env::args().skip(1).collect::<Vec<_>>(),
+        "options": options,
+    })
+}
+
 /// Keep an analysis of a stored session in its catalog row.
 pub fn keep_analysis(session: Option<&(Store, Session)>, analysed: &Analysed) -> Result<()> {
     {
         let Some((store, session)) = session else {
             return Ok(());
         };
-        let options = serde_json::json!({
-            "command": std::env::args().skip(1).collect::<Vec<_>>(),
-            "options": format!("{:?}", analysed.options),
-        });
+        let options = provenance(&analysed.options);
         if store.is_read_only() {
             eprintln!(
                 "note: the analysis is not stored with session {}: the store {} is read-only",

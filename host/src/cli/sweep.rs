@@ -8,15 +8,19 @@
 use crate::analysis::fit::Term;
 use crate::analysis::pipeline::{self, ChannelResult, Options};
 use crate::analysis::units::{self, NoiseTerm, rad_to_deg};
-use crate::cli::capture::{PortSpec, VirtualBoardArgs, open_port, start_board, stop_board};
+use crate::cli::analyze::check_plot;
+use crate::cli::capture::{
+    PortSpec, VirtualBoardArgs, open_port, start_board, stop_board, stop_on_ctrl_c, streamable,
+};
+use crate::cli::output;
 use crate::cli::settings::aliases;
 use crate::cli::simulate::parse_duration;
-use crate::cli::stored::open_store;
+use crate::cli::stored::{open_store, provenance};
 use crate::link::replay::Speed;
 use crate::recorder::{self, Ending, RecordOptions};
 use crate::report::html::escape;
 use crate::report::plot::{self, Figure, Line, Panel};
-use crate::report::{self, json, sig};
+use crate::report::{self, json, sig, sig_interval};
 use crate::sim::chain::white_noise_inflation;
 use crate::sim::dlpf::{DlpfDesign, Sensor};
 use crate::store::Store;
@@ -25,7 +29,7 @@ use protocol::SensorSettings;
 use protocol::mpu6050::Hz;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::Ordering;
 
 #[derive(clap::Args, Debug)]
 pub struct SweepArgs {
@@ -76,8 +80,10 @@ pub fn parse_settings(text: &str) -> Result<Vec<SensorSettings>> {
                     .map_err(|_| anyhow!("--settings '{pair}': '{v}' is not a number"))
             };
             let (rate, bw) = (parse(rate)?, parse(bw)?);
-            SensorSettings::for_rate_and_bandwidth(rate, bw)
-                .map_err(|e| anyhow!("--settings {rate}:{bw}: {e}"))
+            let settings = SensorSettings::for_rate_and_bandwidth(rate, bw)
+                .map_err(|e| anyhow!("--settings {rate}:{bw}: {e}"))?;
+            streamable(&settings).map_err(|e| anyhow!("--settings {rate}:{bw}: {e}"))?;
+            Ok(settings)
         })
         .collect()
 }
@@ -85,6 +91,12 @@ pub fn parse_settings(text: &str) -> Result<Vec<SensorSettings>> {
 pub fn run(args: &SweepArgs, store: Option<&Path>) -> Result<()> {
     let settings = parse_settings(&args.settings)?;
     let seconds = parse_duration(&args.duration).map_err(|e| anyhow!("--duration: {e}"))?;
+    if let Some(path) = &args.plot {
+        check_plot(path)?;
+    }
+    if let Some(path) = &args.report {
+        output::check_folder(path, "--report")?;
+    }
     let store = open_store(store)?;
     let spec = PortSpec {
         port: &args.port,
@@ -115,9 +127,13 @@ pub fn sweep(
     prefix: &str,
 ) -> Result<Vec<SweepRow>> {
     let mut link = open_port(spec)?;
-    let stop = AtomicBool::new(false);
-    let mut rows = Vec::new();
+    let stop = stop_on_ctrl_c()?;
+    let mut rows: Vec<SweepRow> = Vec::new();
     for (i, s) in settings.iter().enumerate() {
+        // Ctrl-C while the last setting was analysed: no new session.
+        if stop.load(Ordering::Relaxed) {
+            bail!(stopped(store, &rows, None, i, settings));
+        }
         let name = format!(
             "{prefix}-{}hz-{}hz",
             Hz(s.output_rate_hz()),
@@ -145,12 +161,14 @@ pub fn sweep(
         bar.finish_and_clear();
         stop_board(link.as_mut());
         let outcome = outcome?;
-        if let Ending::LinkFailed(e) = &outcome.ending {
-            bail!(
+        match &outcome.ending {
+            Ending::LinkFailed(e) => bail!(
                 "{}: {e}; session {} kept as incomplete",
                 link.describe(),
                 outcome.session_id
-            );
+            ),
+            Ending::Stopped => bail!(stopped(store, &rows, Some(outcome.session_id), i, settings)),
+            Ending::SourceEnded | Ending::DurationReached => {}
         }
         let session = store
             .get(outcome.session_id)?
@@ -164,11 +182,7 @@ pub fn sweep(
         let analysis = Options::default();
         let results = pipeline::analyze(&record, &analysis, &|| {})?;
         let document = json::document(&record, &analysis, &results);
-        store.add_analysis(
-            session.id,
-            &serde_json::json!({ "command": "sweep", "options": format!("{analysis:?}") }),
-            &document,
-        )?;
+        store.add_analysis(session.id, &provenance(&analysis), &document)?;
         rows.push(SweepRow {
             settings: *s,
             session_id: session.id,
@@ -178,6 +192,38 @@ pub fn sweep(
         });
     }
     Ok(rows)
+}
+
+/// What a sweep stopped by the user (Ctrl-C) at setting `at` leaves: the sessions made so
+/// far, and `cut` (the session of setting `at`, shorter than asked for and not analysed).
+fn stopped(
+    store: &Store,
+    rows: &[SweepRow],
+    cut: Option<i64>,
+    at: usize,
+    settings: &[SensorSettings],
+) -> String {
+    let mut made: Vec<String> = rows
+        .iter()
+        .map(|r| format!("{} '{}' (analysed)", r.session_id, r.session_name))
+        .collect();
+    if let Some(id) = cut {
+        let name = store
+            .get(id)
+            .ok()
+            .flatten()
+            .map_or_else(String::new, |s| format!(" '{}'", s.name));
+        made.push(format!("{id}{name} (cut short, not analysed)"));
+    }
+    if made.is_empty() {
+        made.push("none".into());
+    }
+    format!(
+        "sweep stopped by the user at setting {}/{}; sessions made: {}",
+        at + 1,
+        settings.len(),
+        made.join(", ")
+    )
 }
 
 /// The gyro bandwidth of a setting, Hz (what the settings study names settings by).
@@ -227,13 +273,9 @@ pub fn table(rows: &[SweepRow]) -> String {
             }
             let cell = |term: NoiseTerm, t: &crate::analysis::fit::Term| {
                 let c = |v| units::conventional(r.kind, term, v);
-                format!(
-                    "{} [{}..{}] {}",
-                    sig(c(t.value).value, 3),
-                    sig(c(t.lo).value, 2),
-                    sig(c(t.hi).value, 2),
-                    c(t.value).unit
-                )
+                let [value, lo, hi] =
+                    sig_interval(c(t.value).value, c(t.lo).value, c(t.hi).value, 3);
+                format!("{value} [{lo}..{hi}] {}", c(t.value).unit)
             };
             let _ = writeln!(
                 out,
@@ -380,7 +422,10 @@ pub fn paper_table(rows: &[PaperComparison]) -> String {
         );
         let sweep = r.simulated.map_or_else(
             || "-".to_string(),
-            |t| format!("{} [{}..{}]", sig(t.value, 4), sig(t.lo, 4), sig(t.hi, 4)),
+            |t| {
+                let [value, lo, hi] = sig_interval(t.value, t.lo, t.hi, 4);
+                format!("{value} [{lo}..{hi}]")
+            },
         );
         let _ = writeln!(
             out,

@@ -1,7 +1,7 @@
 //! `imunoise compare`'s table: per channel and term, each session's value with its interval,
 //! and which sessions differ significantly.
 
-use super::sig;
+use super::{sig, sig_interval};
 use crate::analysis::compare::{Comparison, TermRow};
 use std::fmt::Write;
 
@@ -53,7 +53,10 @@ fn render_row(out: &mut String, row: &TermRow) {
     let _ = write!(out, "{:<6} {:?} {:<16}", row.channel, row.term, row.unit);
     for (i, value) in row.values.iter().enumerate() {
         let text = match value {
-            Some(t) => format!("{} [{} .. {}]", sig(t.value, 3), sig(t.lo, 3), sig(t.hi, 3)),
+            Some(t) => {
+                let [value, lo, hi] = sig_interval(t.value, t.lo, t.hi, 3);
+                format!("{value} [{lo} .. {hi}]")
+            }
             None => "no fit".to_string(),
         };
         let _ = write!(out, "  [{}] {text:<30}", i + 1);

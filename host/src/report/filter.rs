@@ -24,14 +24,22 @@ pub fn document(record: &Record, filters: &[FilterNoise]) -> Value {
 /// The text of a filter file: JSON for `.json`, YAML for `.yaml`/`.yml`; any other
 /// extension is an error naming the path.
 pub fn file_text(path: &Path, document: &Value) -> anyhow::Result<String> {
+    if check_format(path)? == "json" {
+        return Ok(serde_json::to_string_pretty(document)? + "\n");
+    }
+    Ok(yaml(
+        document,
+        "Filter noise parameters from imunoise (imunoise analyze --filter).\n\
+         Conventions: see the `conventions` key. u = the channel's unit.",
+    ))
+}
+
+/// The format a `--filter` file name picks: `json` or `yaml` (also for `.yml`).
+pub fn check_format(path: &Path) -> anyhow::Result<&'static str> {
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
     match extension.to_ascii_lowercase().as_str() {
-        "json" => Ok(serde_json::to_string_pretty(document)? + "\n"),
-        "yaml" | "yml" => Ok(yaml(
-            document,
-            "Filter noise parameters from imunoise (imunoise analyze --filter).\n\
-             Conventions: see the `conventions` key. u = the channel's unit.",
-        )),
+        "json" => Ok("json"),
+        "yaml" | "yml" => Ok("yaml"),
         _ => anyhow::bail!(
             "--filter {}: the file name must end in .json, .yaml or .yml (it picks the format)",
             path.display()

@@ -2,7 +2,9 @@
 //! figures (inline SVG) on one page with no external resources.
 
 use super::plot::{self, PlotError};
-use super::{NOISE_TERMS, conventions, figures, kalibr, sig, support_of, table, term_of};
+use super::{
+    NOISE_TERMS, conventions, figures, kalibr, sig, sig_interval, support_of, table, term_of,
+};
 use crate::analysis::pipeline::{ChannelResult, Options};
 use crate::analysis::units::{self, SensorKind};
 use crate::record::Record;
@@ -103,22 +105,21 @@ fn terms_table(h: &mut String, r: &ChannelResult) {
     h.push_str("<th>detected</th></tr>\n");
     for term in NOISE_TERMS {
         let t = term_of(fit, term);
+        let [value, lo, hi] = sig_interval(t.value, t.lo, t.hi, 3);
         let _ = write!(
             h,
             "<tr><td>{term:?}</td><td>{}</td><td>{} .. {}</td><td>{}</td>",
-            sig(t.value, 3),
-            sig(t.lo, 3),
-            sig(t.hi, 3),
+            value,
+            lo,
+            hi,
             units::si_unit(r.kind, term)
         );
         if r.kind != SensorKind::Other {
             let c = |v| units::conventional(r.kind, term, v);
+            let [value, lo, hi] = sig_interval(c(t.value).value, c(t.lo).value, c(t.hi).value, 3);
             let _ = write!(
                 h,
-                "<td>{}</td><td>{} .. {}</td><td>{}</td>",
-                sig(c(t.value).value, 3),
-                sig(c(t.lo).value, 3),
-                sig(c(t.hi).value, 3),
+                "<td>{value}</td><td>{lo} .. {hi}</td><td>{}</td>",
                 c(t.value).unit
             );
         }

@@ -75,9 +75,70 @@ pub fn sig(x: f64, digits: usize) -> String {
     }
 }
 
+/// A value and its interval's bounds, `[value, lo, hi]`, each with `digits` significant
+/// digits, or with as many more (up to 17, a double's precision) as it takes for a bound
+/// that differs from the value to print differently: a narrow interval reads as narrow
+/// (`0.9110 [0.9105..0.9118]`), never as none (`0.911 [0.91..0.91]`).
+pub fn sig_interval(value: f64, lo: f64, hi: f64, digits: usize) -> [String; 3] {
+    let mut digits = digits.max(1);
+    loop {
+        let text = [value, lo, hi].map(|x| sig(x, digits));
+        let collapsed = (lo != value && text[1] == text[0]) || (hi != value && text[2] == text[0]);
+        if !collapsed || digits >= 17 {
+            return text;
+        }
+        digits += 1;
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::sig;
+    use super::{sig, sig_interval};
+
+    #[test]
+    fn intervals_show_their_width() {
+        let next = f64::from_bits(1.0f64.to_bits() + 1);
+        // (value, lo, hi, digits asked for) and what is printed.
+        type Case = ((f64, f64, f64, usize), [&'static str; 3]);
+        let cases: [Case; 8] = [
+            // Wide enough for the digits asked for: as asked.
+            ((0.911, 0.85, 0.97, 3), ["0.911", "0.850", "0.970"]),
+            // Bounds that round apart from the value: as asked; those that round onto it:
+            // more digits, the same for all three.
+            ((0.911, 0.9105, 0.9118, 3), ["0.911", "0.910", "0.912"]),
+            ((0.911, 0.9106, 0.9114, 3), ["0.9110", "0.9106", "0.9114"]),
+            (
+                (0.911, 0.91099, 0.91102, 2),
+                ["0.91100", "0.91099", "0.91102"],
+            ),
+            // Scientific notation widens the same way.
+            (
+                (1.2345e-6, 1.2341e-6, 1.2349e-6, 3),
+                ["1.2345e-6", "1.2341e-6", "1.2349e-6"],
+            ),
+            // A bound that is the value (an interval closed on one side) needs no more.
+            ((0.5, 0.5, 0.6, 2), ["0.50", "0.50", "0.60"]),
+            ((0.0, 0.0, 1e-9, 3), ["0", "0", "1.00e-9"]),
+            // A bound one double away: 17 digits, a double's whole precision, tell them apart.
+            (
+                (1.0, 1.0, next, 3),
+                [
+                    "1.0000000000000000",
+                    "1.0000000000000000",
+                    "1.0000000000000002",
+                ],
+            ),
+        ];
+        for ((value, lo, hi, digits), expected) in cases {
+            assert_eq!(
+                sig_interval(value, lo, hi, digits),
+                expected,
+                "{value} {lo} {hi}"
+            );
+        }
+        // Not finite: as sig prints it.
+        assert_eq!(sig_interval(f64::NAN, 0.0, 1.0, 3)[0], "NaN");
+    }
 
     #[test]
     fn significant_digits() {

@@ -71,26 +71,35 @@ fn register_font() {
     });
 }
 
+/// The image format `path` names by its extension (`svg` or `png`, lower case), or the
+/// error: checked before the work whose figures it would hold.
+pub fn check_format(path: &Path) -> Result<String, PlotError> {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .filter(|e| e == "svg" || e == "png")
+        .ok_or_else(|| PlotError::Format {
+            path: path.display().to_string(),
+        })
+}
+
 /// Figures stacked vertically in one image; `.svg` or `.png` by `path`'s extension.
 pub fn write(path: &Path, figures: &[Figure]) -> Result<(), PlotError> {
     let name = path.display().to_string();
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
+    let ext = check_format(path)?;
     let size = image_size(figures)?;
     register_font();
     let draw = |e: String| PlotError::Draw {
         path: name.clone(),
         message: e,
     };
-    match ext.as_deref() {
-        Some("svg") => {
+    match ext.as_str() {
+        "svg" => {
             let root = SVGBackend::new(path, size).into_drawing_area();
             draw_figures(&root, figures).map_err(draw)?;
             root.present().map_err(|e| draw(e.to_string()))
         }
-        Some("png") => {
+        "png" => {
             let root = BitMapBackend::new(path, size).into_drawing_area();
             draw_figures(&root, figures).map_err(draw)?;
             root.present().map_err(|e| draw(e.to_string()))

@@ -2,7 +2,7 @@
 //! IEEE-952 terms with intervals in SI and conventional units, the classic slope read-outs
 //! and the PSD read-outs side by side. Every column names its unit.
 
-use super::{NOISE_TERMS, sig, support_of, term_of};
+use super::{NOISE_TERMS, sig, sig_interval, support_of, term_of};
 use crate::analysis::fit::{NoiseFit, POOR_FIT_P};
 use crate::analysis::low_pass::LowPassSource;
 use crate::analysis::pipeline::{ChannelResult, Options};
@@ -78,24 +78,14 @@ fn fit_rows(out: &mut String, r: &ChannelResult) {
     for term in NOISE_TERMS {
         let t = term_of(fit, term);
         let si = units::si(r.kind, term, t.value);
-        let line = format!(
-            "  {term:?} = {} [{} .. {}] {}",
-            sig(t.value, 3),
-            sig(t.lo, 3),
-            sig(t.hi, 3),
-            si.unit
-        );
+        let [value, lo, hi] = sig_interval(t.value, t.lo, t.hi, 3);
+        let line = format!("  {term:?} = {value} [{lo} .. {hi}] {}", si.unit);
         let conventional = if r.kind == SensorKind::Other {
             String::new()
         } else {
-            let c = units::conventional(r.kind, term, t.value);
-            format!(
-                "= {} [{} .. {}] {}",
-                sig(c.value, 3),
-                sig(units::conventional(r.kind, term, t.lo).value, 3),
-                sig(units::conventional(r.kind, term, t.hi).value, 3),
-                c.unit
-            )
+            let c = |v| units::conventional(r.kind, term, v);
+            let [value, lo, hi] = sig_interval(c(t.value).value, c(t.lo).value, c(t.hi).value, 3);
+            format!("= {value} [{lo} .. {hi}] {}", c(t.value).unit)
         };
         let detected = if support_of(fit, term).detected {
             ""
@@ -124,12 +114,12 @@ fn low_pass_note(fit: &NoiseFit) -> Option<String> {
             sig(lp.cutoff_hz, 4),
             lp.filter
         ),
-        LowPassSource::Fitted => format!(
-            "low-pass fitted to the spectrum: cutoff {} Hz [{} .. {}] (generic two-pole)",
-            sig(lp.cutoff_hz, 3),
-            sig(lp.cutoff_lo_hz, 3),
-            sig(lp.cutoff_hi_hz, 3)
-        ),
+        LowPassSource::Fitted => {
+            let [cutoff, lo, hi] = sig_interval(lp.cutoff_hz, lp.cutoff_lo_hz, lp.cutoff_hi_hz, 3);
+            format!(
+                "low-pass fitted to the spectrum: cutoff {cutoff} Hz [{lo} .. {hi}] (generic two-pole)"
+            )
+        }
     })
 }
 
@@ -233,7 +223,8 @@ fn psd_row(out: &mut String, r: &ChannelResult) {
     };
     let cell = |x: &PsdReadout| {
         if x.resolved() {
-            format!("{} [{}..{}]", sig(x.value, 3), sig(x.lo, 3), sig(x.hi, 3))
+            let [value, lo, hi] = sig_interval(x.value, x.lo, x.hi, 3);
+            format!("{value} [{lo}..{hi}]")
         } else {
             format!("< {}", sig(x.hi, 2))
         }

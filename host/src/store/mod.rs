@@ -10,6 +10,7 @@
 //! <store>/catalog.sqlite        the catalog (WAL mode; schema in schema.rs)
 //! <store>/sessions/<id>.imucap  a capture's raw bytes
 //! <store>/sessions/<id>.<ext>   an imported file (csv, txt, npy, ...)
+//! <store>/.reserve-<id>         room to close session <id> on a full disk, while it records
 //! ```
 
 mod calibrations;
@@ -27,7 +28,7 @@ pub use integrity::{CountsSeen, Problem, Repair};
 pub use location::{ENV, locate};
 pub use schema::VERSION as SCHEMA_VERSION;
 pub use session::{Analysis, Board, Counts, ImportSpec, Kind, Session, State};
-pub use writer::{End, RawSink, SYNC_INTERVAL, SessionWriter};
+pub use writer::{End, RESERVE_BYTES, RawSink, STOPPED, SYNC_INTERVAL, SessionWriter};
 
 use rusqlite::{Connection, OptionalExtension, params};
 use std::path::{Path, PathBuf};
@@ -455,6 +456,8 @@ impl Store {
             if let Some(session) = self.get(id)? {
                 catalog::recover(&self.conn, &session).map_err(self.sql())?;
             }
+            // The space its recorder held for closing it (see `writer`).
+            let _ = std::fs::remove_file(writer::reserve_path(&self.dir, id));
         }
         Ok(())
     }

@@ -148,11 +148,12 @@ pub struct Session {
 }
 
 impl Session {
-    /// The state as shown to a user: `incomplete (interrupted)` says why.
+    /// The state as shown to a user: `incomplete (interrupted)`, `complete (interrupted by
+    /// the user)` say why.
     pub fn state_text(&self) -> String {
         match &self.end_reason {
-            Some(reason) if self.state == State::Incomplete => {
-                format!("incomplete ({reason})")
+            Some(reason) if self.state != State::Recording => {
+                format!("{} ({reason})", self.state.as_str())
             }
             _ => self.state.as_str().to_string(),
         }

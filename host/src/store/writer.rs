@@ -2,6 +2,11 @@
 //! arrive, flushes and fsyncs at least every [`SYNC_INTERVAL`], and keeps the catalog's
 //! counts and heartbeat current, so a recorder killed at any moment leaves a listed,
 //! readable session that lacks at most the last interval of data.
+//!
+//! A disk that fills up fails the catalog as well as the raw file: closing the session needs
+//! a few pages of the catalog's write-ahead log. So each recording holds a small reserve
+//! file ([`RESERVE_BYTES`], `<store>/.reserve-<id>`), released just before the session is
+//! closed: the end and its real reason reach the catalog even on a full disk.
 
 use super::session::{Board, Counts};
 use super::{StoreError, catalog, clock};
@@ -9,18 +14,25 @@ use protocol::DeviceInfo;
 use rusqlite::Connection;
 use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Instant, SystemTime};
 
 /// The longest time received bytes stay in memory before they are on disk (flushed and
 /// fsync'd): half the promised second, so a slow loop iteration cannot stretch it past one.
 pub const SYNC_INTERVAL: std::time::Duration = std::time::Duration::from_millis(500);
 
+/// Room kept free for closing a session on a full disk, bytes: the catalog's closing
+/// transaction writes a few 4 KiB pages (with their 24-byte frame headers) to its
+/// write-ahead log; this is several times that.
+pub const RESERVE_BYTES: usize = 128 * 1024;
+
 /// How a session ended.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum End {
-    /// The source ended, the duration was reached, or the user stopped it (Ctrl-C).
+    /// The source ended or the duration was reached.
     Complete,
+    /// The user stopped it (Ctrl-C): what it holds is whole, but shorter than asked for.
+    Stopped,
     /// Something cut it short (a link error, a disk error); the reason is kept and shown.
     Incomplete(String),
 }
@@ -50,6 +62,43 @@ pub struct SessionWriter {
     /// Counts as last given, written at the next sync.
     counts: Counts,
     board: bool,
+    /// The space reserve, removed when the session is closed.
+    reserve: PathBuf,
+}
+
+/// The space reserve of session `id` in the store `dir`.
+pub(super) fn reserve_path(dir: &Path, id: i64) -> PathBuf {
+    dir.join(format!(".reserve-{id}"))
+}
+
+/// Why a session ended, for a failed write to its file: the system's reason (the session's
+/// own file goes without saying).
+fn write_failed(error: &StoreError) -> String {
+    match error {
+        StoreError::Io { source, .. } => format!("write failed: {source}"),
+        other => format!("write failed: {other}"),
+    }
+}
+
+/// Hold [`RESERVE_BYTES`] at `path`. The bytes vary (a pseudo-random sequence), so neither a
+/// sparse file nor a compressing file system can hold them for free.
+fn reserve(path: &Path) -> std::io::Result<()> {
+    let mut state: u64 = 0x2545_F491_4F6C_DD1D;
+    let bytes: Vec<u8> = (0..RESERVE_BYTES)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state as u8
+        })
+        .collect();
+    let mut file = OpenOptions::new()
+        .create(true)
+        .truncate(true)
+        .write(true)
+        .open(path)?;
+    file.write_all(&bytes)?;
+    file.sync_data()
 }
 
 impl SessionWriter {
@@ -67,6 +116,9 @@ impl SessionWriter {
             .append(true)
             .open(&path)
             .map_err(StoreError::io(&path))?;
+        let dir = catalog_path.parent().unwrap_or(Path::new("."));
+        let reserve_file = reserve_path(dir, id);
+        reserve(&reserve_file).map_err(StoreError::io(&reserve_file))?;
         let conn = catalog::connect(&catalog_path)?;
         Ok(SessionWriter {
             id,
@@ -80,6 +132,7 @@ impl SessionWriter {
             last_sync: Instant::now(),
             counts: Counts::default(),
             board: false,
+            reserve: reserve_file,
         })
     }
 
@@ -169,35 +222,50 @@ impl SessionWriter {
     }
 
     fn write_counts(&mut self) -> Result<(), StoreError> {
-        let mut counts = self.counts.clone();
-        counts.bytes = self.bytes;
-        let now = clock::unix_seconds(SystemTime::now());
-        catalog::set_counts(&self.conn, self.id, &counts, now).map_err(self.sql_error())?;
+        catalog::set_counts(&self.conn, self.id, &self.final_counts(), now())
+            .map_err(self.sql_error())?;
         Ok(())
+    }
+
+    /// The counts as last given, with the bytes accepted (or, after a failure, on disk).
+    fn final_counts(&self) -> Counts {
+        Counts {
+            bytes: self.bytes,
+            ..self.counts.clone()
+        }
     }
 
     /// Close the session: everything onto disk, final counts, end time and state. If the
     /// disk fails here, the session is still closed as incomplete with that reason, and the
-    /// disk error is returned.
+    /// disk error is returned. The space reserve is released first, so that a full disk
+    /// still takes the closing.
     pub fn finish(mut self, end: End, counts: &Counts) -> Result<i64, StoreError> {
         self.counts = counts.clone();
         let synced = self.sync();
         let end = match (&synced, end) {
-            (Err(e), _) => End::Incomplete(format!("disk error: {e}")),
+            (Err(e), _) => End::Incomplete(write_failed(e)),
             (Ok(()), end) => end,
         };
         let (state, reason) = match &end {
             End::Complete => ("complete", None),
+            End::Stopped => ("complete", Some(STOPPED)),
             End::Incomplete(reason) => ("incomplete", Some(reason.as_str())),
         };
         if synced.is_err() {
             // Count only what reached the file.
             self.bytes = std::fs::metadata(&self.path).map_or(0, |m| m.len());
         }
-        self.write_counts()?;
-        catalog::set_end(&self.conn, self.id, state, reason, SystemTime::now())
-            .map_err(self.sql_error())?;
-        synced.map(|()| self.id)
+        let _ = std::fs::remove_file(&self.reserve);
+        let closed = self
+            .conn
+            .unchecked_transaction()
+            .and_then(|tx| {
+                catalog::set_counts(&tx, self.id, &self.final_counts(), now())?;
+                catalog::set_end(&tx, self.id, state, reason, SystemTime::now())?;
+                tx.commit()
+            })
+            .map_err(self.sql_error());
+        closed.and(synced).map(|()| self.id)
     }
 
     /// Mark the session incomplete after a failure, keeping whatever reached the disk.
@@ -206,8 +274,21 @@ impl SessionWriter {
         self.finish(End::Incomplete(reason.to_string()), &counts)
     }
 
+    /// Close the session after its file could not be written: incomplete, with the
+    /// system's reason, keeping whatever reached the disk.
+    pub fn write_failed(self, error: &StoreError, counts: &Counts) -> Result<i64, StoreError> {
+        self.finish(End::Incomplete(write_failed(error)), counts)
+    }
+
     fn sql_error(&self) -> impl FnOnce(rusqlite::Error) -> StoreError + use<> {
         let path = self.catalog.clone();
         move |source| StoreError::Sql { path, source }
     }
+}
+
+/// The end reason of a session the user stopped ([`End::Stopped`]).
+pub const STOPPED: &str = "interrupted by the user";
+
+fn now() -> f64 {
+    clock::unix_seconds(SystemTime::now())
 }

@@ -23,7 +23,12 @@ pub struct AccelArgs {
     pub seconds: f64,
     /// A position's record from a file or stored session instead of a board, e.g.
     /// `--position +x=up_x.csv` (repeat for all six: +x -x +y -y +z -z)
-    #[arg(long = "position", value_name = "AXIS=INPUT", value_parser = parse_position)]
+    #[arg(
+        long = "position",
+        value_name = "AXIS=INPUT",
+        value_parser = parse_position,
+        allow_hyphen_values = true
+    )]
     pub positions: Vec<(GravityAxis, PathBuf)>,
     /// Local gravity, m/s^2 (default: standard gravity 9.80665)
     #[arg(long, conflicts_with = "latitude")]

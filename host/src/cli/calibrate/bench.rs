@@ -9,9 +9,8 @@ use crate::calibration::Sensor;
 use crate::calibration::still::find_motion;
 use crate::capture::StreamDecoder;
 use crate::cli::capture::{
-    PortSpec, open_port, progress_bar, show, start_board, stop_board, virtual_board,
+    PortSpec, board_settings, open_port, progress_bar, show, start_board, stop_board, virtual_board,
 };
-use crate::cli::settings::{accel_range, gyro_range};
 use crate::link::Link;
 use crate::link::virtual_board::SharedSensor;
 use crate::record::Record;
@@ -52,9 +51,8 @@ pub struct Bench {
 
 impl Bench {
     pub fn open(port: &str, args: &BoardArgs) -> Result<Bench> {
-        let settings = SensorSettings::for_rate_and_bandwidth(args.rate, args.bandwidth)
-            .map_err(|e| anyhow!("--rate {} --bandwidth {}: {e}", args.rate, args.bandwidth))?
-            .with_ranges(gyro_range(args.gyro_range)?, accel_range(args.accel_range)?);
+        let settings =
+            board_settings(args.rate, args.bandwidth, args.gyro_range, args.accel_range)?;
         let spec = PortSpec {
             port,
             speed: args.speed,

@@ -44,7 +44,7 @@ pub struct BoardArgs {
     #[arg(long)]
     pub port: Option<String>,
     /// Output rate in Hz
-    #[arg(long, default_value_t = 100.0)]
+    #[arg(long, default_value_t = 100.0, allow_negative_numbers = true)]
     pub rate: f64,
     /// DLPF bandwidth in Hz
     #[arg(long, default_value_t = 42.0)]
