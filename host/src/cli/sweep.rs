@@ -18,7 +18,6 @@ use crate::cli::simulate::parse_duration;
 use crate::cli::stored::{open_store, provenance};
 use crate::link::replay::Speed;
 use crate::recorder::{self, Ending, RecordOptions};
-use crate::report::html::escape;
 use crate::report::plot::{self, Figure, Line, Panel};
 use crate::report::{self, json, sig, sig_interval};
 use crate::sim::chain::white_noise_inflation;
@@ -492,20 +491,44 @@ pub fn figures(rows: &[SweepRow]) -> Vec<Figure> {
     .collect()
 }
 
-/// The table and the figures on one self-contained page.
+/// The sweep's page ([`crate::report::sweep_page`]): the table per setting and axis, every
+/// axis's figure, the folding prediction and the study's Table 2 beside the sweep.
 pub fn html(rows: &[SweepRow]) -> Result<String> {
-    let mut h = String::from(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>imunoise sweep</title>\
-         <style>body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em}\
-         pre{background:#f7f7f7;padding:1em;overflow-x:auto}.svg svg{max-width:100%;height:auto}</style>\
-         </head><body><h1>imunoise sweep</h1>\n",
-    );
-    let _ = writeln!(h, "<pre>{}</pre>", escape(&table(rows)));
-    for figure in figures(rows) {
-        let _ = writeln!(h, "<div class=\"svg\">{}</div>", plot::svg_string(&figure)?);
-    }
-    h.push_str("</body></html>\n");
-    Ok(h)
+    use crate::report::sweep_page::{self, GyroNoise, Published, Setting, SweepPage};
+    let settings: Vec<Setting> = rows
+        .iter()
+        .map(|row| Setting {
+            rate_hz: row.settings.output_rate_hz(),
+            bandwidth_hz: bandwidth(&row.settings),
+            folds: aliases(&row.settings),
+            session_id: row.session_id,
+            session_name: &row.session_name,
+            samples_lost: row.lost,
+            results: &row.results,
+        })
+        .collect();
+    let gyro: Vec<GyroNoise> = paper_comparison(rows)
+        .into_iter()
+        .map(|c| GyroNoise {
+            rate_hz: c.rate_hz,
+            bandwidth_hz: c.bandwidth_hz,
+            folding: c.predicted,
+            datasheet: c.datasheet_predicted,
+            published: c.paper,
+            measured: c.simulated,
+        })
+        .collect();
+    Ok(sweep_page::page(&SweepPage {
+        title: "imunoise sweep",
+        settings: &settings,
+        gyro: &gyro,
+        published: Published {
+            source: "the settings study's Table 2",
+            datasheet_density: DATASHEET_GYRO_DENSITY,
+        },
+        // sweep() analyses every setting with the default options.
+        options: &Options::default(),
+    })?)
 }
 
 #[cfg(test)]

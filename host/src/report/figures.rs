@@ -4,7 +4,8 @@
 //! log-binned, with the PSD read-outs' slope lines dashed).
 
 use super::plot::{Figure, Line, Panel};
-use crate::analysis::pipeline::ChannelResult;
+use crate::analysis::fit::NoiseFit;
+use crate::analysis::pipeline::{ChannelResult, DeviationResult};
 use crate::analysis::psd_terms::PsdReadout;
 use crate::analysis::units::SensorKind;
 use std::f64::consts::PI;
@@ -12,11 +13,7 @@ use std::f64::consts::PI;
 pub fn figures(results: &[ChannelResult]) -> Vec<Figure> {
     let mut groups: Vec<(String, Vec<&ChannelResult>)> = Vec::new();
     for r in results {
-        let title = match r.kind {
-            SensorKind::Gyro => "Gyroscope".to_string(),
-            SensorKind::Accel => "Accelerometer".to_string(),
-            SensorKind::Other => format!("{} ({})", r.name, r.unit),
-        };
+        let title = sensor_title(r);
         match groups.iter_mut().find(|(t, _)| *t == title) {
             Some((_, members)) => members.push(r),
             None => groups.push((title, vec![r])),
@@ -26,6 +23,16 @@ pub fn figures(results: &[ChannelResult]) -> Vec<Figure> {
         .into_iter()
         .map(|(title, members)| figure(title, &members))
         .collect()
+}
+
+/// The sensor a channel's figure row belongs to: "Gyroscope", "Accelerometer", or the channel
+/// itself with its unit.
+pub fn sensor_title(r: &ChannelResult) -> String {
+    match r.kind {
+        SensorKind::Gyro => "Gyroscope".to_string(),
+        SensorKind::Accel => "Accelerometer".to_string(),
+        SensorKind::Other => format!("{} ({})", r.name, r.unit),
+    }
 }
 
 fn figure(title: String, members: &[&ChannelResult]) -> Figure {
@@ -65,9 +72,20 @@ fn deviation_lines(r: &ChannelResult, estimator: usize, color: usize) -> Vec<Lin
     let Some(d) = r.deviations.get(estimator) else {
         return Vec::new();
     };
+    curve_lines(d, r.fit.as_ref().ok(), r.name.clone(), color)
+}
+
+/// A deviation curve shaded with its confidence band, and the fitted IEEE-952 model dashed
+/// over it in the same colour when there is a fit and the curve is of the Allan type.
+pub fn curve_lines(
+    d: &DeviationResult,
+    fit: Option<&NoiseFit>,
+    label: String,
+    color: usize,
+) -> Vec<Line> {
     let dev = &d.deviation;
     let mut lines = vec![Line {
-        label: r.name.clone(),
+        label,
         x: dev.tau.clone(),
         y: dev.dev.clone(),
         band: Some((d.intervals.lo.clone(), d.intervals.hi.clone())),
@@ -81,7 +99,7 @@ fn deviation_lines(r: &ChannelResult, estimator: usize, color: usize) -> Vec<Lin
             | crate::analysis::Estimator::Adev
             | crate::analysis::Estimator::Totdev
     );
-    if let (Ok(fit), true) = (&r.fit, allan_type) {
+    if let (Some(fit), true) = (fit, allan_type) {
         lines.push(Line {
             label: String::new(),
             x: dev.tau.clone(),

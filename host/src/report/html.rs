@@ -13,7 +13,7 @@ use std::fmt::Write;
 /// The stylesheet every report page shares.
 pub const STYLE: &str = "body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}\
     table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .6em;text-align:right}\
-    th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}.svg svg{max-width:100%;height:auto}\
+    th{background:#f3f3f3}td{white-space:nowrap}td:first-child,th:first-child{text-align:left}.svg svg{max-width:100%;height:auto}\
     pre{background:#f7f7f7;padding:1em;overflow-x:auto}.warn{color:#a40}";
 
 pub fn page(
@@ -21,13 +21,7 @@ pub fn page(
     options: &Options,
     results: &[ChannelResult],
 ) -> Result<String, PlotError> {
-    let mut h = String::new();
-    let title = format!("imunoise — {}", escape(&record.source));
-    let _ = write!(
-        h,
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>\
-         <style>{STYLE}</style></head><body>\n<h1>{title}</h1>\n"
-    );
+    let mut h = open_page(&format!("imunoise — {}", record.source));
     let _ = writeln!(
         h,
         "<p>{} channel(s), {} samples at {} Hz ({} s). Intervals: {} % two-sided.</p>",
@@ -71,6 +65,23 @@ pub fn page(
         "<h2>Summary as printed</h2><pre>{}</pre>",
         escape(&table::render(record, options, results))
     );
+    conventions_list(&mut h, options);
+    close_page(&mut h);
+    Ok(h)
+}
+
+/// The head of a report page (the shared [`STYLE`]) and its `title` as the heading; `title`
+/// is plain text.
+pub fn open_page(title: &str) -> String {
+    let title = escape(title);
+    format!(
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>\
+         <style>{STYLE}</style></head><body>\n<h1>{title}</h1>\n"
+    )
+}
+
+/// The conventions every output states ([`conventions`]) as a section.
+pub fn conventions_list(h: &mut String, options: &Options) {
     h.push_str("<h2>Conventions</h2><ul>\n");
     if let Some(map) = conventions(options).as_object() {
         for (k, v) in map {
@@ -81,12 +92,16 @@ pub fn page(
             );
         }
     }
+    h.push_str("</ul>\n");
+}
+
+/// The version line and the end of a page begun with [`open_page`].
+pub fn close_page(h: &mut String) {
     let _ = writeln!(
         h,
-        "</ul><p>imunoise {}</p></body></html>",
+        "<p>imunoise {}</p></body></html>",
         env!("CARGO_PKG_VERSION")
     );
-    Ok(h)
 }
 
 fn terms_table(h: &mut String, r: &ChannelResult) {

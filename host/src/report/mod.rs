@@ -9,6 +9,7 @@ pub mod json;
 pub mod kalibr;
 pub mod plot;
 pub mod progress;
+pub mod sweep_page;
 pub mod table;
 pub mod yaml;
 
