@@ -97,10 +97,11 @@ fn an_unstreamable_setting_is_refused_naming_the_firmwares_limit() {
 
 /// The paper's finding on the virtual board: a 256 Hz bandwidth at 50 Hz output inflates
 /// the gyro's white noise about 3.5 times relative to 200 Hz with 42 Hz (the folding
-/// prediction is 3.535 / 1.006).
+/// prediction is 3.535 / 1.006). Its HTML report has the sweep's tables and figures.
 #[test]
 fn the_sweep_reproduces_the_papers_finding() {
     let dir = store("board-sweep");
+    let report = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("board-sweep.html");
     let out = imunoise(
         &dir,
         &[
@@ -113,8 +114,16 @@ fn the_sweep_reproduces_the_papers_finding() {
             "10m",
             "--speed",
             "max",
+            "--report",
+            report.to_str().unwrap(),
         ],
     );
+    let html = std::fs::read_to_string(&report).unwrap();
+    // Sessions, gyro, accelerometer and temperature terms, folding, the unit readings and the
+    // study's Table 2; a figure per sensor.
+    assert_eq!(html.matches("<table>").count(), 7);
+    assert_eq!(html.matches("<svg").count(), 3);
+    assert!(html.contains("<td>0.01197</td>") && html.contains("Unit assumed: deg/sqrt(s)"));
     let table = String::from_utf8_lossy(&out.stdout);
     let n_of = |prefix: &str| -> f64 {
         let line = table

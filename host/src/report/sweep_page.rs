@@ -9,7 +9,7 @@ use super::figures::{curve_lines, sensor_title};
 use super::html::{close_page, conventions_list, escape, open_page};
 use super::plot::{self, Figure, Panel, PlotError};
 use super::table::{goodness_line, poor_fit_warning};
-use super::{sig, term_of};
+use super::{sig, sig_interval, term_of};
 use crate::analysis::fit::Term;
 use crate::analysis::pipeline::{ChannelResult, Options};
 use crate::analysis::units::{self, NoiseTerm, SensorKind, rad_to_deg};
@@ -123,9 +123,10 @@ fn label(rate_hz: f64, bandwidth_hz: f64) -> String {
     format!("{}/{} Hz", Hz(rate_hz), Hz(bandwidth_hz))
 }
 
-/// A value and its interval's bounds with three significant digits.
+/// A value and its interval's bounds with three significant digits, or as many more as
+/// show the interval's width.
 fn interval(t: Term) -> [String; 3] {
-    [t.value, t.lo, t.hi].map(|x| sig(x, 3))
+    sig_interval(t.value, t.lo, t.hi, 3)
 }
 
 fn intro(h: &mut String, p: &SweepPage) {
