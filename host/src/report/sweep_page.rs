@@ -302,7 +302,8 @@ fn reference(gyro: &[GyroNoise]) -> Option<&GyroNoise> {
 /// records), and that relative half-width.
 fn ratio(a: Term, b: Term) -> Option<(f64, f64)> {
     let half = |t: Term| (t.hi - t.lo) / 2.0 / t.value;
-    (a.value > 0.0 && b.value > 0.0).then(|| {
+    // An interval of no width (a hand-written row) has no scale to measure a ratio in.
+    (a.value > 0.0 && b.value > 0.0 && a.hi > a.lo && b.hi > b.lo).then(|| {
         (
             a.value / b.value,
             (half(a).powi(2) + half(b).powi(2)).sqrt(),
