@@ -156,7 +156,7 @@ fn paper_experiment(duration: &str, store: &Store) -> Result<()> {
     let reports = store.dir().join("reports");
     std::fs::create_dir_all(&reports).with_context(|| format!("creating {}", reports.display()))?;
     let path = reports.join(format!("demo-{}.html", compact(SystemTime::now())));
-    std::fs::write(&path, sweep::html(&rows)?)
+    std::fs::write(&path, sweep::html(&rows, "imunoise demo")?)
         .with_context(|| format!("writing {}", path.display()))?;
     println!("\nreport: {}", path.display());
     println!(

@@ -19,6 +19,7 @@ use crate::cli::stored::{open_store, provenance};
 use crate::link::replay::Speed;
 use crate::recorder::{self, Ending, RecordOptions};
 use crate::report::plot::{self, Figure, Line, Panel};
+use crate::report::sweep_page::GyroNoise;
 use crate::report::{self, json, sig, sig_interval};
 use crate::sim::chain::white_noise_inflation;
 use crate::sim::dlpf::{DlpfDesign, Sensor};
@@ -110,7 +111,7 @@ pub fn run(args: &SweepArgs, store: Option<&Path>) -> Result<()> {
         println!("wrote figure: {}", path.display());
     }
     if let Some(path) = &args.report {
-        std::fs::write(path, html(&rows)?)
+        std::fs::write(path, html(&rows, "imunoise sweep")?)
             .with_context(|| format!("writing {}", path.display()))?;
         println!("wrote HTML report: {}", path.display());
     }
@@ -331,24 +332,10 @@ pub fn folding_prediction(s: &SensorSettings) -> f64 {
     white_noise_inflation(&design, 1 + usize::from(s.smplrt_div))
 }
 
-/// One setting of the sweep beside the study's Table 2, ARW in [`PAPER_ARW_UNIT`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct PaperComparison {
-    pub rate_hz: f64,
-    pub bandwidth_hz: f64,
-    /// The folding prediction N / N0.
-    pub predicted: f64,
-    /// The datasheet's density (as N) times the prediction.
-    pub datasheet_predicted: f64,
-    /// The study's value at this setting, if it has one.
-    pub paper: Option<f64>,
-    /// The sweep's gyro N, mean of the gyro axes; the interval is the axes' mean half-widths
-    /// divided by sqrt(axes) (independent axes of equal noise).
-    pub simulated: Option<Term>,
-}
-
-/// The sweep's settings beside the study's Table 2.
-pub fn paper_comparison(rows: &[SweepRow]) -> Vec<PaperComparison> {
+/// The gyro's N per setting beside the study's Table 2, in [`PAPER_ARW_UNIT`]: the sweep's N
+/// is the mean of the gyro axes, its interval the axes' mean half-widths divided by
+/// sqrt(axes) (independent axes of equal noise).
+pub fn paper_comparison(rows: &[SweepRow]) -> Vec<GyroNoise> {
     rows.iter()
         .map(|row| {
             let s = &row.settings;
@@ -371,16 +358,16 @@ pub fn paper_comparison(rows: &[SweepRow]) -> Vec<PaperComparison> {
                     hi: rad_to_deg(value + above / count.sqrt()),
                 }
             });
-            PaperComparison {
+            GyroNoise {
                 rate_hz: rate,
                 bandwidth_hz: bw,
-                predicted,
-                datasheet_predicted: DATASHEET_GYRO_DENSITY / 2f64.sqrt() * predicted,
-                paper: PAPER_TABLE_2
+                folding: predicted,
+                datasheet: DATASHEET_GYRO_DENSITY / 2f64.sqrt() * predicted,
+                published: PAPER_TABLE_2
                     .iter()
                     .find(|p| p.0 == rate && p.1 == bw)
                     .map(|p| p.2),
-                simulated,
+                measured: simulated,
             }
         })
         .collect()
@@ -388,7 +375,7 @@ pub fn paper_comparison(rows: &[SweepRow]) -> Vec<PaperComparison> {
 
 /// [`paper_comparison`] as text: absolute values, and ratios to the 200 Hz / 42 Hz setting
 /// (where nothing folds) when it is in the sweep.
-pub fn paper_table(rows: &[PaperComparison]) -> String {
+pub fn paper_table(rows: &[GyroNoise]) -> String {
     let mut out = format!(
         "\nGyro ARW beside the settings study's Table 2, in {PAPER_ARW_UNIT} (= deg/s/sqrt(Hz), the \
          Allan deviation at 1 s; the study's unit is assumed: docs/signal_chain.md)\n"
@@ -415,11 +402,11 @@ pub fn paper_table(rows: &[PaperComparison]) -> String {
     };
     for r in rows {
         let opt = |v: Option<f64>| v.map_or_else(|| "-".to_string(), |v| sig(v, 3));
-        let vs_datasheet = r.paper.map_or_else(
+        let vs_datasheet = r.published.map_or_else(
             || "-".to_string(),
-            |p| format!("{:+.0} %", (p / r.datasheet_predicted - 1.0) * 100.0),
+            |p| format!("{:+.0} %", (p / r.datasheet - 1.0) * 100.0),
         );
-        let sweep = r.simulated.map_or_else(
+        let sweep = r.measured.map_or_else(
             || "-".to_string(),
             |t| {
                 let [value, lo, hi] = sig_interval(t.value, t.lo, t.hi, 4);
@@ -430,16 +417,16 @@ pub fn paper_table(rows: &[PaperComparison]) -> String {
             out,
             "{:<12} {:>8.3} {:>10} {:>8} {:>8} {:>28} | {:>8} {:>6} {:>6}",
             format!("{}/{} Hz", Hz(r.rate_hz), Hz(r.bandwidth_hz)),
-            r.predicted,
-            sig(r.datasheet_predicted, 3),
-            opt(r.paper),
+            r.folding,
+            sig(r.datasheet, 3),
+            opt(r.published),
             vs_datasheet,
             sweep,
-            ratio(Some(r.predicted), reference.map(|x| x.predicted)),
-            ratio(r.paper, reference.and_then(|x| x.paper)),
+            ratio(Some(r.folding), reference.map(|x| x.folding)),
+            ratio(r.published, reference.and_then(|x| x.published)),
             ratio(
-                r.simulated.map(|t| t.value),
-                reference.and_then(|x| x.simulated.map(|t| t.value))
+                r.measured.map(|t| t.value),
+                reference.and_then(|x| x.measured.map(|t| t.value))
             ),
         );
     }
@@ -493,8 +480,8 @@ pub fn figures(rows: &[SweepRow]) -> Vec<Figure> {
 
 /// The sweep's page ([`crate::report::sweep_page`]): the table per setting and axis, every
 /// axis's figure, the folding prediction and the study's Table 2 beside the sweep.
-pub fn html(rows: &[SweepRow]) -> Result<String> {
-    use crate::report::sweep_page::{self, GyroNoise, Published, Setting, SweepPage};
+pub fn html(rows: &[SweepRow], title: &str) -> Result<String> {
+    use crate::report::sweep_page::{self, Published, Setting, SweepPage};
     let settings: Vec<Setting> = rows
         .iter()
         .map(|row| Setting {
@@ -507,19 +494,9 @@ pub fn html(rows: &[SweepRow]) -> Result<String> {
             results: &row.results,
         })
         .collect();
-    let gyro: Vec<GyroNoise> = paper_comparison(rows)
-        .into_iter()
-        .map(|c| GyroNoise {
-            rate_hz: c.rate_hz,
-            bandwidth_hz: c.bandwidth_hz,
-            folding: c.predicted,
-            datasheet: c.datasheet_predicted,
-            published: c.paper,
-            measured: c.simulated,
-        })
-        .collect();
+    let gyro = paper_comparison(rows);
     Ok(sweep_page::page(&SweepPage {
-        title: "imunoise sweep",
+        title,
         settings: &settings,
         gyro: &gyro,
         published: Published {
@@ -562,14 +539,11 @@ mod tests {
             (1.418, 0.00501, 0.00283, -0.44),
         ];
         for (row, (fold, ds, paper, off)) in table.iter().zip(expected) {
-            assert!((row.predicted - fold).abs() < 5e-4, "{row:?}");
-            assert!((row.datasheet_predicted / ds - 1.0).abs() < 2e-3, "{row:?}");
-            assert_eq!(row.paper, Some(paper));
-            assert!(
-                (paper / row.datasheet_predicted - 1.0 - off).abs() < 0.005,
-                "{row:?}"
-            );
-            assert!(row.simulated.is_none());
+            assert!((row.folding - fold).abs() < 5e-4, "{row:?}");
+            assert!((row.datasheet / ds - 1.0).abs() < 2e-3, "{row:?}");
+            assert_eq!(row.published, Some(paper));
+            assert!((paper / row.datasheet - 1.0 - off).abs() < 0.005, "{row:?}");
+            assert!(row.measured.is_none());
         }
         // The unit assumption: N of the datasheet is 0.00354 deg/sqrt(s); the study's
         // unfolded 200/42 read as deg/sqrt(h) would be 63 times below it, as rad/sqrt(s) 55
@@ -637,18 +611,18 @@ mod tests {
         let table = paper_comparison(&rows);
         println!("{}", paper_table(&table));
         // One standard deviation from the 68.3 % interval, in deg/sqrt(s).
-        let sim = |r: &PaperComparison| {
-            let t = r.simulated.expect("a gyro fit");
+        let sim = |r: &GyroNoise| {
+            let t = r.measured.expect("a gyro fit");
             (t.value, (t.hi - t.lo) / 2.0)
         };
         let n0_deg = rad_to_deg(n0);
         for r in &table {
             let (n, sd) = sim(r);
             assert!(
-                (n - r.predicted * n0_deg).abs() < 3.0 * sd,
+                (n - r.folding * n0_deg).abs() < 3.0 * sd,
                 "{r:?}: N / N0 {} against {}",
                 n / n0_deg,
-                r.predicted
+                r.folding
             );
         }
         for bw in [256.0, 42.0] {
