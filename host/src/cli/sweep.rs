@@ -18,7 +18,7 @@ use crate::cli::simulate::parse_duration;
 use crate::cli::stored::{open_store, provenance};
 use crate::link::replay::Speed;
 use crate::recorder::{self, Ending, RecordOptions};
-use crate::report::plot::{self, Figure, Line, Panel};
+use crate::report::plot::{self, Figure};
 use crate::report::sweep_page::GyroNoise;
 use crate::report::{self, json, sig, sig_interval};
 use crate::sim::chain::white_noise_inflation;
@@ -440,51 +440,16 @@ pub fn paper_table(rows: &[GyroNoise]) -> String {
     out
 }
 
-/// One figure per sensor, the Allan deviation of its x axis at every setting.
+/// The sweep's figures for `--plot`: every axis's Allan deviation at every setting, as on
+/// the page.
 pub fn figures(rows: &[SweepRow]) -> Vec<Figure> {
-    [
-        ("Gyroscope", "gx", "rad/s"),
-        ("Accelerometer", "ax", "m/s^2"),
-    ]
-    .iter()
-    .map(|(title, axis, unit)| Figure {
-        title: format!("{title}: every setting"),
-        panels: vec![Panel {
-            title: format!("{axis}, overlapping Allan deviation (shaded: confidence interval)"),
-            x_label: "tau (s)".into(),
-            y_label: format!("deviation ({unit})"),
-            lines: rows
-                .iter()
-                .enumerate()
-                .filter_map(|(i, row)| {
-                    let r = row.results.iter().find(|r| r.name == *axis)?;
-                    let d = &r.fit_curve;
-                    Some(Line {
-                        label: format!(
-                            "{}/{} Hz",
-                            Hz(row.settings.output_rate_hz()),
-                            Hz(bandwidth(&row.settings))
-                        ),
-                        x: d.deviation.tau.clone(),
-                        y: d.deviation.dev.clone(),
-                        band: Some((d.intervals.lo.clone(), d.intervals.hi.clone())),
-                        color: i,
-                        dashed: false,
-                    })
-                })
-                .collect(),
-        }],
-    })
-    .collect()
+    crate::report::sweep_page::figures(&settings_of(rows))
 }
 
-/// The sweep's page ([`crate::report::sweep_page`]): the table per setting and axis, every
-/// axis's figure, the folding prediction and the study's Table 2 beside the sweep.
-pub fn html(rows: &[SweepRow], title: &str) -> Result<String> {
-    use crate::report::sweep_page::{self, Published, Setting, SweepPage};
-    let settings: Vec<Setting> = rows
-        .iter()
-        .map(|row| Setting {
+/// Each row as the page shows a setting.
+fn settings_of(rows: &[SweepRow]) -> Vec<crate::report::sweep_page::Setting<'_>> {
+    rows.iter()
+        .map(|row| crate::report::sweep_page::Setting {
             rate_hz: row.settings.output_rate_hz(),
             bandwidth_hz: bandwidth(&row.settings),
             folds: aliases(&row.settings),
@@ -493,7 +458,14 @@ pub fn html(rows: &[SweepRow], title: &str) -> Result<String> {
             samples_lost: row.lost,
             results: &row.results,
         })
-        .collect();
+        .collect()
+}
+
+/// The sweep's page ([`crate::report::sweep_page`]): the table per setting and axis, every
+/// axis's figure, the folding prediction and the study's Table 2 beside the sweep.
+pub fn html(rows: &[SweepRow], title: &str) -> Result<String> {
+    use crate::report::sweep_page::{self, Published, SweepPage};
+    let settings = settings_of(rows);
     let gyro = paper_comparison(rows);
     Ok(sweep_page::page(&SweepPage {
         title,
