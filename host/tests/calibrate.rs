@@ -422,6 +422,9 @@ fn bad_calibration_inputs_are_named() {
         err.contains("-x=INPUT") && err.contains("exactly once"),
         "{err}"
     );
+    // Refused before the store is opened: none is created.
+    assert!(!err.contains("created a new store"), "{err}");
+    assert!(!store.join("catalog.sqlite").exists());
     let table = store.join("table.txt");
     std::fs::write(&table, "# axis rate record\nx 100 a.csv\nw 100 b.csv\n").unwrap();
     let out = run(

@@ -70,6 +70,24 @@ fn gravity(args: &AccelArgs) -> Result<f64> {
     Ok(g)
 }
 
+/// The six positions in order with their inputs, each given exactly once by `--position`.
+fn positions(args: &AccelArgs) -> Result<Vec<(GravityAxis, &Path)>> {
+    six_positions()
+        .into_iter()
+        .map(|(axis, negative)| {
+            let wanted = GravityAxis { axis, negative };
+            let mut given = args.positions.iter().filter(|(a, _)| *a == wanted);
+            match (given.next(), given.next()) {
+                (Some((_, path)), None) => Ok((wanted, path.as_path())),
+                _ => bail!(
+                    "--position {}=INPUT: give each of the six positions exactly once",
+                    axis_label(axis, negative)
+                ),
+            }
+        })
+        .collect()
+}
+
 pub fn run(args: &AccelArgs, store: Option<&Path>) -> Result<()> {
     let g = gravity(args)?;
     let port = board_or_files(
@@ -77,6 +95,9 @@ pub fn run(args: &AccelArgs, store: Option<&Path>) -> Result<()> {
         !args.positions.is_empty(),
         "--position AXIS=INPUT for each of the six positions",
     )?;
+    // All six named before the store is opened or any file read, so a missing one is said
+    // at once.
+    let positions = port.is_none().then(|| positions(args)).transpose()?;
     let catalog = open_store(store)?;
     let mut provenance = Provenance::default();
     let mut records = Vec::new();
@@ -104,20 +125,7 @@ pub fn run(args: &AccelArgs, store: Option<&Path>) -> Result<()> {
             provenance = Provenance::of_bench(&bench, records[0].2.rate_hz);
         }
         None => {
-            // All six named before any is read, so a missing one is said at once.
-            let mut inputs = Vec::new();
-            for (axis, negative) in six_positions() {
-                let wanted = GravityAxis { axis, negative };
-                let mut given = args.positions.iter().filter(|(a, _)| *a == wanted);
-                let (Some((_, path)), None) = (given.next(), given.next()) else {
-                    bail!(
-                        "--position {}=INPUT: give each of the six positions exactly once",
-                        axis_label(axis, negative)
-                    );
-                };
-                inputs.push((axis, negative, path));
-            }
-            for (axis, negative, path) in inputs {
+            for (GravityAxis { axis, negative }, path) in positions.into_iter().flatten() {
                 let label = axis_label(axis, negative);
                 let record = provenance.load(path, store)?;
                 let m = means(&record, Sensor::Accel)?;
