@@ -243,10 +243,10 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
     pub fn poll(&mut self, out: &mut impl FnMut(&[u8]) -> bool) {
         self.flush_replies(out);
         let now = self.clock.now_us();
-        if self.run.as_ref().is_some_and(|run| run.due(now)) {
-            if let Err(error) = self.drain(out) {
-                self.fault(error);
-            }
+        if self.run.as_ref().is_some_and(|run| run.due(now))
+            && let Err(error) = self.drain(out)
+        {
+            self.fault(error);
         }
         if self.run.is_some() && now >= self.next_health_us {
             self.next_health_us = now.saturating_add(HEALTH_INTERVAL_US);

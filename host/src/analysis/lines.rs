@@ -523,7 +523,7 @@ impl Search<'_> {
             if k < 0 {
                 dft[(-k) as usize].conj()
             } else if k as usize > last {
-                let mirror = if self.n % 2 == 0 {
+                let mirror = if self.n.is_multiple_of(2) {
                     2 * last - k as usize
                 } else {
                     2 * last + 1 - k as usize

@@ -84,7 +84,7 @@ pub fn write_f64(path: &Path, values: &[f64]) -> std::io::Result<()> {
         values.len()
     );
     // The data must start on a 64-byte boundary; the header ends with a newline.
-    while (MAGIC.len() + 4 + header.len() + 1) % 64 != 0 {
+    while !(MAGIC.len() + 4 + header.len() + 1).is_multiple_of(64) {
         header.push(' ');
     }
     header.push('\n');
