@@ -128,7 +128,7 @@ test('1. handshake: info and protocol version through the pty', async () => {
   const info = await json(['info', '--port', pty]);
   assert.equal(info.info.protocol_version, info.host_protocol_version);
   assert.equal(info.info.who_am_i, 0x68, 'the simulated MPU-6050 answers WHO_AM_I');
-  assert.equal(info.info.board_id, 0, 'the emulator build reports board id 0 (no flash chip)');
+  assert.equal(info.info.board_id, '0x0000000000000000', 'the emulator build reports board id 0 (no flash chip)');
   assert.equal(info.info.streaming, false);
   assert.equal(info.info.max_samples_per_batch, 32);
   assert.ok(info.status.uptime_us > 0);
