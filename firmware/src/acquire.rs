@@ -47,9 +47,10 @@
 //! index the old run's grid gives for the restart time, so the time lost shows as a gap the
 //! host counts, and it starts from the period the old run measured.
 
-use crate::driver::{INT_FIFO_OFLOW, Mpu6050};
+use crate::driver::Mpu6050;
 use crate::timing::{Clock, MAX_RATE_ERROR_PERCENT, SampleGrid};
 use embedded_hal::i2c::I2c;
+use protocol::mpu6050::bits::FIFO_OFLOW;
 use protocol::mpu6050::{FIFO_SIZE, SensorSettings};
 use protocol::{ErrorCode, MAX_SAMPLES_PER_BATCH, RawSample, SampleBatch, Status};
 
@@ -280,7 +281,7 @@ impl Acquisition {
             return self.failed(before, e).map(|()| report);
         }
         match dev.int_status() {
-            Ok(s) if s & INT_FIFO_OFLOW == 0 => {}
+            Ok(s) if s & FIFO_OFLOW == 0 => {}
             Ok(_) => {
                 // Overflowed while we read: the burst may be shifted. Discard it.
                 report.overflowed = true;

@@ -16,29 +16,24 @@
 use embedded_hal::delay::DelayNs;
 use embedded_hal::i2c::{Error as _, ErrorKind, I2c, NoAcknowledgeSource};
 use protocol::ErrorCode;
+use protocol::mpu6050::bits::{
+    DATA_RDY, DEVICE_RESET, FIFO_EN_ALL, FIFO_OFLOW, FIFO_RESET, SIGNAL_PATH_RESET_ALL,
+    USER_FIFO_EN,
+};
 use protocol::mpu6050::{Chip, FIFO_SIZE, SensorSettings, chip, reg};
 
 /// Attempts per idempotent transaction before the error is reported.
 pub const ATTEMPTS: u32 = 3;
 
-/// PWR_MGMT_1: DEVICE_RESET (self-clearing) and the value we run with: awake, temperature
-/// sensor on, no cycling, clock from the X gyro's PLL (CLKSEL = 1), which the register map
-/// recommends over the 8 MHz internal oscillator for stability.
-pub const DEVICE_RESET: u8 = 1 << 7;
+/// PWR_MGMT_1 as we run it: awake, temperature sensor on, no cycling, clock from the X
+/// gyro's PLL (CLKSEL = 1), which the register map recommends over the 8 MHz internal
+/// oscillator for stability.
 pub const PWR_MGMT_1_RUN: u8 = 0x01;
-/// SIGNAL_PATH_RESET: reset the gyro, accel and temperature signal paths.
-pub const SIGNAL_PATH_RESET_ALL: u8 = 0b111;
-/// USER_CTRL bits.
-pub const USER_FIFO_EN: u8 = 1 << 6;
-pub const USER_FIFO_RESET: u8 = 1 << 2;
-/// FIFO_EN: temperature, gyro x/y/z, accel: the 14-byte sample of
-/// [`protocol::RawSample::from_fifo_bytes`]. Temperature is in the FIFO so that every
-/// sample carries the temperature it was taken at (the drift analysis needs it).
-pub const FIFO_EN_ALL: u8 = 0b1111_1000;
-/// INT_ENABLE / INT_STATUS bits. FIFO_OFLOW must be enabled for INT_STATUS to report it;
-/// DATA_RDY drives the optional interrupt pin.
-pub const INT_DATA_RDY: u8 = 1 << 0;
-pub const INT_FIFO_OFLOW: u8 = 1 << 4;
+/// INT_ENABLE as we run it: FIFO_OFLOW must be enabled for INT_STATUS to report it;
+/// DATA_RDY drives the optional interrupt pin. Temperature is in the FIFO
+/// ([`FIFO_EN_ALL`]) so that every sample carries the temperature it was taken at (the drift
+/// analysis needs it).
+pub const INT_ENABLE_RUN: u8 = FIFO_OFLOW | DATA_RDY;
 /// How long the chip needs after DEVICE_RESET before it answers reliably [RM, reg 107].
 pub const RESET_DELAY_MS: u32 = 100;
 
@@ -183,7 +178,7 @@ impl<I2C: I2c> Mpu6050<I2C> {
     /// Select the FIFO channels and interrupt sources, then empty and enable the FIFO.
     pub fn enable_fifo(&mut self) -> Result<(), ErrorCode> {
         self.write_verified(reg::FIFO_EN, FIFO_EN_ALL)?;
-        self.write_verified(reg::INT_ENABLE, INT_FIFO_OFLOW | INT_DATA_RDY)?;
+        self.write_verified(reg::INT_ENABLE, INT_ENABLE_RUN)?;
         self.reset_fifo()
     }
 
@@ -203,7 +198,7 @@ impl<I2C: I2c> Mpu6050<I2C> {
         mut now: impl FnMut() -> u64,
     ) -> Result<(u64, u64), ErrorCode> {
         self.write_reg(reg::USER_CTRL, 0)?;
-        self.write_reg(reg::USER_CTRL, USER_FIFO_RESET)?;
+        self.write_reg(reg::USER_CTRL, FIFO_RESET)?;
         let before = now();
         self.write_reg(reg::USER_CTRL, USER_FIFO_EN)?;
         let after = now();

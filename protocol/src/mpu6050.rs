@@ -116,6 +116,37 @@ pub mod reg {
     pub const WHO_AM_I: u8 = 0x75;
 }
 
+/// Bits within the registers of [`reg`], as the register map names them [RM]; shared by the
+/// firmware's driver and the host's simulated chip, so both speak of one chip.
+pub mod bits {
+    /// PWR_MGMT_1 [RM, reg 107]: reset every register (self-clearing); sleep (set after a
+    /// reset).
+    pub const DEVICE_RESET: u8 = 1 << 7;
+    pub const SLEEP: u8 = 1 << 6;
+    /// SIGNAL_PATH_RESET [RM, reg 104]: the gyro, accel and temperature signal paths.
+    pub const GYRO_RESET: u8 = 1 << 2;
+    pub const ACCEL_RESET: u8 = 1 << 1;
+    pub const TEMP_RESET: u8 = 1 << 0;
+    pub const SIGNAL_PATH_RESET_ALL: u8 = GYRO_RESET | ACCEL_RESET | TEMP_RESET;
+    /// USER_CTRL [RM, reg 106]: FIFO_EN (named USER_FIFO_EN here, apart from the FIFO_EN
+    /// register), FIFO_RESET and SIG_COND_RESET (both self-clearing).
+    pub const USER_FIFO_EN: u8 = 1 << 6;
+    pub const FIFO_RESET: u8 = 1 << 2;
+    pub const SIG_COND_RESET: u8 = 1 << 0;
+    /// INT_ENABLE [RM, reg 56] and INT_STATUS [RM, reg 58]: data ready, FIFO overflow.
+    pub const DATA_RDY: u8 = 1 << 0;
+    pub const FIFO_OFLOW: u8 = 1 << 4;
+    /// FIFO_EN [RM, reg 35]: which sensors' data enter the FIFO.
+    pub const TEMP_FIFO_EN: u8 = 1 << 7;
+    pub const XG_FIFO_EN: u8 = 1 << 6;
+    pub const YG_FIFO_EN: u8 = 1 << 5;
+    pub const ZG_FIFO_EN: u8 = 1 << 4;
+    pub const ACCEL_FIFO_EN: u8 = 1 << 3;
+    /// Temperature, gyro x/y/z and accel: the 14-byte sample of
+    /// [`crate::RawSample::from_fifo_bytes`].
+    pub const FIFO_EN_ALL: u8 = TEMP_FIFO_EN | XG_FIFO_EN | YG_FIFO_EN | ZG_FIFO_EN | ACCEL_FIFO_EN;
+}
+
 /// DLPF_CFG, bits 2:0 of CONFIG [RM, reg 26]: the digital low-pass filter of both sensors.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[repr(u8)]

@@ -42,29 +42,16 @@
 
 use super::imu::{Imu, ImuModel, RawSample, TrueInput};
 use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
+use protocol::mpu6050::bits::{
+    ACCEL_FIFO_EN, DATA_RDY, DEVICE_RESET, FIFO_OFLOW, FIFO_RESET, SIG_COND_RESET, SLEEP,
+    TEMP_FIFO_EN, USER_FIFO_EN, XG_FIFO_EN, YG_FIFO_EN, ZG_FIFO_EN,
+};
 use protocol::mpu6050::{
     DEFAULT_ADDRESS, FIFO_SIZE, RegisterValues, SensorSettings, WHO_AM_I_VALUE, chip_or_mpu6050,
     reg,
 };
 use std::collections::VecDeque;
 use std::time::Duration;
-
-/// PWR_MGMT_1 bits.
-pub const DEVICE_RESET: u8 = 1 << 7;
-pub const SLEEP: u8 = 1 << 6;
-/// USER_CTRL bits.
-pub const USER_FIFO_EN: u8 = 1 << 6;
-pub const FIFO_RESET: u8 = 1 << 2;
-pub const SIG_COND_RESET: u8 = 1 << 0;
-/// INT_ENABLE / INT_STATUS bits.
-pub const DATA_RDY: u8 = 1 << 0;
-pub const FIFO_OFLOW: u8 = 1 << 4;
-/// FIFO_EN bits.
-pub const TEMP_FIFO_EN: u8 = 1 << 7;
-pub const XG_FIFO_EN: u8 = 1 << 6;
-pub const YG_FIFO_EN: u8 = 1 << 5;
-pub const ZG_FIFO_EN: u8 = 1 << 4;
-pub const ACCEL_FIFO_EN: u8 = 1 << 3;
 
 /// The bus errors the simulated device produces.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
