@@ -9,7 +9,7 @@
 # Otherwise (this project's machines and CI, where rustup targets cannot be fetched) it uses
 # Debian's rustc-web compiler and its rust-web-src library sources, same version, extracted
 # with `dpkg -x` into a cache folder — not installed, so rustup's toolchain stays first on PATH
-# — and builds `core` from source with -Zbuild-std. See ../shared/DESIGN.md, Toolchain.
+# — and builds `core` from source with -Zbuild-std. See docs/ARCHITECTURE.md, "Toolchain and memory map".
 #
 # Environment:
 #   IMUNOISE_TOOLCHAIN_CACHE  cache folder (default: ~/.cache/imunoise/toolchain)

@@ -126,7 +126,7 @@ fn the_real_mpu6050_record_in_raw_counts() {
             "{name}: N / published = {ratio}"
         );
         assert!(n["lo"].as_f64().unwrap() <= n["value"].as_f64().unwrap());
-        // PSD: one-sided, and its white level agrees with the Allan N (DESIGN.md, PSD).
+        // PSD: one-sided, and its white level agrees with the Allan N (docs/ARCHITECTURE.md, "Units and conventions").
         assert_eq!(c["psd"]["sided"], "one-sided");
         let n_psd = c["psd_noise"]["N"]["value"].as_f64().unwrap();
         assert!(

@@ -1,4 +1,4 @@
-//! DESIGN.md's PSD convention, end to end: white rate noise with Allan coefficient N has
+//! The PSD convention (docs/ARCHITECTURE.md, "Units and conventions"), end to end: white rate noise with Allan coefficient N has
 //! one-sided PSD 2 N^2, so the PSD route (N = sqrt(S/2)) and the Allan routes (the five-term
 //! fit and the -1/2 slope read-out) must give the same N — and the right one.
 

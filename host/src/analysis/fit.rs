@@ -1,6 +1,6 @@
 //! IEEE-952 noise terms from an Allan variance curve.
 //!
-//! The five-term model (IEEE Std 952-1997, Annex C, Table C.1; DESIGN.md):
+//! The five-term model (IEEE Std 952-1997, Annex C, Table C.1):
 //!
 //! ```text
 //! AVAR(tau) = 3 Q^2 / tau^2 + N^2 / tau + (2 ln2 / pi) B^2 + K^2 tau / 3 + R^2 tau^2 / 2
@@ -1584,7 +1584,7 @@ mod tests {
             .collect()
     }
 
-    /// Test-only overlapping AVAR (DESIGN.md formula) at the given averaging factors.
+    /// Test-only overlapping AVAR (IEEE Std 1139-2008 formula) at the given averaging factors.
     fn oavar(y: &[f64], ms: &[usize]) -> Vec<f64> {
         let tau0 = 1.0 / RATE;
         let x = phase_from_rate(y, tau0);

@@ -1,7 +1,7 @@
 //! The analysis engine: the Allan family of deviations with confidence intervals, the power
 //! spectral density, and the IEEE-952 noise terms read from both.
 //!
-//! Conventions (DESIGN.md, Conventions):
+//! Conventions (docs/ARCHITECTURE.md, "Units and conventions"):
 //! - Estimators work on **phase** data x (for an IMU: the integrated rate, i.e. angle or
 //!   velocity) sampled every `tau0` seconds. Rate data y (rad/s, m/s^2) becomes phase with
 //!   [`phase_from_rate`]: `x[0] = 0, x[k+1] = x[k] + (y[k] - mean(y)) * tau0` — the mean is

@@ -14,7 +14,7 @@
 //!   `L`) Nyquist — the one-sided density, in u^2/Hz;
 //! - the density is the mean of `P` over segments, at `f[j] = j fs / L`, `j = 0..=L/2`.
 //!
-//! Convention (DESIGN.md): the estimate is **one-sided**. White rate noise with Allan
+//! Convention (docs/ARCHITECTURE.md, "Units and conventions"): the estimate is **one-sided**. White rate noise with Allan
 //! coefficient N (AVAR = N^2/tau) has one-sided PSD `2 N^2`; IEEE-952's `S = N^2` is the
 //! two-sided density.
 

@@ -1,6 +1,6 @@
 //! SI <-> conventional units for the IEEE-952 noise terms, and Kalibr's four noise numbers.
 //!
-//! Inside the library everything is SI (DESIGN.md): with u the sensor's unit (rad/s for a
+//! Inside the library everything is SI (docs/ARCHITECTURE.md, "Units and conventions"): with u the sensor's unit (rad/s for a
 //! gyroscope, m/s^2 for an accelerometer), Q in u*s, N in u/sqrt(Hz), B in u, K in
 //! u*sqrt(Hz), R in u/s. Conventional units appear only in printed output, always labelled:
 //!

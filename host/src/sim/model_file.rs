@@ -1,6 +1,6 @@
 //! The simulator's model file (TOML): one table per group, `[gyro]`, `[accel]`,
 //! `[temperature]`, every key optional, SI units (u = rad/s for the gyro, m/s^2 for the
-//! accelerometer, degC for the temperature; DESIGN.md, Units). Example: `examples/mpu6050.toml`.
+//! accelerometer, degC for the temperature; docs/ARCHITECTURE.md, "Units and conventions"). Example: `examples/mpu6050.toml`.
 //!
 //! Noise keys (any group; in `[temperature]` they are the TEMP_OUT reading's noise):
 //! `noise_density` N (u/sqrt(Hz), the Allan coefficient: two-sided density, = the Allan

@@ -1,5 +1,5 @@
 //! Streaming synthesis of one axis's IEEE-952 noise terms, sample by sample, in bounded
-//! memory. Parameters are the Allan coefficients in SI (DESIGN.md, Units), u the axis's unit:
+//! memory. Parameters are the Allan coefficients in SI (docs/ARCHITECTURE.md, "Units and conventions"), u the axis's unit:
 //!
 //! | term | parameter | generated as | Allan variance |
 //! |---|---|---|---|
@@ -515,7 +515,7 @@ mod tests {
                 "{name}: slope {slope} vs {want}"
             );
             if name == "white" {
-                // One-sided level 2 N^2 (DESIGN.md, PSD).
+                // One-sided level 2 N^2 (docs/ARCHITECTURE.md, "Units and conventions").
                 assert!(
                     (intercept / (2.0 * 0.01f64.powi(2)) - 1.0).abs() < 0.05,
                     "{intercept}"

@@ -2,7 +2,7 @@
 // MPU-6050 (sim-device.mjs), its USB CDC bridged to a pseudo-terminal made by socat, and
 // its defmt log (the RTT up-buffer in emulated RAM) decoded by defmt-print.
 //
-// rp2040js quirks handled here (../../shared/DESIGN.md, "Emulated board"):
+// rp2040js quirks handled here (docs/ARCHITECTURE.md, "Testing architecture"):
 // - no bootrom: the flash image is loaded directly, VTOR set past boot2, SP and PC taken
 //   from the vector table (the firmware is built with `--features emulator`, which avoids
 //   the ROM's float and integer routines);
