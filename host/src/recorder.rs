@@ -59,6 +59,9 @@ pub struct Progress {
     pub new_board_errors: Vec<BoardReport>,
     /// Faults the board recovered from since the previous progress report.
     pub new_recoveries: Vec<RecoveryReport>,
+    /// The first failure to update the catalog, once: the recording goes on, since the
+    /// catalog only describes the raw file and is brought up to date at the end.
+    pub catalog_warning: Option<String>,
 }
 
 pub struct Outcome {
@@ -134,6 +137,7 @@ fn run(
     let started = Instant::now();
     let mut buf = vec![0u8; 1 << 16];
     let mut catalog_warned = false;
+    let mut catalog_warning = None;
     let started_us = link.clock_us();
     let mut keepalive = options
         .watch
@@ -155,11 +159,12 @@ fn run(
         if let Err(source) = writer.write(chunk) {
             return Err(fail(writer, decoder, source));
         }
-        if decoder.feed(chunk) > 0
-            && let Some(info) = decoder.info_seen().copied()
+        decoder.feed(chunk);
+        // Until the catalog has taken the board's metadata (it may have failed once).
+        if let Some(info) = decoder.info_seen().copied()
             && let Err(e) = writer.set_board(&info)
         {
-            warn_catalog(&mut catalog_warned, &e);
+            warn_catalog(&mut catalog_warned, &mut catalog_warning, &e);
         }
         if let Some(k) = keepalive.as_mut() {
             match k.after_read(n, link.clock_us(), decoder, link) {
@@ -175,7 +180,7 @@ fn run(
         let counts = Counts::of(decoder, writer.bytes());
         match writer.tick(&counts) {
             Err(source @ StoreError::Io { .. }) => return Err(fail(writer, decoder, source)),
-            Err(e) => warn_catalog(&mut catalog_warned, &e),
+            Err(e) => warn_catalog(&mut catalog_warned, &mut catalog_warning, &e),
             Ok(()) => {}
         }
         let rate_hz = decoder.info_seen().map(|i| i.settings.output_rate_hz());
@@ -196,6 +201,7 @@ fn run(
             rate_hz,
             new_board_errors,
             new_recoveries,
+            catalog_warning: catalog_warning.take(),
         });
         if wanted.is_some_and(|w| expected >= w) {
             break Ending::DurationReached;
@@ -259,10 +265,13 @@ fn fail(writer: SessionWriter, decoder: &StreamDecoder, source: StoreError) -> R
 }
 
 /// The catalog is only a description of the raw file: a failure to update it must not stop
-/// the recording (the counts are recomputed from the file when needed). Say so once.
-fn warn_catalog(warned: &mut bool, error: &StoreError) {
+/// the recording (the counts are recomputed from the file when needed). Say so once, in the
+/// next progress report.
+fn warn_catalog(warned: &mut bool, pending: &mut Option<String>, error: &StoreError) {
     if !*warned {
-        eprintln!("warning: {error}; recording goes on (the catalog is updated at the end)");
+        *pending = Some(format!(
+            "{error}; recording goes on (the catalog is updated at the end)"
+        ));
         *warned = true;
     }
 }
@@ -290,6 +299,61 @@ mod tests {
         };
         let stop = AtomicBool::new(false);
         record(board, store, &options, &stop, &mut |_| {}).unwrap()
+    }
+
+    /// A catalog that refuses updates while a capture runs: the recording goes on to its
+    /// end, and the failure reaches the caller once, in a progress report; the library
+    /// itself prints nothing.
+    #[test]
+    fn a_catalog_failure_is_reported_once_and_the_recording_goes_on() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        let blocker = rusqlite::Connection::open(dir.path().join("catalog.sqlite")).unwrap();
+        blocker
+            .execute_batch(
+                "CREATE TRIGGER block BEFORE UPDATE OF board_id ON sessions \
+                 BEGIN SELECT RAISE(ABORT, 'blocked by the test'); END;",
+            )
+            .unwrap();
+        let mut board = VirtualBoard::new(model_file::example(), 3, 1, Speed::Max).unwrap();
+        let settings = SensorSettings::for_rate_and_bandwidth(200.0, 42.0).unwrap();
+        {
+            let mut b = Board::new(&mut board);
+            b.handshake().unwrap();
+            b.configure(settings).unwrap();
+            b.begin_stream().unwrap();
+        }
+        let options = RecordOptions {
+            duration_s: Some(30.0),
+            ..RecordOptions::default()
+        };
+        let mut warnings = Vec::new();
+        let outcome = record(
+            &mut board,
+            &store,
+            &options,
+            &AtomicBool::new(false),
+            &mut |p| {
+                if let Some(w) = &p.catalog_warning {
+                    warnings.push(w.clone());
+                    // The catalog recovers, so the session can be closed at the end.
+                    blocker.execute_batch("DROP TRIGGER block;").unwrap();
+                }
+            },
+        )
+        .unwrap();
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(
+            warnings[0].contains("blocked by the test")
+                && warnings[0].contains("recording goes on"),
+            "{}",
+            warnings[0]
+        );
+        assert!(matches!(outcome.ending, Ending::DurationReached));
+        assert_eq!(outcome.counts.samples_received, 6000);
+        // The board's metadata, refused once, was written when the catalog came back.
+        let session = store.get(outcome.session_id).unwrap().unwrap();
+        assert_eq!(session.board.map(|b| b.rate_hz), Some(200.0));
     }
 
     /// The unattended night in ten minutes: a sensor clock 3000 ppm fast, a 2 s I2C outage at

@@ -299,13 +299,17 @@ pub(crate) fn progress_bar() -> ProgressBar {
     bar
 }
 
-/// Elapsed and remaining time, samples, losses and data rate.
+/// Elapsed and remaining time, samples, losses and data rate; the board's errors and
+/// recoveries and a catalog warning above the bar as they come.
 pub(crate) fn show(bar: &ProgressBar, p: &Progress) {
     for e in &p.new_board_errors {
         bar.println(format!("board: {e}"));
     }
     for r in &p.new_recoveries {
         bar.println(format!("board: {r}"));
+    }
+    if let Some(w) = &p.catalog_warning {
+        bar.println(format!("warning: {w}"));
     }
     if let Some(wanted) = p.samples_wanted {
         bar.set_length(wanted);

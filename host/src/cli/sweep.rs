@@ -10,7 +10,8 @@ use crate::analysis::pipeline::{self, ChannelResult, Options};
 use crate::analysis::units::{self, NoiseTerm, rad_to_deg};
 use crate::cli::analyze::check_plot;
 use crate::cli::capture::{
-    PortSpec, VirtualBoardArgs, open_port, start_board, stop_board, stop_on_ctrl_c, streamable,
+    PortSpec, VirtualBoardArgs, open_port, show, start_board, stop_board, stop_on_ctrl_c,
+    streamable,
 };
 use crate::cli::output;
 use crate::cli::settings::aliases;
@@ -156,7 +157,7 @@ pub fn sweep(
         };
         let bar = report::progress::bar((seconds * s.output_rate_hz()) as u64, "capturing");
         let outcome = recorder::record(link.as_mut(), store, &options, &stop, &mut |p| {
-            bar.set_position(p.samples_expected)
+            show(&bar, p)
         });
         bar.finish_and_clear();
         stop_board(link.as_mut());

@@ -166,13 +166,13 @@ impl SessionWriter {
         Ok(())
     }
 
-    /// The board's Info: its metadata into the catalog (once), and a default name becomes
+    /// The board's Info: its metadata into the catalog (once it succeeds: a catalog that
+    /// failed is tried again at the next call), and a default name becomes
     /// `YYYYmmdd-HHMMSS-<rate>hz-<bw>hz`.
     pub fn set_board(&mut self, info: &DeviceInfo) -> Result<(), StoreError> {
         if self.board {
             return Ok(());
         }
-        self.board = true;
         let board = Board::of(info);
         let sql = self.sql_error();
         catalog::set_board(&self.conn, self.id, &board).map_err(sql)?;
@@ -194,6 +194,7 @@ impl SessionWriter {
                 )
                 .map_err(self.sql_error())?;
         }
+        self.board = true;
         Ok(())
     }
 
