@@ -359,8 +359,8 @@ fn info_json_has_a_hex_board_id_and_numeric_ranges() {
     assert_eq!(v["status"]["samples_lost"], 0);
 }
 
-/// The help and the README say what the program does, not when it did what: no "now:", "comes
-/// next", "next issue", "works today"; simulate names every format it writes; every sweep of
+/// The help and the README say what the program does, not when it did what (none of the
+/// timeline phrases listed below); simulate names every format it writes; every sweep of
 /// the virtual board in the README runs at `--speed max` (else it takes hours).
 #[test]
 fn help_and_readme_say_what_is() {

@@ -40,8 +40,7 @@ pub fn run(args: &StoreArgs, store: Option<&Path>) -> Result<()> {
                     "store {}: the catalog and the files agree",
                     store.dir().display()
                 );
-            }
-            if !json {
+            } else {
                 for p in &problems {
                     println!("{p}");
                 }

@@ -176,11 +176,15 @@ pub fn analyse(column: &str, times: &[f64]) -> Result<Timing, TimingError> {
     }
     // No sample is missing: the row index is the sample index.
     let (intercept, period) = plain;
-    let deviation = |i: usize| (times[i] - times[i - 1] - period).abs();
-    let mut deviations: Vec<f64> = (1..n).map(deviation).collect();
-    let worst_row = (1..n)
-        .max_by(|&a, &b| deviation(a).total_cmp(&deviation(b)))
-        .unwrap_or(1);
+    // deviations[i - 1] is row i's step's distance from the period.
+    let mut deviations: Vec<f64> = (1..n)
+        .map(|i| (times[i] - times[i - 1] - period).abs())
+        .collect();
+    let (worst_row, worst_deviation) = deviations
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .map_or((1, 0.0), |(i, d)| (i + 1, *d));
     let mid = deviations.len() / 2;
     let step_mad_s = *deviations.select_nth_unstable_by(mid, f64::total_cmp).1;
     let max_offset = (0..n)
@@ -199,7 +203,7 @@ pub fn analyse(column: &str, times: &[f64]) -> Result<Timing, TimingError> {
             step_s: times[worst_row] - times[worst_row - 1],
         },
         max_offset_periods: max_offset / period,
-        uniform: deviation(worst_row) <= UNIFORM_TOLERANCE * period,
+        uniform: worst_deviation <= UNIFORM_TOLERANCE * period,
     })
 }
 
