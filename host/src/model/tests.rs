@@ -74,17 +74,6 @@ fn study(
 }
 
 #[test]
-fn ranges_group_runs() {
-    let tau = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
-    let z = [0.0, 3.0, 2.5, -3.0, 0.0, 2.1];
-    let r = ranges(&tau, &z);
-    assert_eq!(r.len(), 3);
-    assert_eq!((r[0].tau_lo, r[0].tau_hi, r[0].sign), (2.0, 3.0, 1));
-    assert_eq!((r[1].tau_lo, r[1].tau_hi, r[1].sign), (4.0, 4.0, -1));
-    assert_eq!((r[2].tau_lo, r[2].tau_hi, r[2].sign), (6.0, 6.0, 1));
-}
-
-#[test]
 fn model_toml_parses_as_a_model_file() {
     let m = Model {
         terms: NoiseTerms {

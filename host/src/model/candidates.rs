@@ -1,0 +1,279 @@
+//! The candidates of a round: which effects the model can still take ([`probes`]), the one
+//! to name ([`choose`]), the model with it added ([`add`]), and the round's open noise model
+//! ([`open_noise`]) that the regressors and the slow line are judged against.
+
+use super::clean::{Notch, Removal, Tone};
+use super::evidence::{self, Context, Probe};
+use super::refit::{self, Column};
+use super::simulate::Round;
+use super::{Data, Effect, Line, Model, restore, spectrum};
+use crate::analysis::lines::{self, LineOptions};
+use crate::analysis::low_pass::{self, LowPass};
+use crate::analysis::pipeline::LowPassChoice;
+use crate::sim::noise::{NoiseTerms, Sinusoid};
+
+/// Lines as slow as [`LINE_MIN_CYCLES`] per record are searched: a period of a fifth of the
+/// record is five cycles, and such a slow sinusoid is one of the effects to name.
+pub const LINE_MIN_CYCLES: f64 = 4.0;
+
+/// The spectral lines of a cleaned series, as the workflow's line view sees them
+/// ([`lines::detect`] with its default family-wise false-alarm probability).
+pub(super) fn detect_lines(series: &[f64], rate_hz: f64) -> Vec<Line> {
+    let options = LineOptions {
+        min_cycles: LINE_MIN_CYCLES,
+        ..LineOptions::default()
+    };
+    lines::detect(series, rate_hz, &options)
+        .map(|found| {
+            found
+                .into_iter()
+                .map(|l| Line {
+                    freq_hz: l.freq_hz,
+                    amplitude: l.amplitude,
+                    width_hz: l.width_hz,
+                    statistic: l.statistic,
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// The candidate to name, leaving out those `taken_back` in this round: a passing
+/// temperature coupling first, then the smallest p-value (the largest z, which is clamped
+/// where p underflows) among the other passing deterministic candidates, else among the
+/// passing stochastic ones. Ties (p = 0 when no realisation shows the view's effect at all)
+/// go to the earlier probe: lines first, whose removal can change what the roll-off and
+/// the regressions see.
+///
+/// Why the coupling first: it has a measured cause, and a rate that follows the temperature
+/// carries the temperature's own cycles as slow lines, which the line detectors see as
+/// strongly as the regression does (a line's statistic is often the larger: it is judged
+/// against the open model with the coupling removed). Named first, the coupling takes those
+/// lines with it; a line at another frequency stays in the cleaned record and is named in
+/// the next round. A slow sinusoid does not make a coupling pass: one at least
+/// two periodogram bins from the temperature's cycles is nearly
+/// orthogonal to the temperature and its derivative, and the regression's noise model is
+/// fitted with the strongest slow line removed (`open_noise`).
+pub(super) fn choose(round: &Round, taken_back: &[Probe]) -> Option<usize> {
+    let open = |i: usize| !taken_back.contains(&round.probes[i]);
+    let coupling = round
+        .evidence
+        .iter()
+        .enumerate()
+        .position(|(i, e)| open(i) && e.passes && round.probes[i] == Probe::Temperature);
+    let best = |deterministic: bool| {
+        round
+            .evidence
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| open(i))
+            .filter(|(_, e)| e.passes && e.view.is_deterministic() == deterministic)
+            .min_by(|a, b| a.1.p_value.total_cmp(&b.1.p_value))
+            .map(|(i, _)| i)
+    };
+    coupling.or_else(|| best(true)).or_else(|| best(false))
+}
+
+/// The candidates the model can still take.
+pub(super) fn probes(data: &Data, model: &Model, removal: &Removal) -> Vec<Probe> {
+    let t = &model.terms;
+    let mut out = vec![Probe::Line, Probe::SlowLine];
+    if !removal.ramp {
+        out.push(Probe::Ramp);
+    }
+    if data.temperature.is_some() && !removal.temperature {
+        out.push(Probe::Temperature);
+    }
+    if t.gauss_markov.is_none() {
+        out.push(Probe::GaussMarkov);
+    }
+    for (absent, column) in [(t.b == 0.0, Column::B), (t.k == 0.0, Column::K)] {
+        if absent {
+            out.push(Probe::Term(column));
+        }
+    }
+    if t.q == 0.0 {
+        out.push(Probe::Term(Column::Q));
+    }
+    if model.low_pass.is_none() && matches!(data.settings.low_pass, LowPassChoice::Detect) {
+        out.push(Probe::RollOff);
+    }
+    out
+}
+
+/// The model with `effect` added: deterministic effects join the removal and the stochastic
+/// terms are refitted to the record cleaned of them; stochastic ones are refitted with it.
+pub(super) fn add(
+    data: &Data,
+    model: &Model,
+    removal: &mut Removal,
+    chosen: (Probe, Effect),
+    sd_ln: &[f64],
+) -> Model {
+    let (probe, effect) = chosen;
+    let mut out = model.clone();
+    let mut columns = refit::columns_of(&model.stochastic());
+    // A pure line in the low-frequency view's band, whichever view found it, is a slow tone.
+    let slow_tone = match effect {
+        Effect::Sinusoid {
+            freq_hz, width_hz, ..
+        } => {
+            width_hz == 0.0
+                && freq_hz <= spectrum::highest_hz(data.rate_hz, model.low_pass.as_ref())
+        }
+        _ => false,
+    };
+    match (probe, effect) {
+        (
+            Probe::Line | Probe::SlowLine,
+            Effect::Sinusoid {
+                freq_hz, amplitude, ..
+            },
+        ) if slow_tone => {
+            // A slow pure tone is regressed out jointly with the ramp and the temperature
+            // (see `clean`): a notch would take its bins from the series but not from the
+            // time and temperature columns. Its guard is the periodogram's main lobe, +-2 bins.
+            let (freq_hz, amplitude) = if probe == Probe::Line {
+                lines::tone_near(data.rate, data.rate_hz, freq_hz).unwrap_or((freq_hz, amplitude))
+            } else {
+                (freq_hz, amplitude)
+            };
+            let df = data.rate_hz / data.rate.len() as f64;
+            removal.tones.push(Tone {
+                freq_hz,
+                guard_hz: 2.0 * df,
+            });
+            out.lines.push(Line {
+                freq_hz,
+                amplitude,
+                width_hz: 0.0,
+                statistic: 0.0,
+            });
+        }
+        (
+            Probe::Line,
+            Effect::Sinusoid {
+                freq_hz,
+                amplitude,
+                width_hz,
+            },
+        ) => {
+            // A wide line's power is read against the model's own background; the notch
+            // below takes its core, and the realisations carry it whole (see `realise`).
+            let background = |f: f64| model.one_sided_psd(f, 1.0 / data.rate_hz);
+            let amplitude =
+                spectrum::line_power(data.rate, data.rate_hz, freq_hz, width_hz, &background)
+                    .map_or(amplitude, |p| (2.0 * p).sqrt());
+            // Half a Lorentzian's power lies beyond its half width; +-1.5 widths hold 80 %.
+            let df = data.rate_hz / data.rate.len() as f64;
+            let half = 1.5 * width_hz + 2.0 * df;
+            removal.notches.push(Notch {
+                lo_hz: freq_hz - half,
+                hi_hz: freq_hz + half,
+            });
+            out.lines.push(Line {
+                freq_hz,
+                amplitude,
+                width_hz,
+                statistic: 0.0,
+            });
+        }
+        (Probe::RollOff, Effect::LowPass { cutoff_hz }) => {
+            // The detection on the record with the named effects removed gives the cutoff's
+            // interval; the candidate's own cutoff stands if it no longer passes alone.
+            let (clean, _) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
+            let background = |f: f64| model.one_sided_psd(f, 1.0 / data.rate_hz);
+            let near = |f: f64| evidence::outside_roll_off(f, removal, &model.lines, &background);
+            out.low_pass = low_pass::detect_outside(&clean, data.rate_hz, 0.683, &near)
+                .ok()
+                .and_then(|d| d.low_pass)
+                .or_else(|| LowPass::two_pole(cutoff_hz, data.rate_hz).ok());
+        }
+        (Probe::Ramp, _) => removal.ramp = true,
+        (Probe::Temperature, _) => removal.temperature = true,
+        (Probe::GaussMarkov, Effect::GaussMarkov { tau_c, .. }) => {
+            columns.push(Column::GaussMarkov(tau_c))
+        }
+        (Probe::Term(c), _) => columns.push(c),
+        _ => {}
+    }
+    if probe.view().is_deterministic() || probe == Probe::GaussMarkov {
+        // With a deterministic effect gone, or a Gauss-Markov term in (whose test frees them
+        // too), the random terms are refitted from scratch: the baseline may have put K at 0
+        // or raised B to absorb the effect.
+        columns = evidence::with_random_walks(&columns);
+    }
+    // The deterministic coefficients, jointly estimated on the record.
+    let (clean, c) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
+    out.terms.r = c.slope.unwrap_or(0.0);
+    out.temp_coeff = c.temp;
+    out.temp_rate_coeff = c.temp_rate;
+    for (tone, amplitude) in removal.tones.iter().zip(&c.tone_amplitudes) {
+        if let Some(line) = out.lines.iter_mut().find(|l| l.freq_hz == tone.freq_hz) {
+            line.amplitude = *amplitude;
+        }
+    }
+    out.terms.sinusoid = out.lines.first().map(|l| Sinusoid {
+        amplitude: l.amplitude,
+        freq_hz: l.freq_hz,
+    });
+    let avar = evidence::allan_avar(clean, data.rate_hz, &data.measured.m);
+    let curve = refit::Curve {
+        tau: &data.measured.tau,
+        avar: &avar,
+        sd_ln,
+    };
+    let shaped = out.clone();
+    let white = |tau: f64| shaped.white_shape(tau);
+    let shape = restore::Record {
+        len: data.rate.len(),
+        rate_hz: data.rate_hz,
+        m: &data.measured.m,
+        temperature: data.temperature.as_ref(),
+    };
+    let lost = restore::loss(removal, &shape);
+    let terms = refit::refit_cleaned(curve, &columns, &white, lost.as_ref());
+    out.terms = NoiseTerms {
+        r: out.terms.r,
+        sinusoid: out.terms.sinusoid,
+        ..terms
+    };
+    out
+}
+
+/// The round's open noise model: the random terms refitted to the record with every
+/// deterministic candidate removed — the regressors in `regressors_out` and the strongest
+/// slow line (`slow_hz`) as a tone — with what that removal takes from K and B given back
+/// ([`restore`]). A baseline fitted with an effect in the record has put its power into K;
+/// tests against realisations of that K would let each effect hide the other.
+pub(super) fn open_noise(
+    data: &Data,
+    regressors_out: &Removal,
+    slow_hz: Option<f64>,
+    ctx: &Context,
+    columns: &[Column],
+) -> NoiseTerms {
+    let mut open = regressors_out.clone();
+    if let Some(freq_hz) = slow_hz {
+        let df = data.rate_hz / data.rate.len() as f64;
+        open.tones.push(Tone {
+            freq_hz,
+            guard_hz: 2.0 * df,
+        });
+    }
+    let (clean, _) = open.apply(data.rate, data.rate_hz, data.temperature.as_ref());
+    let avar = evidence::allan_avar(clean, data.rate_hz, ctx.m);
+    let curve = refit::Curve {
+        tau: ctx.tau,
+        avar: &avar,
+        sd_ln: ctx.sd_ln,
+    };
+    let shape = restore::Record {
+        len: data.rate.len(),
+        rate_hz: data.rate_hz,
+        m: ctx.m,
+        temperature: data.temperature.as_ref(),
+    };
+    let loss = restore::loss(&open, &shape);
+    refit::refit_cleaned(curve, columns, ctx.white, loss.as_ref())
+}

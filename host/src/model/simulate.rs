@@ -1,0 +1,284 @@
+//! A round's simulations: the current model realised many times, its Allan band compared
+//! with the record ([`compare`]), and every candidate's statistic on the record and on each
+//! realisation ([`simulate_round`]).
+
+use super::candidates::{open_noise, probes};
+use super::clean::Removal;
+use super::evidence::{self, Context, Evidence, Probe};
+use super::{
+    Band, Comparison, Data, Effect, GAUSS_MARKOV_MIN_SAMPLES, Line, Model, REGRESSION_DRAWS, Range,
+    Z_DISAGREE, gls, refit, regression, spectrum,
+};
+use crate::analysis::Deviation;
+use crate::analysis::low_pass::LowPass;
+use crate::sim::noise::{AxisNoise, NoiseTerms, add_line};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+/// One round: the current model simulated, compared with the record, and every candidate's
+/// evidence.
+#[derive(Clone)]
+pub(super) struct Round {
+    pub(super) comparison: Comparison,
+    /// Standard deviation of ln AVAR per tau over the realisations (the refits' weights).
+    pub(super) sd_ln: Vec<f64>,
+    pub(super) probes: Vec<Probe>,
+    pub(super) evidence: Vec<Evidence>,
+}
+
+/// `n` samples of the stochastic `terms`, realisation `i`; the white noise through
+/// `low_pass` when there is one; plus the named `lines`, each at its estimated amplitude and
+/// width with a random phase. A line is simulated rather than only notched out of both
+/// series because a notch leaves a wide line's wings (a Lorentzian holds a fifth of its
+/// power beyond +-1.5 widths): in the record and in the realisations alike, so they are not
+/// taken for quantization noise or a new line.
+pub(super) fn realise(
+    data: &Data,
+    terms: &NoiseTerms,
+    low_pass: Option<&LowPass>,
+    lines: &[Line],
+    i: usize,
+) -> Vec<f64> {
+    let n = data.rate.len();
+    let mut rng = ChaCha8Rng::seed_from_u64(data.settings.seed.wrapping_add(i as u64));
+    let duration = n as f64 / data.rate_hz;
+    let stochastic = NoiseTerms {
+        r: 0.0,
+        sinusoid: None,
+        n: if low_pass.is_some() { 0.0 } else { terms.n },
+        ..*terms
+    };
+    let mut generator = AxisNoise::new(stochastic, data.rate_hz, duration, &mut rng);
+    let mut y = generator.take(n, &mut rng);
+    if let Some(lp) = low_pass {
+        let white = lp.white_through(terms.n, n, &mut rng);
+        y.iter_mut().zip(white).for_each(|(a, b)| *a += b);
+    }
+    for l in lines {
+        add_line(
+            &mut y,
+            data.rate_hz,
+            l.freq_hz,
+            l.width_hz,
+            l.amplitude,
+            &mut rng,
+        );
+    }
+    y
+}
+
+/// Simulate the model twice over the same seeds: first its Allan band (each realisation
+/// carrying the named deterministic effects as estimated from the record), whose spread
+/// weights the refits; then every candidate's statistic, on the record and on each
+/// realisation. Regenerating a realisation costs less than keeping them all in memory.
+pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
+    let probes = probes(data, model, removal);
+    let tau0 = 1.0 / data.rate_hz;
+    let longest = data.measured.tau.last().copied().unwrap_or(tau0);
+    let m = &data.measured.m;
+    let r = data.settings.realisations.max(2);
+    // The regressors (slow tones among them) as estimated jointly from the record; the
+    // notched lines are simulated (see `realise`).
+    let regressors = Removal {
+        notches: Vec::new(),
+        ..removal.clone()
+    };
+    let simulated_lines: Vec<Line> = model
+        .lines
+        .iter()
+        .filter(|l| !removal.is_tone(l.freq_hz))
+        .copied()
+        .collect();
+    let (clean, _) = regressors.apply(data.rate, data.rate_hz, data.temperature.as_ref());
+    let deterministic: Vec<f64> = data.rate.iter().zip(&clean).map(|(x, c)| x - c).collect();
+    let realise = |terms: &NoiseTerms, i: usize| {
+        realise(data, terms, model.low_pass.as_ref(), &simulated_lines, i)
+    };
+    let logs: Vec<Vec<f64>> = (0..r)
+        .into_par_iter()
+        .map(|i| {
+            let s = realise(&model.terms, i);
+            let with: Vec<f64> = s.iter().zip(&deterministic).map(|(a, b)| a + b).collect();
+            evidence::allan_avar(with, data.rate_hz, m)
+                .iter()
+                .map(|v| 0.5 * v.max(f64::MIN_POSITIVE).ln())
+                .collect()
+        })
+        .collect();
+    let comparison = compare(&data.measured, &logs);
+    let sd_ln: Vec<f64> = comparison.band.std_log.iter().map(|s| 2.0 * s).collect();
+    let stochastic = model.stochastic();
+    let white = |tau: f64| model.white_shape(tau);
+    let background = |f: f64| model.one_sided_psd(f, tau0);
+    let ctx = Context {
+        rate_hz: data.rate_hz,
+        m,
+        tau: &data.measured.tau,
+        sd_ln: &sd_ln,
+        temperature: data.temperature.as_ref(),
+        removal,
+        terms: &stochastic,
+        white: &white,
+        low_pass: model.low_pass.as_ref(),
+        gauss_markov_range: (GAUSS_MARKOV_MIN_SAMPLES * tau0, longest / 2.0),
+        lines: data.lines,
+        named_lines: &model.lines,
+        background: &background,
+    };
+    let on_sims: Vec<Probe> = probes
+        .iter()
+        .copied()
+        .filter(|p| !matches!(p, Probe::Ramp | Probe::Temperature | Probe::SlowLine))
+        .collect();
+    let measured = evidence::statistics(data.rate, &on_sims, &ctx, true);
+    let sims: Vec<Vec<f64>> = (0..r)
+        .into_par_iter()
+        .map(|i| {
+            evidence::statistics(&realise(&model.terms, i), &on_sims, &ctx, false)
+                .into_iter()
+                .map(|(v, _)| v)
+                .collect()
+        })
+        .collect();
+    // The alternative's noise model has every IEEE-952 random term free: a baseline that put
+    // K at 0 (a short record, an absorbed effect) must not make the test's noise too small.
+    let columns = evidence::with_random_walks(&refit::columns_of(&stochastic));
+    // The slow line is looked for with the regressor candidates out, against realisations of
+    // the open noise model: a temperature cycle is not a slow line, and neither effect's
+    // power, absorbed into the baseline's K, widens the spread the other is judged against.
+    let regressors_out = Removal {
+        ramp: true,
+        temperature: data.temperature.is_some(),
+        ..removal.clone()
+    };
+    let open_ctx = Context {
+        removal: &regressors_out,
+        ..ctx
+    };
+    let slow = evidence::statistics(data.rate, &[Probe::SlowLine], &open_ctx, true)[0];
+    let slow_hz = match slow.1 {
+        Some(Effect::Sinusoid { freq_hz, .. }) => Some(freq_hz),
+        _ => None,
+    };
+    let open = open_noise(data, &regressors_out, slow_hz, &ctx, &columns);
+    let slow_sims: Vec<f64> = (0..r)
+        .into_par_iter()
+        .map(|i| {
+            evidence::statistics(&realise(&open, i), &[Probe::SlowLine], &open_ctx, false)[0].0
+        })
+        .collect();
+    let gls = gls::Estimator::new(&open, data.rate_hz, data.rate.len());
+    let setup = regression::Setup {
+        view: &ctx,
+        gls: &gls,
+        draws: REGRESSION_DRAWS,
+        seed: data.settings.seed,
+        candidates: probes.len(),
+    };
+    let evidence = probes
+        .iter()
+        .map(|p| match on_sims.iter().position(|q| q == p) {
+            Some(j) => {
+                let simulated: Vec<f64> = sims.iter().map(|s| s[j]).collect();
+                Evidence::new(p.name(), p.view(), measured[j], &simulated, probes.len())
+            }
+            // A maximum over bins: its tail is Gumbel, not a scaled chi-square.
+            None if *p == Probe::SlowLine => Evidence::with_p(
+                p.name(),
+                p.view(),
+                slow,
+                &slow_sims,
+                spectrum::gumbel_p_value(slow.0, &slow_sims),
+                probes.len(),
+            ),
+            None => regression::test(*p, data.rate, &setup),
+        })
+        .collect();
+    Round {
+        comparison,
+        sd_ln,
+        probes,
+        evidence,
+    }
+}
+
+/// The measured curve against the realisations' ln ADEV.
+pub(super) fn compare(measured: &Deviation, logs: &[Vec<f64>]) -> Comparison {
+    let taus = measured.tau.len();
+    let r = logs.len().max(2) as f64;
+    let mut mean_log = vec![0.0; taus];
+    let mut std_log = vec![0.0; taus];
+    for j in 0..taus {
+        let mean = logs.iter().map(|l| l[j]).sum::<f64>() / r;
+        let var = logs.iter().map(|l| (l[j] - mean).powi(2)).sum::<f64>() / (r - 1.0);
+        mean_log[j] = mean;
+        std_log[j] = var.sqrt();
+    }
+    let z: Vec<f64> = measured
+        .dev
+        .iter()
+        .zip(&mean_log)
+        .zip(&std_log)
+        .map(|((d, m), s)| (d.max(f64::MIN_POSITIVE).ln() - m) / s.max(1e-6))
+        .collect();
+    let gap = (z.iter().map(|v| v * v).sum::<f64>() / z.len().max(1) as f64).sqrt();
+    Comparison {
+        gap,
+        disagreeing: ranges(&measured.tau, &z),
+        z,
+        band: Band {
+            tau: measured.tau.clone(),
+            mean_log,
+            std_log,
+        },
+    }
+}
+
+/// Contiguous runs of |z| > [`Z_DISAGREE`] with one sign.
+pub(super) fn ranges(tau: &[f64], z: &[f64]) -> Vec<Range> {
+    let mut out: Vec<Range> = Vec::new();
+    let mut open = false;
+    for (t, v) in tau.iter().zip(z) {
+        let sign = if *v > Z_DISAGREE {
+            1
+        } else if *v < -Z_DISAGREE {
+            -1
+        } else {
+            0
+        };
+        match out.last_mut() {
+            Some(r) if open && r.sign == sign => r.tau_hi = *t,
+            _ if sign != 0 => {
+                out.push(Range {
+                    tau_lo: *t,
+                    tau_hi: *t,
+                    sign,
+                });
+                open = true;
+                continue;
+            }
+            _ => {}
+        }
+        if sign == 0 {
+            open = false;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ranges;
+
+    #[test]
+    fn ranges_group_runs() {
+        let tau = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
+        let z = [0.0, 3.0, 2.5, -3.0, 0.0, 2.1];
+        let r = ranges(&tau, &z);
+        assert_eq!(r.len(), 3);
+        assert_eq!((r[0].tau_lo, r[0].tau_hi, r[0].sign), (2.0, 3.0, 1));
+        assert_eq!((r[1].tau_lo, r[1].tau_hi, r[1].sign), (4.0, 4.0, -1));
+        assert_eq!((r[2].tau_lo, r[2].tau_hi, r[2].sign), (6.0, 6.0, 1));
+    }
+}
