@@ -21,6 +21,7 @@ pub mod noise_id;
 pub mod pipeline;
 pub mod psd;
 pub mod psd_terms;
+pub mod streaming;
 pub mod taus;
 pub mod units;
 
