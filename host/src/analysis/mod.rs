@@ -19,6 +19,7 @@ pub mod lines;
 pub mod low_pass;
 pub mod noise_id;
 pub mod pipeline;
+pub mod precision;
 pub mod psd;
 pub mod psd_terms;
 pub mod streaming;

@@ -19,7 +19,10 @@
 //! ([`Curve::edf`]); with `m / d` in the hundreds they are within a few per cent of the fully
 //! overlapping estimator's, since starts closer than m apart give nearly the same term.
 //! Ladders of powers of two or of 1-2-5 steps keep `m / d` at the target; a prime factor
-//! above the exact range falls back to d = m, the non-overlapping estimator.
+//! above the exact range falls back to d = m, the non-overlapping estimator, so a log-spaced
+//! ladder is first put through [`snap_factors`], which moves each factor above the exact
+//! range to the nearest multiple of a power of two (by at most `1 / strided_lag`, 0.1 % with
+//! the defaults).
 //!
 //! **Memory.** One ring per distinct stride, each at most `span lag + 1` points rounded up
 //! to a power of two (`lag` the largest `m / d` it serves): with the defaults, 512 KiB for the
@@ -134,6 +137,26 @@ fn stride_for(m: usize, lag: usize) -> usize {
     (m.div_ceil(lag).max(1)..=m)
         .find(|d| m.is_multiple_of(*d))
         .unwrap_or(m)
+}
+
+/// `factors` with each one above `config.exact_up_to` moved to the nearest multiple of the
+/// power of two d that leaves `m / d` at most `config.strided_lag` (half of it at least), so
+/// every factor is served at that lag rather than by whatever divisor it happens to have;
+/// ascending, without duplicates.
+pub fn snap_factors(factors: &[usize], config: Config) -> Vec<usize> {
+    let mut out: Vec<usize> = factors
+        .iter()
+        .map(|&m| {
+            if m <= config.exact_up_to {
+                return m;
+            }
+            let d = m.div_ceil(config.strided_lag.max(1)).next_power_of_two();
+            ((m + d / 2) / d).max(1) * d
+        })
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
 }
 
 impl Streaming {
@@ -328,6 +351,7 @@ impl Curve {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::analysis::taus::{self, TauGrid};
     use crate::analysis::{allan, phase_from_rate};
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
@@ -477,6 +501,23 @@ mod tests {
             let rel = (strided.deviation.dev[k] / exact.deviation.dev[k]).powi(2) - 1.0;
             let tolerance = 4.0 / 256.0 * (2.0 / edf).sqrt();
             assert!(rel.abs() < tolerance, "{k}: {rel}, edf {edf}");
+        }
+    }
+
+    #[test]
+    fn snapped_ladders_keep_their_lag() {
+        let config = Config::default();
+        let ladder = taus::factors(TauGrid::PerDecade(10), 100_000_000);
+        let snapped = snap_factors(&ladder, config);
+        assert_eq!(snapped.len(), ladder.len());
+        for (&m, &s) in ladder.iter().zip(&snapped) {
+            if m <= config.exact_up_to {
+                assert_eq!(m, s);
+                continue;
+            }
+            assert!((s as f64 / m as f64 - 1.0).abs() <= 1.0 / config.strided_lag as f64);
+            let d = stride_for(s, config.strided_lag);
+            assert!(s / d > config.strided_lag / 2, "{s}: stride {d}");
         }
     }
 
