@@ -278,7 +278,6 @@ mod tests {
     use crate::sim::noise::{AxisNoise, NoiseTerms};
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
-    use rand_distr::{Distribution, StandardNormal};
 
     #[test]
     fn rules_parse_and_print() {
@@ -301,16 +300,6 @@ mod tests {
         }
     }
 
-    fn white(n: usize, sigma: f64, seed: u64) -> Vec<f64> {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        (0..n)
-            .map(|_| {
-                let z: f64 = StandardNormal.sample(&mut rng);
-                sigma * z
-            })
-            .collect()
-    }
-
     fn fit_of(y: &[f64], tau0: f64) -> NoiseFit {
         let x = phase_from_rate(y, tau0);
         let ladder = taus::factors(
@@ -327,8 +316,8 @@ mod tests {
     /// over seeds, each fit's half-width scattering by a few per cent).
     #[test]
     fn predicted_length_gives_the_predicted_precision() {
-        let (tau0, sigma) = (0.01, 1e-2);
-        let short = fit_of(&white(20_000, sigma, 1), tau0);
+        let tau0 = 0.01;
+        let short = fit_of(&noise(20_000, 100.0, 0.0, 1), tau0);
         let now = 20_000.0 * tau0;
         let reached = relative_half_width(&short, NoiseTerm::N);
         let target = Target {
@@ -341,7 +330,9 @@ mod tests {
         assert!((t / now - 4.0).abs() < 0.4, "{t} s for half of {reached}");
         let n = (t / tau0) as usize;
         let mean: f64 = (0..4)
-            .map(|s| relative_half_width(&fit_of(&white(n, sigma, 10 + s), tau0), NoiseTerm::N))
+            .map(|s| {
+                relative_half_width(&fit_of(&noise(n, 100.0, 0.0, 10 + s), tau0), NoiseTerm::N)
+            })
             .sum::<f64>()
             / 4.0;
         assert!(
@@ -351,10 +342,12 @@ mod tests {
         );
     }
 
-    fn walk(n: usize, rate_hz: f64, seed: u64) -> Vec<f64> {
+    /// `n` samples at `rate_hz` of white noise of density 1e-3 u/sqrt(Hz), plus rate random
+    /// walk of `k` u*sqrt(Hz).
+    fn noise(n: usize, rate_hz: f64, k: f64, seed: u64) -> Vec<f64> {
         let terms = NoiseTerms {
             n: 1e-3,
-            k: 1e-4,
+            k,
             ..NoiseTerms::default()
         };
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -370,7 +363,7 @@ mod tests {
     fn predicted_length_for_k() {
         let (rate_hz, now) = (10.0, 1200.0);
         let tau0 = 1.0 / rate_hz;
-        let short = fit_of(&walk((now * rate_hz) as usize, rate_hz, 3), tau0);
+        let short = fit_of(&noise((now * rate_hz) as usize, rate_hz, 1e-4, 3), tau0);
         let reached = relative_half_width(&short, NoiseTerm::K);
         let target = Target {
             term: NoiseTerm::K,
@@ -380,7 +373,12 @@ mod tests {
         let t = duration_for(&short, target, grid, tau0, now, &FitOptions::default()).unwrap();
         let n = (t * rate_hz) as usize;
         let widths: Vec<f64> = (0..8)
-            .map(|s| relative_half_width(&fit_of(&walk(n, rate_hz, 20 + s), tau0), NoiseTerm::K))
+            .map(|s| {
+                relative_half_width(
+                    &fit_of(&noise(n, rate_hz, 1e-4, 20 + s), tau0),
+                    NoiseTerm::K,
+                )
+            })
             .collect();
         let mean = widths.iter().sum::<f64>() / 8.0;
         assert!(
@@ -392,7 +390,7 @@ mod tests {
 
     #[test]
     fn absent_terms_never_meet_a_target() {
-        let f = fit_of(&white(20_000, 1e-2, 2), 0.01);
+        let f = fit_of(&noise(20_000, 100.0, 0.0, 2), 0.01);
         let rule: StopRule = "K:50%".parse().unwrap();
         let s = rule.status(&f);
         // White noise: the fit's detection test leaves K out (this seed).
