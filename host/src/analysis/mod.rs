@@ -16,6 +16,7 @@ pub mod filter;
 pub mod fit;
 pub mod gauss_markov;
 pub mod lines;
+pub mod live;
 pub mod low_pass;
 pub mod noise_id;
 pub mod pipeline;

@@ -270,14 +270,26 @@ pub fn duration_for(
     Some(hi)
 }
 
+/// Test records: `n` samples at `rate_hz` of white noise of density 1e-3 u/sqrt(Hz), plus
+/// rate random walk of `k` u*sqrt(Hz).
+#[cfg(test)]
+pub(crate) fn test_noise(n: usize, rate_hz: f64, k: f64, seed: u64) -> Vec<f64> {
+    use crate::sim::noise::{AxisNoise, NoiseTerms};
+    use rand::SeedableRng;
+    let terms = NoiseTerms {
+        n: 1e-3,
+        k,
+        ..NoiseTerms::default()
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    AxisNoise::new(terms, rate_hz, n as f64 / rate_hz, &mut rng).take(n, &mut rng)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::analysis::taus::TauGrid;
     use crate::analysis::{allan, phase_from_rate};
-    use crate::sim::noise::{AxisNoise, NoiseTerms};
-    use rand::SeedableRng;
-    use rand_chacha::ChaCha8Rng;
 
     #[test]
     fn rules_parse_and_print() {
@@ -317,7 +329,7 @@ mod tests {
     #[test]
     fn predicted_length_gives_the_predicted_precision() {
         let tau0 = 0.01;
-        let short = fit_of(&noise(20_000, 100.0, 0.0, 1), tau0);
+        let short = fit_of(&test_noise(20_000, 100.0, 0.0, 1), tau0);
         let now = 20_000.0 * tau0;
         let reached = relative_half_width(&short, NoiseTerm::N);
         let target = Target {
@@ -331,7 +343,10 @@ mod tests {
         let n = (t / tau0) as usize;
         let mean: f64 = (0..4)
             .map(|s| {
-                relative_half_width(&fit_of(&noise(n, 100.0, 0.0, 10 + s), tau0), NoiseTerm::N)
+                relative_half_width(
+                    &fit_of(&test_noise(n, 100.0, 0.0, 10 + s), tau0),
+                    NoiseTerm::N,
+                )
             })
             .sum::<f64>()
             / 4.0;
@@ -340,18 +355,6 @@ mod tests {
             "{mean} vs {}",
             target.fraction
         );
-    }
-
-    /// `n` samples at `rate_hz` of white noise of density 1e-3 u/sqrt(Hz), plus rate random
-    /// walk of `k` u*sqrt(Hz).
-    fn noise(n: usize, rate_hz: f64, k: f64, seed: u64) -> Vec<f64> {
-        let terms = NoiseTerms {
-            n: 1e-3,
-            k,
-            ..NoiseTerms::default()
-        };
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        AxisNoise::new(terms, rate_hz, n as f64 / rate_hz, &mut rng).take(n, &mut rng)
     }
 
     /// K's precision rests on the few long taus: the prediction from a 20-minute record of
@@ -363,7 +366,10 @@ mod tests {
     fn predicted_length_for_k() {
         let (rate_hz, now) = (10.0, 1200.0);
         let tau0 = 1.0 / rate_hz;
-        let short = fit_of(&noise((now * rate_hz) as usize, rate_hz, 1e-4, 3), tau0);
+        let short = fit_of(
+            &test_noise((now * rate_hz) as usize, rate_hz, 1e-4, 3),
+            tau0,
+        );
         let reached = relative_half_width(&short, NoiseTerm::K);
         let target = Target {
             term: NoiseTerm::K,
@@ -375,7 +381,7 @@ mod tests {
         let widths: Vec<f64> = (0..8)
             .map(|s| {
                 relative_half_width(
-                    &fit_of(&noise(n, rate_hz, 1e-4, 20 + s), tau0),
+                    &fit_of(&test_noise(n, rate_hz, 1e-4, 20 + s), tau0),
                     NoiseTerm::K,
                 )
             })
@@ -390,7 +396,7 @@ mod tests {
 
     #[test]
     fn absent_terms_never_meet_a_target() {
-        let f = fit_of(&noise(20_000, 100.0, 0.0, 2), 0.01);
+        let f = fit_of(&test_noise(20_000, 100.0, 0.0, 2), 0.01);
         let rule: StopRule = "K:50%".parse().unwrap();
         let s = rule.status(&f);
         // White noise: the fit's detection test leaves K out (this seed).
