@@ -246,6 +246,8 @@ pub struct StreamDecoder {
     segments: Vec<Segment>,
     /// A [`HostNote::BoardRestarted`] waiting for the restart it measured.
     silent_before_restart_us: Option<u64>,
+    /// Samples decoded since [`StreamDecoder::take_tapped`] last took them, when tapped.
+    tap: Option<Tap>,
     statuses_seen: u64,
     /// The last frame number seen, and the frames missing by the numbers.
     last_frame: Option<u32>,
@@ -279,6 +281,7 @@ impl StreamDecoder {
             recoveries: Vec::new(),
             segments: Vec::new(),
             silent_before_restart_us: None,
+            tap: None,
             statuses_seen: 0,
             last_frame: None,
             frames_missing: 0,
@@ -412,6 +415,9 @@ impl StreamDecoder {
         }
         self.samples_in_segment = false;
         self.new_run = true;
+        if let Some(tap) = self.tap.as_mut() {
+            tap.new_run = true;
+        }
     }
 
     /// Samples the sensor makes in `us` microseconds at the announced output rate.
@@ -448,6 +454,14 @@ impl StreamDecoder {
             self.segment_start_us = batch.first_timestamp_us;
         }
         self.samples_in_segment = true;
+        if let Some(tap) = self.tap.as_mut() {
+            if gap.is_some() || tap.new_run {
+                tap.run += 1;
+                tap.samples.clear();
+                tap.new_run = false;
+            }
+            tap.samples.extend_from_slice(&batch.samples);
+        }
         if !self.keep_samples {
             return;
         }
@@ -467,6 +481,30 @@ impl StreamDecoder {
 
     pub fn info_seen(&self) -> Option<&DeviceInfo> {
         self.first_info.as_ref()
+    }
+
+    /// Keep the samples decoded from here on for [`StreamDecoder::take_tapped`], without
+    /// keeping the whole capture: a live view's feed.
+    pub fn tap(&mut self) {
+        self.tap.get_or_insert(Tap {
+            run: 0,
+            new_run: true,
+            samples: Vec::new(),
+        });
+    }
+
+    /// The samples decoded since the last call, and the number of the gap-free run they
+    /// belong to (a new number: a gap or a restart began a new run, and the samples are
+    /// that run's first). `None` unless [`StreamDecoder::tap`]ped.
+    pub fn take_tapped(&mut self) -> Option<(usize, Vec<RawSample>)> {
+        self.tap
+            .as_mut()
+            .map(|t| (t.run, std::mem::take(&mut t.samples)))
+    }
+
+    /// The settings in force for the samples arriving: the last Info's.
+    pub fn settings(&self) -> Option<SensorSettings> {
+        self.settings
     }
     pub fn accounting(&self) -> &SampleAccounting {
         &self.accounting
@@ -594,6 +632,14 @@ fn record_of(source: &str, s: &SensorSettings, who_am_i: u8, samples: &[RawSampl
         rate_hz: s.output_rate_hz(),
         channels,
     }
+}
+
+/// See [`StreamDecoder::tap`].
+#[derive(Debug, Clone)]
+struct Tap {
+    run: usize,
+    new_run: bool,
+    samples: Vec<RawSample>,
 }
 
 #[cfg(test)]

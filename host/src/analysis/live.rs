@@ -11,6 +11,7 @@
 //! by `analyze`'s own pipeline on the samples (see `capture --until`).
 
 use super::fit::{self, FitError, FitOptions, NoiseFit};
+use super::low_pass::LowPass;
 use super::precision::{self, Status, StopRule};
 use super::streaming::{Config, Curve, Streaming, StreamingError, snap_factors};
 use super::taus::{self, TauGrid};
@@ -26,6 +27,8 @@ pub struct Live {
     names: Vec<String>,
     tau0: f64,
     channels: Vec<Streaming>,
+    /// Each channel's sensor low-pass filter, which its fit models (as `analyze` does).
+    low_pass: Vec<Option<LowPass>>,
 }
 
 /// One channel's state in a [`Snapshot`].
@@ -110,8 +113,17 @@ impl Live {
         Ok(Live {
             names: names.iter().map(|s| s.to_string()).collect(),
             tau0,
+            low_pass: vec![None; channels.len()],
             channels,
         })
+    }
+
+    /// The sensor's low-pass filter on channel `index`, for its fit
+    /// ([`FitOptions::low_pass`]).
+    pub fn set_low_pass(&mut self, index: usize, low_pass: Option<LowPass>) {
+        if let Some(slot) = self.low_pass.get_mut(index) {
+            *slot = low_pass;
+        }
     }
 
     /// One sample of every channel, in the order of the names (extra values are ignored).
@@ -139,11 +151,16 @@ impl Live {
             .names
             .iter()
             .zip(&self.channels)
-            .map(|(name, s)| {
+            .zip(&self.low_pass)
+            .map(|((name, s), low_pass)| {
                 let curve = s.curve();
-                let fit = fit::fit_deviation(&curve.deviation, curve.phase_points, options);
+                let options = FitOptions {
+                    low_pass: low_pass.clone(),
+                    ..options.clone()
+                };
+                let fit = fit::fit_deviation(&curve.deviation, curve.phase_points, &options);
                 let wanted = rule.filter(|_| rule_channels.contains(&name.as_str()));
-                self.channel(name, &curve, fit, wanted, elapsed_s, options)
+                self.channel(name, &curve, fit, wanted, elapsed_s, &options)
             })
             .collect();
         Snapshot {

@@ -12,7 +12,10 @@
 //! the fit uses). Fitting that expected curve gives the intervals the longer record would
 //! have; the shortest length whose intervals meet the target is found by doubling and then
 //! bisecting in log length. This is what the fit would claim on an average record; a record's
-//! own scatter moves its intervals around that.
+//! own scatter moves its intervals around that. Lack of fit widens the fit's intervals by
+//! its Birge ratio, and the expected intervals are widened by the present one; when the
+//! model does not describe the curve at all ([`fit::Goodness::poor`]), a longer record only
+//! makes the misfit more significant, so no length is promised.
 
 use super::fit::{self, FitOptions, NoiseFit};
 use super::{Deviation, Estimator, allan, taus};
@@ -236,7 +239,8 @@ pub const MAX_EXTENSION: f64 = 4096.0;
 
 /// The record length (s) at which `target` would be met if the noise is `model`, for rate
 /// samples every `tau0` on the Allan ladder `grid`; at least `now_s`. `None` when it would
-/// take more than [`MAX_EXTENSION`] times `now_s`, or the model lacks the term.
+/// take more than [`MAX_EXTENSION`] times `now_s`, the model lacks the term, or the model
+/// does not describe the curve it was fitted to.
 pub fn duration_for(
     model: &NoiseFit,
     target: Target,
@@ -248,9 +252,14 @@ pub fn duration_for(
     if target.term.of(model).value <= 0.0 || now_s.is_nan() || now_s <= 0.0 {
         return None;
     }
+    if model.goodness.poor() {
+        return None;
+    }
+    let birge = model.goodness.birge_ratio.max(1.0);
     let meets = |t: f64| {
         let n_phase = (t / tau0).round() as usize + 1;
-        expected_half_width(model, target.term, grid, tau0, n_phase, options) <= target.fraction
+        let width = expected_half_width(model, target.term, grid, tau0, n_phase, options);
+        birge * width <= target.fraction
     };
     if meets(now_s) {
         return Some(now_s);

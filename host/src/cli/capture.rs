@@ -244,6 +244,7 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         duration_s,
         keep_samples: false,
         watch,
+        live: None,
     };
     let bar = progress_bar();
     let outcome = recorder::record(link.as_mut(), &store, &options, &stop, &mut |p| {

@@ -154,6 +154,7 @@ pub fn sweep(
             duration_s: Some(seconds),
             keep_samples: true,
             watch: Some(*s),
+            live: None,
         };
         let bar = report::progress::bar((seconds * s.output_rate_hz()) as u64, "capturing");
         let outcome = recorder::record(link.as_mut(), store, &options, &stop, &mut |p| {
@@ -169,7 +170,7 @@ pub fn sweep(
                 outcome.session_id
             ),
             Ending::Stopped => bail!(stopped(store, &rows, Some(outcome.session_id), i, settings)),
-            Ending::SourceEnded | Ending::DurationReached => {}
+            Ending::SourceEnded | Ending::DurationReached | Ending::RuleMet(_) => {}
         }
         let session = store
             .get(outcome.session_id)?

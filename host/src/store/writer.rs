@@ -33,6 +33,9 @@ pub enum End {
     Complete,
     /// The user stopped it (Ctrl-C): what it holds is whole, but shorter than asked for.
     Stopped,
+    /// Complete, ended for the reason given (a stop rule met, or the duration reached
+    /// before it was).
+    CompleteBecause(String),
     /// Something cut it short (a link error, a disk error); the reason is kept and shown.
     Incomplete(String),
 }
@@ -214,6 +217,12 @@ impl SessionWriter {
         self.write_counts()
     }
 
+    /// Everything written so far onto the file (not fsynced), for a reader of the file
+    /// while the recording goes on.
+    pub fn flush(&mut self) -> Result<(), StoreError> {
+        self.out.flush().map_err(StoreError::io(&self.path))
+    }
+
     fn sync(&mut self) -> Result<(), StoreError> {
         self.out.flush().map_err(StoreError::io(&self.path))?;
         self.out
@@ -250,6 +259,7 @@ impl SessionWriter {
         let (state, reason) = match &end {
             End::Complete => ("complete", None),
             End::Stopped => ("complete", Some(STOPPED)),
+            End::CompleteBecause(reason) => ("complete", Some(reason.as_str())),
             End::Incomplete(reason) => ("incomplete", Some(reason.as_str())),
         };
         if synced.is_err() {

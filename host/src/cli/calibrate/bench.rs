@@ -112,6 +112,7 @@ impl Bench {
             duration_s: Some(seconds),
             keep_samples: true,
             watch: Some(self.settings),
+            live: None,
         };
         let stop = AtomicBool::new(false);
         let bar = progress_bar();

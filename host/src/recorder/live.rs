@@ -1,0 +1,218 @@
+//! The live view and the stop rule while recording: the samples the decoder takes
+//! ([`StreamDecoder::tap`]) are fed, in SI units, into [`Live`] accumulators for the six
+//! axes, in memory that does not grow with the capture; snapshots go out with the progress
+//! reports; and when a snapshot says the stop rule is met on every gyro axis, `analyze`'s
+//! own pipeline confirms it on the session file's current run before the capture stops, so
+//! the stored session shows the precision asked for.
+//!
+//! A gap or a board restart begins a new run: the accumulators start over with it, as
+//! `analyze` of a session with gaps works on one gap-free run.
+
+use crate::analysis::fit::FitOptions;
+use crate::analysis::live::{Live, Snapshot};
+use crate::analysis::low_pass::LowPass;
+use crate::analysis::pipeline::{self, LowPassChoice, Options};
+use crate::analysis::precision::{Status, StopRule};
+use crate::capture::{Capture, StreamDecoder};
+use crate::record::Record;
+use crate::sim::dlpf::Sensor;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// The axes the accumulators follow, in [`crate::capture`]'s record order.
+const AXES: [&str; 6] = ["gx", "gy", "gz", "ax", "ay", "az"];
+/// The axes the stop rule applies to.
+pub const RULE_AXES: [&str; 3] = ["gx", "gy", "gz"];
+
+/// Snapshots at least this often on the host's clock, so a real-time view updates.
+const WALL_EVERY: Duration = Duration::from_secs(3);
+/// And whenever the sample time has grown by this fraction (at least [`SAMPLE_EVERY_S`]),
+/// so a capture at full speed is checked often enough to stop within 2 % of the length
+/// the rule needs.
+const SAMPLE_GROWTH: f64 = 0.02;
+const SAMPLE_EVERY_S: f64 = 10.0;
+
+/// What to watch.
+#[derive(Debug, Clone)]
+pub struct LiveOptions {
+    /// Stop when every target is met on every gyro axis.
+    pub rule: Option<StopRule>,
+    /// Confidence of the intervals (as `analyze --confidence`).
+    pub confidence: f64,
+    /// The longest record expected (the capture's duration cap), s: the Allan ladder's end.
+    pub longest_s: f64,
+}
+
+/// Why the rule stopped the capture: each gyro axis's targets as `analyze` computed them.
+#[derive(Debug, Clone)]
+pub struct RuleMet {
+    pub rule: StopRule,
+    pub axes: Vec<(String, Vec<Status>)>,
+}
+
+impl RuleMet {
+    /// One line for the session's end reason: `stop rule N:1% met (gx N 0.93 %, ...)`.
+    pub fn describe(&self) -> String {
+        let axes: Vec<String> = self
+            .axes
+            .iter()
+            .map(|(axis, statuses)| axis_text(axis, statuses))
+            .collect();
+        format!("stop rule {} met ({})", self.rule, axes.join("; "))
+    }
+}
+
+/// The end reason of a capture whose duration came before its stop rule was met: the
+/// precision the last snapshot showed on each gyro axis.
+pub fn unmet(rule: &StopRule, last: Option<&Snapshot>) -> String {
+    let axes: Vec<String> = last
+        .map(|s| {
+            s.channels
+                .iter()
+                .filter(|c| !c.targets.is_empty())
+                .map(|c| {
+                    let statuses: Vec<Status> = c.targets.iter().map(|t| t.status).collect();
+                    axis_text(&c.name, &statuses)
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    if axes.is_empty() {
+        format!("duration reached before stop rule {rule} was met")
+    } else {
+        format!(
+            "duration reached before stop rule {rule} was met ({})",
+            axes.join("; ")
+        )
+    }
+}
+
+/// `gx N 0.930 % B 18.700 %`: the precision reached per term on one axis.
+fn axis_text(axis: &str, statuses: &[Status]) -> String {
+    let terms: Vec<String> = statuses
+        .iter()
+        .map(|s| {
+            let reached = if s.reached.is_finite() {
+                format!("{:.3} %", 100.0 * s.reached)
+            } else {
+                "undetected".to_string()
+            };
+            format!("{} {reached}", s.target.term)
+        })
+        .collect();
+    format!("{axis} {}", terms.join(" "))
+}
+
+pub(super) struct Watcher {
+    options: LiveOptions,
+    fit: FitOptions,
+    live: Option<Live>,
+    /// The run the accumulators follow (its number, [`StreamDecoder::take_tapped`]).
+    run: usize,
+    next_sample_s: f64,
+    last_wall: Instant,
+}
+
+impl Watcher {
+    pub(super) fn new(options: LiveOptions) -> Watcher {
+        let fit = FitOptions {
+            confidence: options.confidence,
+            ..FitOptions::default()
+        };
+        Watcher {
+            options,
+            fit,
+            live: None,
+            run: 0,
+            next_sample_s: SAMPLE_EVERY_S,
+            last_wall: Instant::now(),
+        }
+    }
+
+    /// Feed what the decoder took since the last call; a snapshot when one is due.
+    pub(super) fn after_feed(&mut self, decoder: &mut StreamDecoder) -> Option<Snapshot> {
+        let settings = decoder.settings()?;
+        let (number, samples) = decoder.take_tapped()?;
+        if number != self.run || self.live.is_none() {
+            let tau0 = 1.0 / settings.output_rate_hz();
+            self.live = Live::new(&AXES, tau0, self.options.longest_s).ok();
+            if let Some(live) = self.live.as_mut() {
+                // The board's DLPF, as `analyze` models it for a stored session.
+                for (i, sensor) in [Sensor::Gyro, Sensor::Gyro, Sensor::Gyro]
+                    .into_iter()
+                    .chain([Sensor::Accel; 3])
+                    .enumerate()
+                {
+                    live.set_low_pass(i, LowPass::mpu6050(&settings, sensor));
+                }
+            }
+            self.run = number;
+            self.next_sample_s = SAMPLE_EVERY_S;
+        }
+        let live = self.live.as_mut()?;
+        let (g, a) = (
+            settings.gyro_range.rad_s_per_lsb(),
+            settings.accel_range.m_s2_per_lsb(),
+        );
+        for s in &samples {
+            let v = [
+                f64::from(s.gyro[0]) * g,
+                f64::from(s.gyro[1]) * g,
+                f64::from(s.gyro[2]) * g,
+                f64::from(s.accel[0]) * a,
+                f64::from(s.accel[1]) * a,
+                f64::from(s.accel[2]) * a,
+            ];
+            live.push(&v);
+        }
+        let elapsed = live.elapsed_s();
+        if elapsed < self.next_sample_s && self.last_wall.elapsed() < WALL_EVERY {
+            return None;
+        }
+        self.next_sample_s = (elapsed * (1.0 + SAMPLE_GROWTH)).max(elapsed + SAMPLE_EVERY_S);
+        self.last_wall = Instant::now();
+        Some(live.snapshot(self.options.rule.as_ref(), &RULE_AXES, &self.fit))
+    }
+
+    /// When `snapshot` says the rule is met: `analyze`'s pipeline on the gyro axes of the
+    /// last gap-free run in the session file at `path` (flushed), with the options `analyze`
+    /// uses for a stored session (the board's own filter, 10 factors per decade, spectral
+    /// lines removed), and the verdict if it agrees.
+    pub(super) fn confirm(&self, snapshot: &Snapshot, path: &Path) -> Option<RuleMet> {
+        let rule = self.options.rule.as_ref()?;
+        if !snapshot.rule_met() {
+            return None;
+        }
+        let capture = Capture::decode(&std::fs::read(path).ok()?).ok()?;
+        let run = capture.runs.last()?;
+        let settings = run.settings.unwrap_or(capture.info.settings);
+        let full = capture.run_record(run, "capture");
+        let record = Record {
+            channels: full
+                .channels
+                .into_iter()
+                .filter(|c| RULE_AXES.contains(&c.name.as_str()))
+                .collect(),
+            ..full
+        };
+        let options = Options {
+            confidence: self.options.confidence,
+            low_pass: LowPassChoice::Sensor(settings),
+            ..Options::default()
+        };
+        let results = pipeline::analyze(&record, &options, &|| {}).ok()?;
+        let mut axes = Vec::new();
+        for r in &results {
+            let fit = r.fit.as_ref().ok()?;
+            let statuses = rule.status(fit);
+            if !statuses.iter().all(|s| s.met) {
+                return None;
+            }
+            axes.push((r.name.clone(), statuses));
+        }
+        Some(RuleMet {
+            rule: rule.clone(),
+            axes,
+        })
+    }
+}
