@@ -352,14 +352,7 @@ mod tests {
                  BEGIN SELECT RAISE(ABORT, 'blocked by the test'); END;",
             )
             .unwrap();
-        let mut board = VirtualBoard::new(model_file::example(), 3, 1, Speed::Max).unwrap();
-        let settings = SensorSettings::for_rate_and_bandwidth(200.0, 42.0).unwrap();
-        {
-            let mut b = Board::new(&mut board);
-            b.handshake().unwrap();
-            b.configure(settings).unwrap();
-            b.begin_stream().unwrap();
-        }
+        let mut board = started(3);
         let options = RecordOptions {
             duration_s: Some(30.0),
             ..RecordOptions::default()
@@ -510,17 +503,21 @@ mod tests {
         assert_eq!(session.counts.samples_lost, lost);
     }
 
-    /// A started virtual board at 200 Hz / 42 Hz, captured under `rule` with a cap of
-    /// `cap_s`, into `store`; the snapshots seen.
-    fn until(store: &Store, rule: &str, cap_s: f64) -> (Outcome, Vec<Snapshot>) {
-        let mut board = VirtualBoard::new(model_file::example(), 11, 1, Speed::Max).unwrap();
+    /// A virtual board (seed `seed`, full speed) streaming at 200 Hz / 42 Hz.
+    fn started(seed: u64) -> VirtualBoard {
+        let mut board = VirtualBoard::new(model_file::example(), seed, 1, Speed::Max).unwrap();
         let settings = SensorSettings::for_rate_and_bandwidth(200.0, 42.0).unwrap();
-        {
-            let mut b = Board::new(&mut board);
-            b.handshake().unwrap();
-            b.configure(settings).unwrap();
-            b.begin_stream().unwrap();
-        }
+        let mut b = Board::new(&mut board);
+        b.handshake().unwrap();
+        b.configure(settings).unwrap();
+        b.begin_stream().unwrap();
+        board
+    }
+
+    /// The virtual board of [`started`] captured under `rule` with a cap of `cap_s`, into
+    /// `store`; the snapshots seen.
+    fn until(store: &Store, rule: &str, cap_s: f64) -> (Outcome, Vec<Snapshot>) {
+        let mut board = started(11);
         let options = RecordOptions {
             duration_s: Some(cap_s),
             live: Some(live::LiveOptions {
