@@ -38,7 +38,7 @@ pub struct Plan<'a> {
     pub settings: &'a [SensorSettings],
     /// Data per setting, s.
     pub seconds: f64,
-    /// Session names are PREFIX-<rate>hz-<bandwidth>hz (with -2, -3... when taken).
+    /// Session names are `PREFIX-<rate>hz-<bandwidth>hz` (with -2, -3... when taken).
     pub prefix: &'a str,
     /// The command that asked for the sweep, kept with each stored analysis.
     pub command: &'a [String],

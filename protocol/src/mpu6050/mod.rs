@@ -11,10 +11,10 @@
 //! them share; the types of the others are re-exported here.
 //!
 //! Sources (InvenSense):
-//! - [RM] "MPU-6000 and MPU-6050 Register Map and Descriptions", RM-MPU-6000A-00 rev. 4.2:
+//! - \[RM\] "MPU-6000 and MPU-6050 Register Map and Descriptions", RM-MPU-6000A-00 rev. 4.2:
 //!   register 25 SMPLRT_DIV, 26 CONFIG (the DLPF table), 27 GYRO_CONFIG, 28 ACCEL_CONFIG,
 //!   65-66 TEMP_OUT, 117 WHO_AM_I.
-//! - [PS] "MPU-6000 and MPU-6050 Product Specification", PS-MPU-6000A-00 rev. 3.4, tables 6.1
+//! - \[PS\] "MPU-6000 and MPU-6050 Product Specification", PS-MPU-6000A-00 rev. 3.4, tables 6.1
 //!   and 6.2 (sensitivity scale factors).
 
 pub mod dlpf;

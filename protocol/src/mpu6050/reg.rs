@@ -1,8 +1,6 @@
 //! The MPU-6050's register addresses and the bits within them, as the register map names
-//! them [RM]: one home, shared by the firmware's driver and the host's simulated chip, so
+//! them \[RM\]: one home, shared by the firmware's driver and the host's simulated chip, so
 //! both speak of one chip.
-//!
-//! [RM]: super#sources
 
 pub const SMPLRT_DIV: u8 = 0x19;
 pub const CONFIG: u8 = 0x1A;
@@ -23,7 +21,7 @@ pub const FIFO_COUNT_H: u8 = 0x72;
 pub const FIFO_R_W: u8 = 0x74;
 pub const WHO_AM_I: u8 = 0x75;
 
-/// Bits within the registers above, under the register map's names [RM].
+/// Bits within the registers above, under the register map's names \[RM\].
 pub mod bits {
     /// PWR_MGMT_1 [RM, reg 107]: reset every register (self-clearing); sleep (set after a
     /// reset).

@@ -4,7 +4,7 @@ use super::settings::abs;
 use super::*;
 use core::f64::consts::PI;
 
-/// The DLPF table as printed in [RM], register 26, restated independently of
+/// The DLPF table as printed in \[RM\], register 26, restated independently of
 /// `DLPF_TABLE`: DLPF_CFG, accel (bandwidth Hz, delay ms, Fs kHz), gyro (bandwidth Hz,
 /// delay ms, Fs kHz).
 /// (bandwidth Hz, delay ms, sample rate kHz) of one sensor in one row.
