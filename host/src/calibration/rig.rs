@@ -60,7 +60,8 @@ pub enum Event<'a> {
     Progress(&'a Progress),
     /// The capture ended.
     Captured,
-    /// A capture was refused (`why`); attempt `attempt` of [`ATTEMPTS`] follows it.
+    /// Attempt `attempt` (of [`ATTEMPTS`]) was refused, for `why`; the rig tries again
+    /// while attempts remain.
     Retry { attempt: usize, why: &'a str },
     /// The board did not take Stop after a capture (it may be gone; the session says how it
     /// ended).
@@ -300,5 +301,101 @@ impl<O: Operator> Rig<O> {
             &[Sensor::Gyro, Sensor::Accel],
             &|_| None,
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::link::PortSpec;
+    use crate::link::replay::Speed;
+
+    /// What the rig told, in order, and whether it asked for a pose (and refuses it).
+    #[derive(Default)]
+    struct Log {
+        said: Vec<String>,
+        asked: Vec<String>,
+    }
+
+    impl Operator for Log {
+        fn pose(
+            &mut self,
+            instruction: &str,
+        ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            self.asked.push(instruction.to_string());
+            Err("nobody at the board".into())
+        }
+
+        fn event(&mut self, event: Event<'_>) {
+            let said = match event {
+                Event::Turned(i) => format!("turned: {i}"),
+                Event::Watching => "watching".into(),
+                Event::Watched => "watched".into(),
+                Event::NotStill(m) => format!("not still: {m}"),
+                Event::Capturing => "capturing".into(),
+                Event::Progress(_) => return,
+                Event::Captured => "captured".into(),
+                Event::Retry { attempt, why } => format!("retry {attempt}: {why}"),
+                Event::StopFailed(e) => format!("stop failed: {e}"),
+            };
+            self.said.push(said);
+        }
+    }
+
+    fn virtual_board() -> Opened {
+        crate::link::open(&PortSpec {
+            port: crate::link::setup::VIRTUAL_PORT,
+            speed: Speed::Max,
+            model: None,
+            seed: 3,
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn the_virtual_board_is_turned_watched_and_captured_into_a_session() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        let mut rig = Rig::new(virtual_board(), SensorSettings::default(), Log::default());
+        let record = rig.measure_at_rest(&store, 4.0, "rest").unwrap();
+        assert_eq!(record.len(), 400);
+        assert_eq!(record.rate_hz, 100.0);
+        assert_eq!(
+            rig.operator.said,
+            [
+                "turned: rest",
+                "watching",
+                "watched",
+                "capturing",
+                "captured"
+            ]
+        );
+        assert!(rig.operator.asked.is_empty());
+        assert_eq!(rig.sessions.len(), 1);
+        assert_eq!(store.list().unwrap().len(), 1);
+        assert!(rig.board.is_some());
+    }
+
+    #[test]
+    fn a_board_without_a_script_is_posed_by_the_operator() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        let mut opened = virtual_board();
+        opened.sensor = None;
+        let mut rig = Rig::new(opened, SensorSettings::default(), Log::default());
+        let e = rig.measure_at_rest(&store, 4.0, "put it down").unwrap_err();
+        assert!(matches!(e, RigError::Operator(_)), "{e:?}");
+        assert_eq!(e.to_string(), "nobody at the board");
+        assert_eq!(rig.operator.asked, ["put it down"]);
+        assert!(store.list().unwrap().is_empty());
+    }
+
+    #[test]
+    fn a_capture_too_short_to_judge_is_said() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        let mut rig = Rig::new(virtual_board(), SensorSettings::default(), Log::default());
+        let e = rig.measure_at_rest(&store, 0.5, "rest").unwrap_err();
+        assert!(matches!(e, RigError::TooShort(_)), "{e:?}");
     }
 }

@@ -357,6 +357,42 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
 
     #[test]
+    fn a_sweep_stopped_before_it_starts_names_what_it_made() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        let mut opened = crate::link::open(&crate::link::PortSpec {
+            port: crate::link::setup::VIRTUAL_PORT,
+            speed: crate::link::replay::Speed::Max,
+            model: None,
+            seed: 1,
+        })
+        .unwrap();
+        let settings = [SensorSettings::default(); 2];
+        let plan = Plan {
+            settings: &settings,
+            seconds: 1.0,
+            prefix: "t",
+            command: &[],
+        };
+        let mut events = 0;
+        let e = sweep(
+            &store,
+            opened.link.as_mut(),
+            &plan,
+            &AtomicBool::new(true),
+            &mut |_| events += 1,
+        )
+        .err()
+        .unwrap();
+        assert_eq!(
+            e.to_string(),
+            "sweep stopped by the user at setting 1/2; sessions made: none"
+        );
+        assert_eq!(events, 0);
+        assert!(store.list().unwrap().is_empty());
+    }
+
+    #[test]
     fn table_2_beside_the_folding_prediction_and_the_datasheet() {
         let rows: Vec<SweepRow> = PAPER_TABLE_2
             .iter()
