@@ -50,7 +50,7 @@
 use crate::driver::Mpu6050;
 use crate::timing::{Clock, MAX_RATE_ERROR_PERCENT, SampleGrid};
 use embedded_hal::i2c::I2c;
-use protocol::mpu6050::bits::FIFO_OFLOW;
+use protocol::mpu6050::reg::bits::FIFO_OFLOW;
 use protocol::mpu6050::{FIFO_SIZE, SensorSettings};
 use protocol::{ErrorCode, MAX_SAMPLES_PER_BATCH, RawSample, SampleBatch, Status};
 

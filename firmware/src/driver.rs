@@ -16,7 +16,7 @@
 use embedded_hal::delay::DelayNs;
 use embedded_hal::i2c::{Error as _, ErrorKind, I2c, NoAcknowledgeSource};
 use protocol::ErrorCode;
-use protocol::mpu6050::bits::{
+use protocol::mpu6050::reg::bits::{
     DATA_RDY, DEVICE_RESET, FIFO_EN_ALL, FIFO_OFLOW, FIFO_RESET, SIGNAL_PATH_RESET_ALL,
     USER_FIFO_EN,
 };

@@ -1,12 +1,14 @@
 //! imunoise, the host side: talk to the board, keep sessions, analyse IMU noise.
 //!
-//! The CLI (`src/main.rs`) is a thin layer over this library; every command's work lives in
-//! [`cli`], and the pieces it calls are the modules below.
+//! The `imunoise` command (`src/main.rs` and its private `cli` module) is a thin layer over
+//! this library: it parses arguments, draws progress and prints, and every workflow it runs
+//! is one of the modules below. The library reads no stdin and prints nothing; built with
+//! `--no-default-features` it needs none of the command line's dependencies.
 
 pub mod analysis;
 pub mod calibration;
 pub mod capture;
-pub mod cli;
+pub mod experiment;
 pub mod input;
 pub mod link;
 pub mod model;

@@ -1,5 +1,8 @@
-//! The `imunoise` command: parse, run, report. All work is in the library (`imunoise::cli`).
+//! The `imunoise` command: parse, run, report. The command line lives in [`cli`], private
+//! to this binary; every workflow it runs is in the `imunoise` library.
+
+mod cli;
 
 fn main() -> std::process::ExitCode {
-    imunoise::cli::main()
+    cli::main()
 }

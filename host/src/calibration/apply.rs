@@ -1,11 +1,13 @@
 //! Correct a record in memory with a board's calibrations: per sensor,
 //! `f_true = K^-1 (f_meas - b - [b_T(T) - b_T(T_cal)])`, b_T the temperature model's bias
 //! part, T the sample's TEMP_OUT and T_cal the temperature the bias was measured at. The
-//! stored data are never touched: this works on the decoded copy.
+//! stored data are never touched: this works on the decoded copy. [`latest`] picks a stored
+//! session's board's newest calibrations from the store.
 
 use super::temperature::TemperatureModel;
 use super::{Calibration, Correction, Sensor};
 use crate::record::Record;
+use crate::store::{CalibrationSettings, Session, Store, StoreError};
 
 /// What is applied to one board's records.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -114,6 +116,61 @@ pub fn apply(record: &mut Record, applied: &Applied) -> Result<Vec<String>, Stri
         ));
     }
     Ok(notes)
+}
+
+/// Why a session's board has no calibration to apply.
+#[derive(Debug, thiserror::Error)]
+pub enum LatestError {
+    #[error(
+        "session {id} '{name}' has no board id (an imported file): calibrations are kept per board"
+    )]
+    NoBoard { id: i64, name: String },
+    #[error("no calibration for board {0} (make one with `imunoise calibrate`)")]
+    NoCalibration(String),
+    #[error(transparent)]
+    Store(#[from] StoreError),
+}
+
+/// The newest calibrations of a session's board, as [`apply`] takes them, and a warning
+/// for each one used that was made under other sensor settings than the session's.
+pub fn latest(store: &Store, session: &Session) -> Result<(Applied, Vec<String>), LatestError> {
+    let Some(board) = &session.board else {
+        return Err(LatestError::NoBoard {
+            id: session.id,
+            name: session.name.clone(),
+        });
+    };
+    let stored = store.calibrations(Some(&board.board_id))?;
+    if stored.is_empty() {
+        return Err(LatestError::NoCalibration(board.board_id.clone()));
+    }
+    let settings = CalibrationSettings::of(board);
+    let cals: Vec<Calibration> = stored.iter().map(|c| c.calibration.clone()).collect();
+    let applied = Applied::newest(&cals);
+    let warnings = stored
+        .iter()
+        .filter(|c| c.settings != settings && uses(&applied, &c.calibration))
+        .map(|c| {
+            format!(
+                "calibration {} was made at {}, this session is at {settings}",
+                c.id, c.settings
+            )
+        })
+        .collect();
+    Ok((applied, warnings))
+}
+
+/// Whether `applied` took anything from `cal` (its bias, its matrix or its temperature model).
+fn uses(applied: &Applied, cal: &Calibration) -> bool {
+    cal.corrections.iter().any(|k| {
+        applied.corrections.iter().any(|a| {
+            a.sensor == k.sensor
+                && (a.bias == k.bias || (k.matrix.is_some() && a.matrix == k.matrix))
+        })
+    }) || cal
+        .temperature
+        .iter()
+        .any(|t| applied.temperature.contains(t))
 }
 
 fn fmt3(v: [f64; 3], unit: &str) -> String {

@@ -15,12 +15,14 @@
 //!
 //! The pieces: [`gravity`] (local g), [`fit`] (up/down, six-position and rate-table least
 //! squares), [`static_bias`] (gyro bias and its Allan uncertainty), [`temperature`] (bias
-//! against TEMP_OUT), [`still`] (is the sensor still, is it in the asked orientation) and
+//! against TEMP_OUT), [`still`] (is the sensor still, is it in the asked orientation),
+//! [`rig`] (a board driven through a procedure: turned, watched until still, captured) and
 //! [`apply`] (the correction of a record).
 
 pub mod apply;
 pub mod fit;
 pub mod gravity;
+pub mod rig;
 pub mod static_bias;
 pub mod still;
 pub mod temperature;

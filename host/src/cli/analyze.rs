@@ -2,17 +2,18 @@
 //! terms for every channel of a record; a table on stdout, and on request JSON, a plot,
 //! Kalibr's IMU YAML and a self-contained HTML report.
 
-use crate::analysis::filter;
-use crate::analysis::pipeline::{self, LowPassChoice, Options};
-use crate::analysis::psd::Window;
-use crate::analysis::taus::TauGrid;
-use crate::analysis::{DataType, Estimator};
 use crate::cli::output;
 use crate::cli::settings::{accel_range, gyro_range};
 use crate::cli::stored;
-use crate::input::{CountScale, LoadOptions, Loaded};
-use crate::report;
 use anyhow::{Context, Result};
+use imunoise::analysis::filter;
+use imunoise::analysis::pipeline::{self, LowPassChoice, Options};
+use imunoise::analysis::psd::Window;
+use imunoise::analysis::taus::TauGrid;
+use imunoise::analysis::{DataType, Estimator};
+use imunoise::input::{CountScale, LoadOptions, Loaded};
+use imunoise::report;
+use imunoise::report::filter::FilterFileError;
 use protocol::mpu6050::SensorSettings;
 use std::path::{Path, PathBuf};
 
@@ -140,7 +141,7 @@ fn parse_scale(s: &str) -> Result<(String, f64), String> {
 
 pub fn run(args: &AnalyzeArgs, store: Option<&Path>) -> Result<()> {
     args.analysis.check()?;
-    let store_dir = crate::store::locate(store).ok();
+    let store_dir = imunoise::store::locate(store).ok();
     for (path, flag) in args.analysis.outputs() {
         output::check(path, flag, store_dir.as_deref(), &[&args.input])?;
     }
@@ -164,7 +165,7 @@ pub fn run(args: &AnalyzeArgs, store: Option<&Path>) -> Result<()> {
         crate::cli::calibrations::apply_latest(store, session, &mut loaded.record)?;
     }
     let analysed = analyse(loaded, &args.analysis)?;
-    stored::keep_analysis(session.as_ref(), &analysed)
+    stored::keep_analysis(session.as_ref(), &analysed.options, &analysed.document)
 }
 
 /// How to read a record: shared by every command that takes one (analyze, replay, model).
@@ -251,7 +252,7 @@ impl AnalysisArgs {
             check_plot(path)?;
         }
         for path in &self.filter {
-            report::filter::check_format(path)?;
+            report::filter::check_format(path).map_err(filter_error)?;
         }
         if let Some(period) = self.filter_period {
             filter::check_period(period)
@@ -307,7 +308,7 @@ pub fn analyse(loaded: Loaded, args: &AnalysisArgs) -> Result<Analysed> {
     let mut options = options(args)?;
     options.low_pass = low_pass_choice(args.bandwidth, settings);
     let steps = record.channels.len() * pipeline::steps_per_channel(&options);
-    let bar = report::progress::bar(steps as u64, "analysing");
+    let bar = crate::cli::progress::bar(steps as u64, "analysing");
     let results = pipeline::analyze(&record, &options, &|| bar.inc(1))
         .with_context(|| record.source.clone())?;
     bar.finish_and_clear();
@@ -330,7 +331,8 @@ pub fn analyse(loaded: Loaded, args: &AnalysisArgs) -> Result<Analysed> {
             print!("{}", report::filter::render(&filters));
         }
         for path in &args.filter {
-            write(path, &report::filter::file_text(path, &filter_document)?)?;
+            let text = report::filter::file_text(path, &filter_document).map_err(filter_error)?;
+            write(path, &text)?;
             note(json_to_stdout, path, "filter noise parameters");
         }
         document["filter"] = filter_document;
@@ -379,6 +381,14 @@ fn options(args: &AnalysisArgs) -> Result<Options> {
         fit_tau_min: args.fit_tau_min,
         ..Options::default()
     })
+}
+
+/// A `--filter` file's error, the flag named where the file name is at fault.
+fn filter_error(e: FilterFileError) -> anyhow::Error {
+    match e {
+        FilterFileError::Format(_) => anyhow::anyhow!("--filter {e}"),
+        e => e.into(),
+    }
 }
 
 fn write(path: &std::path::Path, text: &str) -> Result<()> {

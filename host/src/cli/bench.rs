@@ -9,11 +9,11 @@
 //! 4. Decoding a large capture file (target: at least 100 MB/s).
 //! 5. The model workflow on a 3-hour 100 Hz record (target: under 30 s).
 
-use crate::analysis::pipeline::{self, Options};
-use crate::analysis::{Estimator, allan, into_phase};
-use crate::input;
-use crate::record::{Channel, Record};
 use anyhow::{Context, Result, bail};
+use imunoise::analysis::pipeline::{self, Options};
+use imunoise::analysis::{Estimator, allan, into_phase};
+use imunoise::input;
+use imunoise::record::{Channel, Record};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -98,7 +98,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
 /// The model workflow end to end on a 3-hour 100 Hz record with a hidden Gauss-Markov
 /// process (target: under 30 s on 2 cores).
 fn model_workflow() -> Result<()> {
-    use crate::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms};
+    use imunoise::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms};
     println!("\n5. Model workflow: 3 h at 100 Hz with a hidden Gauss-Markov process");
     let n = 3 * 3600 * 100;
     let terms = NoiseTerms {
@@ -118,7 +118,7 @@ fn model_workflow() -> Result<()> {
         channels: vec![Channel::named("gx", axis.take(n, &mut rng))],
     };
     let start = Instant::now();
-    let outcome = crate::model::run(&record, None, None, &crate::model::Settings::default())?;
+    let outcome = imunoise::model::run(&record, None, None, &imunoise::model::Settings::default())?;
     let kinds: Vec<&str> = outcome.steps.iter().map(|s| s.effect.kind()).collect();
     println!(
         "   imunoise:   {:>8.3} s (found: {})",
@@ -135,7 +135,7 @@ fn model_workflow() -> Result<()> {
 /// Decoding a large capture (random samples in full batches), keeping the samples as
 /// `replay` does and counting only as the live capture loop does.
 fn decode_throughput(megabytes: usize) {
-    use crate::capture::{Capture, CaptureWriter, StreamDecoder};
+    use imunoise::capture::{Capture, CaptureWriter, StreamDecoder};
     use protocol::{DeviceMessage, RawSample, SampleBatch};
     use rand::Rng;
     println!("\n4. Decoding a {megabytes} MB capture");
@@ -197,7 +197,7 @@ fn decode_throughput(megabytes: usize) {
 /// One hour of six axes at 1 kHz (21.6 million samples) of each noise term alone: the
 /// simulator's cost per term.
 fn simulator_terms() {
-    use crate::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms, Sinusoid};
+    use imunoise::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms, Sinusoid};
     println!("\n3. Simulator: one hour of six axes at 1 kHz, one noise term at a time");
     let one = |f: fn(&mut NoiseTerms)| {
         let mut t = NoiseTerms::default();

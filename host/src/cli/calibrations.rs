@@ -1,13 +1,13 @@
 //! `imunoise calibrations [--board ID] [--json]` and `imunoise calibrations show ID`: the
 //! stored calibrations; and [`apply_latest`], the `--calibrated` of `export` and `analyze`.
 
-use crate::calibration::apply::{Applied, apply};
-use crate::calibration::{AXES, Calibration, Correction};
 use crate::cli::stored::{print_listing, read_store};
-use crate::record::Record;
-use crate::report;
-use crate::store::{CalibrationSettings, Session, Store, StoredCalibration};
-use anyhow::{Result, anyhow, bail};
+use anyhow::{Result, anyhow};
+use imunoise::calibration::apply::{self, LatestError};
+use imunoise::calibration::{AXES, Calibration, Correction};
+use imunoise::record::Record;
+use imunoise::report;
+use imunoise::store::{Session, Store, StoredCalibration};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -88,7 +88,7 @@ fn table(list: &[StoredCalibration]) -> String {
             ]
         })
         .collect();
-    crate::report::table::aligned(&header, &rows)
+    imunoise::report::table::aligned(&header, &rows)
 }
 
 /// One calibration in words and numbers (units in every line).
@@ -181,46 +181,15 @@ fn describe_correction(k: &Correction) -> String {
 /// `--calibrated`: correct a session's record in memory with the newest calibrations of its
 /// board (the stored data are not touched); warns when they were made under other settings.
 pub fn apply_latest(store: &Store, session: &Session, record: &mut Record) -> Result<()> {
-    let Some(board) = &session.board else {
-        bail!(
-            "--calibrated: session {} '{}' has no board id (an imported file): calibrations are kept per board",
-            session.id,
-            session.name
-        );
-    };
-    let stored = store.calibrations(Some(&board.board_id))?;
-    if stored.is_empty() {
-        bail!(
-            "--calibrated: no calibration for board {} (make one with `imunoise calibrate`)",
-            board.board_id
-        );
+    let (applied, warnings) = apply::latest(store, session).map_err(|e| match e {
+        LatestError::Store(e) => anyhow::Error::from(e),
+        e => anyhow!("--calibrated: {e}"),
+    })?;
+    for warning in warnings {
+        eprintln!("warning: {warning}");
     }
-    let settings = CalibrationSettings::of(board);
-    let cals: Vec<Calibration> = stored.iter().map(|c| c.calibration.clone()).collect();
-    let applied = Applied::newest(&cals);
-    for c in &stored {
-        if c.settings != settings && uses(&applied, &c.calibration) {
-            eprintln!(
-                "warning: calibration {} was made at {}, this session is at {settings}",
-                c.id, c.settings
-            );
-        }
-    }
-    for note in apply(record, &applied).map_err(anyhow::Error::msg)? {
+    for note in apply::apply(record, &applied).map_err(anyhow::Error::msg)? {
         eprintln!("note: {note}");
     }
     Ok(())
-}
-
-/// Whether `applied` took anything from `cal` (its bias, its matrix or its temperature model).
-fn uses(applied: &Applied, cal: &Calibration) -> bool {
-    cal.corrections.iter().any(|k| {
-        applied.corrections.iter().any(|a| {
-            a.sensor == k.sensor
-                && (a.bias == k.bias || (k.matrix.is_some() && a.matrix == k.matrix))
-        })
-    }) || cal
-        .temperature
-        .iter()
-        .any(|t| applied.temperature.contains(t))
 }

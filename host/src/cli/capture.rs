@@ -1,32 +1,26 @@
 //! `imunoise capture`: record a session from a board's byte stream into the store, with a
 //! live count of samples and losses; Ctrl-C ends it cleanly.
 //!
-//! The source is a [`Link`]; [`open_link`] is the one place a source plugs in: a serial port
+//! The source is a [`Link`]; `open_link` is the one place a source plugs in: a serial port
 //! (`--port /dev/ttyACM0`), the virtual board (`--port sim`: the firmware's own code on the
 //! simulated MPU-6050), or a capture file replayed (`--from-file`). A board is handshaken
 //! (protocol version), configured and started; the file then holds its `Info`, the acks and
 //! every sample batch, exactly as they arrived.
 
 use crate::cli::settings::{accel_range, gyro_range};
-use crate::cli::simulate::SIMULATED_BOARD_ID;
 use crate::cli::simulate::parse_duration;
 use crate::cli::stored::open_store;
-use crate::link::Link;
-use crate::link::board::Board;
-use crate::link::replay::{ReplayLink, Speed};
-use crate::link::serial::SerialLink;
-use crate::link::virtual_board::VirtualBoard;
-use crate::recorder::{self, Ending, Progress, RecordOptions};
-use crate::sim::model_file;
 use anyhow::{Context, Result, anyhow, bail};
-use firmware::acquire::MAX_RATE_HZ;
+use imunoise::link::board::{Board, BoardError};
+use imunoise::link::replay::{ReplayLink, Speed};
+use imunoise::link::setup::streamable;
+use imunoise::link::{self, Link, Opened, PortSpec, start_board};
+use imunoise::recorder::{self, Ending, Progress, RecordOptions};
 use indicatif::{ProgressBar, ProgressStyle};
-use protocol::mpu6050::Hz;
-use protocol::{DeviceInfo, SensorSettings};
+use protocol::SensorSettings;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
 
 #[derive(clap::Args, Debug)]
 pub struct CaptureArgs {
@@ -84,62 +78,26 @@ pub struct VirtualBoardArgs {
     pub seed: u64,
 }
 
-/// A board to capture from: which port, which model and seed if it is the virtual one.
-pub struct PortSpec<'a> {
-    pub port: &'a str,
-    pub speed: Speed,
-    pub model: Option<&'a Path>,
-    pub seed: u64,
-}
-
-/// How long a serial port may vanish (a board rebooting and enumerating again takes a second
-/// or two; a cable pulled and pushed back by hand, more) before the capture calls it gone.
-pub const RECONNECT_WINDOW: Duration = Duration::from_secs(60);
-
-/// Open a board's port: `sim` is the virtual board, anything else a serial port (which
-/// reconnects within [`RECONNECT_WINDOW`]).
-pub fn open_port(spec: &PortSpec) -> Result<Box<dyn Link>> {
-    if spec.port != "sim" {
-        return Ok(Box::new(
-            SerialLink::open(spec.port)?.reconnect_within(RECONNECT_WINDOW),
-        ));
-    }
-    Ok(Box::new(virtual_board(spec)?))
-}
-
-/// The virtual board of `spec`: its model file's model and `[faults]` (or the built-in
-/// example, which has none), and seed.
-pub fn virtual_board(spec: &PortSpec) -> Result<VirtualBoard> {
-    let file = match spec.model {
-        Some(path) => model_file::load_file(path)?,
-        None => model_file::ModelFile {
-            model: model_file::example(),
-            faults: model_file::FaultPlan::default(),
-        },
-    };
-    let board = VirtualBoard::with_faults(
-        file.model,
-        spec.seed,
-        SIMULATED_BOARD_ID | spec.seed,
-        spec.speed,
-        &file.faults,
-    );
-    // As the board's own log would: the firmware goes on, and reports it on Start.
-    if let Some(e) = board.boot_error() {
+/// Open a board's port (a serial port, or `sim` for the virtual board); the virtual
+/// board's sensor failing to start is said, as the board's own log would.
+pub fn open_port(spec: &PortSpec) -> Result<Opened> {
+    let opened = link::open(spec)?;
+    if let Some(e) = opened.boot_error {
         eprintln!("note: the virtual board's sensor did not start: {e}");
     }
-    Ok(board)
+    Ok(opened)
 }
 
 /// The link the arguments name.
 fn open_link(args: &CaptureArgs) -> Result<Box<dyn Link>> {
     match (&args.port, &args.from_file) {
-        (Some(port), _) => open_port(&PortSpec {
+        (Some(port), _) => Ok(open_port(&PortSpec {
             port,
             speed: args.speed,
             model: args.virtual_board.model.as_deref(),
             seed: args.virtual_board.seed,
-        }),
+        })?
+        .link),
         (None, Some(path)) => Ok(Box::new(
             ReplayLink::open(path, args.speed)
                 .with_context(|| format!("--from-file {}", path.display()))?,
@@ -162,39 +120,17 @@ pub fn board_settings(
     Ok(settings.with_ranges(gyro_range(gyro_range_dps)?, accel_range(accel_range_g)?))
 }
 
-/// Whether the board's firmware streams `settings`: the sensor may be set faster than the
-/// firmware's output-rate limit (`imunoise settings` resolves such rates), the board not.
-pub fn streamable(settings: &SensorSettings) -> Result<(), String> {
-    let rate = settings.output_rate_hz();
-    if rate > MAX_RATE_HZ {
-        return Err(format!(
-            "{} Hz is above the board firmware's output-rate limit of {} Hz (the MPU-6050 \
-             itself can be set to it: `imunoise settings` shows how)",
-            Hz(rate),
-            Hz(MAX_RATE_HZ)
-        ));
-    }
-    Ok(())
-}
-
-/// Handshake (protocol version), configure and start a board; the capture loop then records
-/// its `Info`, the acks and the samples.
-pub fn start_board(link: &mut dyn Link, settings: SensorSettings) -> Result<DeviceInfo> {
-    let mut board = Board::new(link);
-    let info = board.handshake()?;
-    // A board left streaming by an interrupted run must stop before it takes settings.
-    board.stop()?;
-    board.configure(settings)?;
-    board.begin_stream()?;
-    Ok(info)
-}
-
 /// Stop a board after a capture; a board that is gone is reported, not an error (the
 /// session already says how it ended).
 pub fn stop_board(link: &mut dyn Link) {
     if let Err(e) = Board::new(link).stop() {
-        eprintln!("note: could not stop the board: {e}");
+        stop_failed(&e);
     }
+}
+
+/// What a board that did not take Stop after a capture is told as.
+pub fn stop_failed(e: &BoardError) {
+    eprintln!("note: could not stop the board: {e}");
 }
 
 /// A flag that Ctrl-C raises instead of killing the process: the capture loop then ends its

@@ -1,13 +1,13 @@
 //! `imunoise compare ID_OR_FILE...`: several sessions' (or files') IEEE-952 terms side by side
 //! per channel, with intervals, and which sessions differ significantly
-//! ([`crate::analysis::compare`] states the test).
+//! ([`imunoise::analysis::compare`] states the test).
 
-use crate::analysis::compare::{self, SessionFits};
-use crate::analysis::pipeline::{self, ChannelResult, Options};
 use crate::cli::analyze::ReadArgs;
 use crate::cli::stored;
-use crate::report;
 use anyhow::{Context, Result};
+use imunoise::analysis::compare::{self, SessionFits};
+use imunoise::analysis::pipeline::{self, ChannelResult, Options};
+use imunoise::report;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
@@ -54,7 +54,7 @@ pub fn run(args: &CompareArgs, store: Option<&Path>) -> Result<()> {
             .select(&args.columns)
             .map_err(anyhow::Error::msg)
             .with_context(|| input.display().to_string())?;
-        let bar = report::progress::bar(
+        let bar = crate::cli::progress::bar(
             (record.channels.len() * pipeline::steps_per_channel(&options)) as u64,
             "analysing",
         );

@@ -5,19 +5,19 @@
 //! (capture at each setting, stored sessions, the sweep table, the study's Table 2 beside
 //! the folding prediction, an HTML report).
 
-use crate::analysis::units::arw_to_deg_per_sqrt_h;
-use crate::cli::capture::PortSpec;
-use crate::cli::settings::aliases;
 use crate::cli::simulate::parse_duration;
 use crate::cli::stored::open_store;
-use crate::cli::sweep;
-use crate::link::accounting::SampleAccounting;
-use crate::link::replay::Speed;
-use crate::report::sig;
-use crate::sim::model_file;
-use crate::store::Store;
-use crate::store::clock::compact;
+use crate::cli::sweep::run_sweep;
 use anyhow::{Context, Result};
+use imunoise::analysis::units::arw_to_deg_per_sqrt_h;
+use imunoise::experiment::sweep;
+use imunoise::link::PortSpec;
+use imunoise::link::accounting::SampleAccounting;
+use imunoise::link::replay::Speed;
+use imunoise::report::sig;
+use imunoise::sim::model_file;
+use imunoise::store::Store;
+use imunoise::store::clock::compact;
 use protocol::frame::{self, FrameDecoder, MAX_WIRE_LEN};
 use protocol::mpu6050::SensorSettings;
 use protocol::{DeviceMessage, MAX_SAMPLES_PER_BATCH, RawSample, SampleBatch};
@@ -46,7 +46,7 @@ pub fn run(args: &DemoArgs, store: Option<&std::path::Path>) -> Result<()> {
             "   {rate:>5} Hz, {bandwidth:>3} Hz bandwidth -> DLPF_CFG {}, SMPLRT_DIV {:>3}{}",
             s.dlpf.bits(),
             s.smplrt_div,
-            if aliases(&s) {
+            if s.aliases() {
                 "   (bandwidth > rate/2: noise folds back)"
             } else {
                 ""
@@ -151,7 +151,7 @@ fn paper_experiment(duration: &str, store: &Store) -> Result<()> {
         model: None,
         seed: 1,
     };
-    let rows = sweep::sweep(store, &spec, &settings, seconds, "demo")?;
+    let rows = run_sweep(store, &spec, &settings, seconds, "demo")?;
     print!("{}", sweep::table(&rows));
     let reports = store.dir().join("reports");
     std::fs::create_dir_all(&reports).with_context(|| format!("creating {}", reports.display()))?;

@@ -6,11 +6,11 @@
 //! through `input::load` whenever it is analysed or exported. A capture file (the board's
 //! bytes) is stored as a capture session, exactly as if it had been recorded.
 
-use crate::capture::{Capture, looks_like_capture};
 use crate::cli::stored::open_store;
-use crate::input::{self, LoadOptions};
-use crate::store::{Counts, End, ImportSpec, Store};
 use anyhow::{Context, Result};
+use imunoise::capture::{Capture, looks_like_capture};
+use imunoise::input::{self, LoadOptions};
+use imunoise::store::{Counts, End, ImportSpec, Store};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
@@ -87,7 +87,7 @@ fn import_capture(store: &Store, args: &ImportArgs, bytes: &[u8]) -> Result<i64>
     let mut writer = store.begin_capture(args.name.as_deref(), args.note.as_deref())?;
     writer.write(bytes)?;
     writer.set_board(&capture.info)?;
-    let mut decoder = crate::capture::StreamDecoder::new(false);
+    let mut decoder = imunoise::capture::StreamDecoder::new(false);
     decoder.feed(bytes);
     let counts = Counts::of(&decoder, bytes.len() as u64);
     Ok(writer.finish(End::Complete, &counts)?)

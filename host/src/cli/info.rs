@@ -1,12 +1,13 @@
 //! `imunoise info --port PORT`: who a board is (id, firmware and protocol version, sensor,
 //! settings in force) and its counters, after the same handshake a capture does.
 
-use crate::cli::capture::{PortSpec, VirtualBoardArgs, open_port};
+use crate::cli::capture::{VirtualBoardArgs, open_port};
 use crate::cli::show::board_counters;
-use crate::link::board::Board;
-use crate::link::replay::Speed;
-use crate::store::Board as StoredBoard;
 use anyhow::Result;
+use imunoise::link::PortSpec;
+use imunoise::link::board::Board;
+use imunoise::link::replay::Speed;
+use imunoise::store::Board as StoredBoard;
 use protocol::{PROTOCOL_VERSION, ResetReason, Status};
 use serde::Serialize;
 
@@ -51,7 +52,8 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         speed: Speed::Max,
         model: args.virtual_board.model.as_deref(),
         seed: args.virtual_board.seed,
-    })?;
+    })?
+    .link;
     let mut board = Board::new(link.as_mut());
     let info = board.handshake()?;
     let status = board.status()?;

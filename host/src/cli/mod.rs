@@ -13,6 +13,7 @@ mod info;
 mod model;
 mod output;
 mod ports;
+mod progress;
 mod replay;
 mod rm;
 mod sessions;

@@ -3,8 +3,8 @@
 
 use crate::cli::analyze::{Bandwidth, ReadArgs, low_pass_choice, parse_bandwidth};
 use crate::cli::stored;
-use crate::model::{self, Settings, report};
 use anyhow::{Context, Result};
+use imunoise::model::{self, Settings, report};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]

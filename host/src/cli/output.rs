@@ -64,8 +64,8 @@ pub fn check_folder(path: &Path, what: &str) -> Result<()> {
 /// Whether `target` is one of the store's own files: its catalog (with SQLite's journal
 /// files) or anything under `sessions/`. Other files in the store's folder are the user's.
 fn store_file(store: &Path, target: &Path) -> bool {
-    let catalog = crate::store::CATALOG;
-    target.starts_with(store.join(crate::store::SESSIONS))
+    let catalog = imunoise::store::CATALOG;
+    target.starts_with(store.join(imunoise::store::SESSIONS))
         || ["", "-wal", "-shm", "-journal"]
             .iter()
             .any(|suffix| target == store.join(format!("{catalog}{suffix}")))

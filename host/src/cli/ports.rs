@@ -1,8 +1,8 @@
 //! `imunoise ports`: the serial ports the OS lists, with USB vendor/product where it gives
 //! them; our board is marked (and listed first).
 
-use crate::link::serial::list_ports;
 use anyhow::Result;
+use imunoise::link::serial::list_ports;
 
 #[derive(clap::Args, Debug)]
 pub struct PortsArgs {

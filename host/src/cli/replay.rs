@@ -28,5 +28,5 @@ pub fn run(args: &ReplayArgs, store: Option<&Path>) -> Result<()> {
     );
     stored::print_notes(&loaded.notes);
     let analysed = analyse(loaded, &args.analysis)?;
-    stored::keep_analysis(session.as_ref(), &analysed)
+    stored::keep_analysis(session.as_ref(), &analysed.options, &analysed.document)
 }

@@ -1,8 +1,8 @@
 //! `imunoise sessions`: the sessions in the store, one line each (or JSON).
 
 use crate::cli::stored::{print_listing, read_store};
-use crate::store::Session;
 use anyhow::Result;
+use imunoise::store::Session;
 use std::path::Path;
 
 #[derive(clap::Args, Debug)]
@@ -49,7 +49,7 @@ fn table(sessions: &[Session]) -> String {
             ]
         })
         .collect();
-    crate::report::table::aligned(&header, &rows)
+    imunoise::report::table::aligned(&header, &rows)
 }
 
 /// `1h02m03s`, `4m05s`, `6.1s`.

@@ -1,7 +1,7 @@
 //! `imunoise settings`: the MPU-6050's DLPF table, or the exact register values for an output
 //! rate and a bandwidth (with the nearest valid choices when there are none).
 
-use anyhow::{Context, Result};
+use anyhow::{Result, anyhow};
 use protocol::mpu6050::{AccelRange, DLPF_TABLE, GyroRange, SensorSettings};
 use serde_json::json;
 
@@ -28,7 +28,7 @@ pub fn run(args: &SettingsArgs) -> Result<()> {
     match (args.rate, args.bandwidth) {
         (Some(rate), Some(bandwidth)) => {
             let settings = SensorSettings::for_rate_and_bandwidth(rate, bandwidth)
-                .map_err(|e| anyhow::anyhow!("--rate {rate} --bandwidth {bandwidth}: {e}"))?
+                .map_err(|e| anyhow!("--rate {rate} --bandwidth {bandwidth}: {e}"))?
                 .with_ranges(gyro_range(args.gyro_range)?, accel_range(args.accel_range)?);
             if args.json {
                 println!("{:#}", settings_json(&settings));
@@ -42,34 +42,14 @@ pub fn run(args: &SettingsArgs) -> Result<()> {
     Ok(())
 }
 
+/// `--gyro-range DPS`: the range of that full scale.
 pub fn gyro_range(dps: u32) -> Result<GyroRange> {
-    GyroRange::ALL
-        .into_iter()
-        .find(|r| r.full_scale_dps() == f64::from(dps))
-        .with_context(|| {
-            format!(
-                "--gyro-range {dps}: the MPU-6050's gyro ranges are 250, 500, 1000 and 2000 deg/s"
-            )
-        })
+    GyroRange::from_full_scale_dps(dps).map_err(|e| anyhow!("--gyro-range {dps}: {e}"))
 }
 
+/// `--accel-range G`: the range of that full scale.
 pub fn accel_range(g: u32) -> Result<AccelRange> {
-    AccelRange::ALL
-        .into_iter()
-        .find(|r| r.full_scale_g() == f64::from(g))
-        .with_context(|| {
-            format!("--accel-range {g}: the MPU-6050's accel ranges are 2, 4, 8 and 16 g")
-        })
-}
-
-/// True when the gyro bandwidth exceeds half the output rate: noise between the Nyquist
-/// frequency and the bandwidth then folds back into the band, since the chip decimates
-/// without an anti-alias filter.
-pub fn aliases(settings: &SensorSettings) -> bool {
-    settings
-        .dlpf
-        .row()
-        .is_some_and(|r| r.gyro_bandwidth_hz > settings.output_rate_hz() / 2.0)
+    AccelRange::from_full_scale_g(g).map_err(|e| anyhow!("--accel-range {g}: {e}"))
 }
 
 fn print_settings(s: &SensorSettings) {
@@ -97,7 +77,7 @@ fn print_settings(s: &SensorSettings) {
         s.accel_range.bits(),
         s.accel_range.lsb_per_g()
     );
-    if aliases(s) {
+    if s.aliases() {
         println!(
             "note: the gyro bandwidth exceeds half the output rate ({} Hz): noise above it folds back (aliasing), which inflates the angle random walk",
             s.output_rate_hz() / 2.0
@@ -121,7 +101,7 @@ fn settings_json(s: &SensorSettings) -> serde_json::Value {
         "gyro_lsb_per_dps": s.gyro_range.lsb_per_dps(),
         "accel_full_scale_g": s.accel_range.full_scale_g(),
         "accel_lsb_per_g": s.accel_range.lsb_per_g(),
-        "bandwidth_exceeds_half_rate": aliases(s),
+        "bandwidth_exceeds_half_rate": s.aliases(),
         "registers": {
             "SMPLRT_DIV": r.smplrt_div,
             "CONFIG": r.config,

@@ -1,11 +1,11 @@
 //! `imunoise show ID`: everything the store knows about a session: metadata, counts, the
 //! losses with their gap list (from the raw file), the stored analyses.
 
-use crate::capture::{BoardReport, Capture, RecoveryReport, Segment};
 use crate::cli::sessions::{duration, rate_bandwidth};
 use crate::cli::stored::read_store;
-use crate::store::{Analysis, Kind, Session, State};
 use anyhow::Result;
+use imunoise::capture::{BoardReport, Capture, RecoveryReport, Segment};
+use imunoise::store::{Analysis, Kind, Session, State};
 use serde_json::json;
 use std::fmt::Write;
 use std::path::Path;
@@ -94,7 +94,7 @@ fn interruption(s: &Session) -> Option<String> {
         format!(
             "the recorder stopped without closing the session (killed, crashed or power lost) at about {}; bytes received in the last {} s before that may not have reached the disk",
             s.ended_at.as_deref().unwrap_or("an unknown time"),
-            crate::store::SYNC_INTERVAL.as_secs_f64() * 2.0
+            imunoise::store::SYNC_INTERVAL.as_secs_f64() * 2.0
         )
     })
 }

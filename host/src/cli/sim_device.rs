@@ -1,10 +1,10 @@
 //! `imunoise sim-device --stdio`: the simulated MPU-6050 for a bus model in another process
-//! (the emulated RP2040 in `tests/emu/`), one line per I2C event ([`crate::sim::bus_server`]).
+//! (the emulated RP2040 in `tests/emu/`), one line per I2C event ([`imunoise::sim::bus_server`]).
 
-use crate::sim::bus_server;
-use crate::sim::device::SimMpu6050;
-use crate::sim::model_file;
 use anyhow::{Context, Result, bail};
+use imunoise::sim::bus_server;
+use imunoise::sim::device::SimMpu6050;
+use imunoise::sim::model_file;
 use std::io::{BufReader, BufWriter, Write};
 use std::path::PathBuf;
 

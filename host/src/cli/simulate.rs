@@ -1,11 +1,11 @@
 //! `imunoise simulate`: a simulated MPU-6050 at rest, through the chip's signal chain
 //! (DLPF, decimation without anti-aliasing, LSB quantization), written as CSV in SI units.
 
-use crate::capture::CaptureWriter;
 use crate::cli::settings::{accel_range, gyro_range};
-use crate::report;
-use crate::sim::{imu::Imu, model_file};
 use anyhow::{Context, Result, bail};
+use imunoise::capture::CaptureWriter;
+use imunoise::link::setup::SIMULATED_BOARD_ID;
+use imunoise::sim::{imu::Imu, model_file};
 use indicatif::ProgressBar;
 use protocol::mpu6050::SensorSettings;
 use protocol::{
@@ -79,7 +79,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
         .with_context(|| format!("--out {}: cannot create", args.out.display()))?;
     let mut w = BufWriter::with_capacity(1 << 20, file);
     let mut imu = Imu::new(&model, settings, args.seed, seconds);
-    let bar = report::progress::bar(rows, "simulating");
+    let bar = crate::cli::progress::bar(rows, "simulating");
     let write_err = || format!("--out {}: write failed", args.out.display());
     match format {
         Format::Csv => write_csv(&mut w, &mut imu, rows, &bar).with_context(write_err)?,
@@ -123,7 +123,7 @@ fn write_csv(
     Ok(())
 }
 
-/// The bytes a board would send for this run (crate::capture): its Info with the settings,
+/// The bytes a board would send for this run (imunoise::capture): its Info with the settings,
 /// the samples in full batches with their indices and timestamps, and a final Status.
 fn write_capture(
     w: &mut impl Write,
@@ -167,9 +167,6 @@ fn write_capture(
         ..Status::default()
     }))
 }
-
-/// Board ids of simulated boards: "SIM" in the top bytes, the seed below.
-pub const SIMULATED_BOARD_ID: u64 = 0x5349_4D00_0000_0000;
 
 #[cfg(test)]
 mod tests {

@@ -1,12 +1,10 @@
 //! What the session commands share: opening the store (`--store`, `$IMUNOISE_STORE`, the
 //! platform data directory) and reading an input that is a file or a stored session.
 
-use crate::analysis::pipeline::Options;
-use crate::cli::analyze::Analysed;
-use crate::input::{self, LoadOptions, Loaded};
-use crate::report;
-use crate::store::{self, Kind, Session, Store};
 use anyhow::{Context, Result};
+use imunoise::analysis::pipeline::Options;
+use imunoise::input::{self, LoadOptions, Loaded};
+use imunoise::store::{self, Session, Store};
 use std::path::Path;
 
 /// Open the store the user chose for a command that writes to it (capture, import, rm ...),
@@ -70,19 +68,20 @@ pub fn print_warnings(warnings: &[String]) {
 /// How a stored analysis was made: this process's command line (its arguments, without the
 /// program name) and the analysis options, both JSON.
 pub fn provenance(options: &Options) -> serde_json::Value {
-    serde_json::json!({
-        "command": std::env::args().skip(1).collect::<Vec<_>>(),
-        "options": options,
-    })
+    store::provenance(&std::env::args().skip(1).collect::<Vec<_>>(), options)
 }
 
-/// Keep an analysis of a stored session in its catalog row.
-pub fn keep_analysis(session: Option<&(Store, Session)>, analysed: &Analysed) -> Result<()> {
+/// Keep an analysis of a stored session (its options and JSON document) in its catalog row.
+pub fn keep_analysis(
+    session: Option<&(Store, Session)>,
+    options: &Options,
+    document: &serde_json::Value,
+) -> Result<()> {
     {
         let Some((store, session)) = session else {
             return Ok(());
         };
-        let options = provenance(&analysed.options);
+        let options = provenance(options);
         if store.is_read_only() {
             eprintln!(
                 "note: the analysis is not stored with session {}: the store {} is read-only",
@@ -91,7 +90,7 @@ pub fn keep_analysis(session: Option<&(Store, Session)>, analysed: &Analysed) ->
             );
             return Ok(());
         }
-        let id = store.add_analysis(session.id, &options, &analysed.document)?;
+        let id = store.add_analysis(session.id, &options, document)?;
         eprintln!(
             "stored analysis {id} with session {} '{}'",
             session.id, session.name
@@ -120,29 +119,24 @@ pub fn load(input: &Path, options: &LoadOptions, store: Option<&Path>) -> Result
     })
 }
 
-/// A session's record: a capture decoded from its raw bytes, an imported file read again
-/// with the options it was imported with (the user's own options take precedence).
+/// A session's record ([`store::load_session`]), with a spinner while it is read and its
+/// warnings on stderr.
 pub fn load_session(session: &Session, options: &LoadOptions) -> Result<Loaded> {
-    let mut options = options.clone();
-    if session.kind == Kind::Imported
-        && let Some(spec) = &session.import_options
-    {
-        options.rate_hz = options.rate_hz.or(spec.rate_hz);
-        options.ignore_time |= spec.ignore_time;
-        if options.names.is_empty() {
-            options.names = spec.names.clone();
-        }
-        options.scales.splice(0..0, spec.scales.iter().cloned());
-    }
-    let mut loaded = read(&session.file, &options)
-        .with_context(|| format!("session {} '{}'", session.id, session.name))?;
-    loaded.record.source = format!("session {} '{}'", session.id, session.name);
-    Ok(loaded)
+    reading(&session.file, || store::load_session(session, options))
 }
 
+/// Read a file as a record, with a spinner while it is read and its warnings on stderr.
 fn read(path: &Path, options: &LoadOptions) -> Result<Loaded> {
-    let reading = report::progress::spinner(format!("reading {}", path.display()));
-    let loaded = input::load(path, options);
+    reading(path, || input::load(path, options))
+}
+
+/// `load` (which reads `path`) under a spinner; then the record's warnings.
+fn reading<E: std::error::Error + Send + Sync + 'static>(
+    path: &Path,
+    load: impl FnOnce() -> Result<Loaded, E>,
+) -> Result<Loaded> {
+    let reading = crate::cli::progress::spinner(format!("reading {}", path.display()));
+    let loaded = load();
     reading.finish_and_clear();
     let loaded = loaded?;
     print_warnings(&loaded.report.warnings);

@@ -1,7 +1,7 @@
 //! Talking to a board: the byte transport ([`transport::Link`]) and its sources (a serial
-//! port, the virtual board, a replayed capture file), the handshake and commands, the
-//! watcher that keeps a capture going through board restarts ([`keepalive`]), and exact
-//! sample accounting.
+//! port, the virtual board, a replayed capture file), opening a port by name and starting a
+//! board on it ([`setup`]), the handshake and commands, the watcher that keeps a capture
+//! going through board restarts ([`keepalive`]), and exact sample accounting.
 
 pub mod accounting;
 pub mod board;
@@ -9,7 +9,9 @@ pub mod handshake;
 pub mod keepalive;
 pub mod replay;
 pub mod serial;
+pub mod setup;
 pub mod transport;
 pub mod virtual_board;
 
+pub use setup::{Opened, PortSpec, open, start_board};
 pub use transport::Link;

@@ -21,9 +21,21 @@ pub fn document(record: &Record, filters: &[FilterNoise]) -> Value {
     })
 }
 
+/// A filter file that cannot be written.
+#[derive(Debug, thiserror::Error)]
+pub enum FilterFileError {
+    #[error(
+        "{}: the file name must end in .json, .yaml or .yml (it picks the format)",
+        .0.display()
+    )]
+    Format(std::path::PathBuf),
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+}
+
 /// The text of a filter file: JSON for `.json`, YAML for `.yaml`/`.yml`; any other
 /// extension is an error naming the path.
-pub fn file_text(path: &Path, document: &Value) -> anyhow::Result<String> {
+pub fn file_text(path: &Path, document: &Value) -> Result<String, FilterFileError> {
     if check_format(path)? == "json" {
         return Ok(serde_json::to_string_pretty(document)? + "\n");
     }
@@ -35,15 +47,12 @@ pub fn file_text(path: &Path, document: &Value) -> anyhow::Result<String> {
 }
 
 /// The format a `--filter` file name picks: `json` or `yaml` (also for `.yml`).
-pub fn check_format(path: &Path) -> anyhow::Result<&'static str> {
+pub fn check_format(path: &Path) -> Result<&'static str, FilterFileError> {
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
     match extension.to_ascii_lowercase().as_str() {
         "json" => Ok("json"),
         "yaml" | "yml" => Ok("yaml"),
-        _ => anyhow::bail!(
-            "--filter {}: the file name must end in .json, .yaml or .yml (it picks the format)",
-            path.display()
-        ),
+        _ => Err(FilterFileError::Format(path.to_owned())),
     }
 }
 

@@ -1,15 +1,17 @@
 //! Results for people and machines: the text table, the JSON document, figures (SVG/PNG),
-//! Kalibr's IMU YAML and a self-contained HTML report.
+//! Kalibr's IMU YAML, a self-contained HTML report, a sweep's tables and page, and samples
+//! as CSV.
 
 pub mod compare;
+pub mod csv;
 pub mod figures;
 pub mod filter;
 pub mod html;
 pub mod json;
 pub mod kalibr;
 pub mod plot;
-pub mod progress;
 pub mod sweep_page;
+pub mod sweep_table;
 pub mod table;
 pub mod yaml;
 

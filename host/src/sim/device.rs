@@ -42,7 +42,7 @@
 
 use super::imu::{Imu, ImuModel, RawSample, TrueInput};
 use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
-use protocol::mpu6050::bits::{
+use protocol::mpu6050::reg::bits::{
     ACCEL_FIFO_EN, DATA_RDY, DEVICE_RESET, FIFO_OFLOW, FIFO_RESET, SIG_COND_RESET, SLEEP,
     TEMP_FIFO_EN, USER_FIFO_EN, XG_FIFO_EN, YG_FIFO_EN, ZG_FIFO_EN,
 };

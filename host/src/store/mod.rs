@@ -17,6 +17,7 @@ mod calibrations;
 mod catalog;
 pub mod clock;
 mod integrity;
+mod load;
 pub mod location;
 mod lookup;
 mod schema;
@@ -25,6 +26,7 @@ mod writer;
 
 pub use calibrations::{CalibrationSettings, StoredCalibration};
 pub use integrity::{CountsSeen, Problem, Repair};
+pub use load::{LoadError, load_session, provenance};
 pub use location::{ENV, locate};
 pub use schema::VERSION as SCHEMA_VERSION;
 pub use session::{Analysis, Board, Counts, ImportSpec, Kind, Session, State};

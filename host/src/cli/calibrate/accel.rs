@@ -2,15 +2,15 @@
 
 use super::bench::Bench;
 use super::{BoardArgs, OutputArgs, Provenance, board_or_files, finish, mean_temperature, means};
-use crate::calibration::fit::{Observation, axis_label, fit_linear, six_positions, two_point};
-use crate::calibration::gravity::{STANDARD, normal_gravity};
-use crate::calibration::still::check_orientation;
-use crate::calibration::{AXES, Calibration, Kind, Sensor};
 use crate::cli::calibrations::describe_calibration;
 use crate::cli::stored::open_store;
-use crate::record::Record;
-use crate::sim::imu::{GravityAxis, TrueInput};
 use anyhow::{Result, anyhow, bail};
+use imunoise::calibration::fit::{Observation, axis_label, fit_linear, six_positions, two_point};
+use imunoise::calibration::gravity::{STANDARD, normal_gravity};
+use imunoise::calibration::still::check_orientation;
+use imunoise::calibration::{AXES, Calibration, Kind, Sensor};
+use imunoise::record::Record;
+use imunoise::sim::imu::{GravityAxis, TrueInput};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 

@@ -1,20 +1,18 @@
 //! `imunoise calibrate gyro`: the static bias with its Allan uncertainty
-//! ([`crate::calibration::static_bias`]), or a rate table ([`super::rate_table`]).
+//! ([`imunoise::calibration::static_bias`]), or a rate table ([`super::rate_table`]).
 
 use super::bench::Bench;
 use super::rate_table;
-use super::{BoardArgs, OutputArgs, Provenance, board_or_files, columns, finish, mean_temperature};
-use crate::calibration::static_bias::{StaticBias, static_bias};
-use crate::calibration::{AXES, Calibration, Correction, Kind, Sensor};
+use super::{
+    BoardArgs, DEG_H, OutputArgs, Provenance, board_or_files, columns, finish, mean_temperature,
+};
 use crate::cli::stored::open_store;
-use crate::record::Record;
 use anyhow::{Result, anyhow, bail};
+use imunoise::calibration::static_bias::{StaticBias, static_bias};
+use imunoise::calibration::{AXES, Calibration, Correction, Kind, Sensor};
+use imunoise::record::Record;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-
-pub const DEG: f64 = std::f64::consts::PI / 180.0;
-/// rad/s to deg/h.
-pub const DEG_H: f64 = 3600.0 / DEG;
 
 #[derive(clap::Args, Debug)]
 pub struct GyroArgs {

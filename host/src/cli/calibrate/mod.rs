@@ -8,15 +8,20 @@ mod gyro;
 mod rate_table;
 mod temperature;
 
-use crate::calibration::{Calibration, Sensor, Vec3};
 use crate::cli::capture::VirtualBoardArgs;
 use crate::cli::stored;
-use crate::input::LoadOptions;
-use crate::link::replay::Speed;
-use crate::record::Record;
-use crate::store::{Board, CalibrationSettings, Store};
 use anyhow::{Result, anyhow, bail};
+use imunoise::calibration::{Calibration, Sensor, Vec3};
+use imunoise::input::LoadOptions;
+use imunoise::link::replay::Speed;
+use imunoise::record::Record;
+use imunoise::store::{Board, CalibrationSettings, Store};
 use std::path::Path;
+
+/// One degree in radians.
+pub const DEG: f64 = std::f64::consts::PI / 180.0;
+/// rad/s to deg/h.
+pub const DEG_H: f64 = 3600.0 / DEG;
 
 #[derive(clap::Args, Debug)]
 pub struct CalibrateArgs {
@@ -112,8 +117,8 @@ impl Provenance {
     /// From a board's captures.
     pub fn of_bench(bench: &bench::Bench, rate_hz: f64) -> Provenance {
         Provenance {
-            board: bench.board.clone(),
-            sources: bench.sessions.clone(),
+            board: bench.board().cloned(),
+            sources: bench.sessions().to_vec(),
             rate_hz,
         }
     }
@@ -172,7 +177,7 @@ pub fn finish(
 
 /// The mean of each of a sensor's three channels, naming a missing one.
 pub fn means(record: &Record, sensor: Sensor) -> Result<Vec3> {
-    let mean = |v: &[f64]| crate::analysis::neumaier_sum(v.iter().copied()) / v.len() as f64;
+    let mean = |v: &[f64]| imunoise::analysis::neumaier_sum(v.iter().copied()) / v.len() as f64;
     Ok(columns(record, sensor)?.map(mean))
 }
 

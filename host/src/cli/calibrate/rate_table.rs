@@ -1,17 +1,16 @@
 //! The rate table of `imunoise calibrate gyro`: clockwise and anticlockwise about each
 //! axis, per-axis two-point and, with all three axes, the least-squares bias, scale factors
-//! and misalignment ([`crate::calibration::fit`]).
+//! and misalignment ([`imunoise::calibration::fit`]).
 
 use super::bench::Bench;
-use super::gyro::{DEG, DEG_H};
-use super::{Provenance, mean_temperature, means};
-use crate::calibration::fit::{FitError, Observation, fit_linear, two_point};
-use crate::calibration::{AXES, Calibration, Correction, Kind, Sensor, identity};
+use super::{DEG, DEG_H, Provenance, mean_temperature, means};
 use crate::cli::calibrations::describe_calibration;
-use crate::record::Record;
-use crate::sim::imu::{GravityAxis, TrueInput};
-use crate::store::Store;
 use anyhow::{Context, Result, anyhow, bail};
+use imunoise::calibration::fit::{FitError, Observation, fit_linear, two_point};
+use imunoise::calibration::{AXES, Calibration, Correction, Kind, Sensor, identity};
+use imunoise::record::Record;
+use imunoise::sim::imu::{GravityAxis, TrueInput};
+use imunoise::store::Store;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -38,7 +37,7 @@ pub fn spin_on_bench(
             let rate = sign * rate_deg_s;
             let mut input = TrueInput::at_rest(
                 GravityAxis::default(),
-                crate::calibration::gravity::STANDARD,
+                imunoise::calibration::gravity::STANDARD,
             );
             input.angular_rate[axis] = rate * DEG;
             let instruction = format!(

@@ -1,14 +1,14 @@
 //! `imunoise calibrate temperature`: bias against TEMP_OUT from a warm-up or cool-down
-//! record at rest ([`crate::calibration::temperature`]), for the gyro and the accelerometer.
+//! record at rest ([`imunoise::calibration::temperature`]), for the gyro and the accelerometer.
 
 use super::bench::Bench;
 use super::{BoardArgs, OutputArgs, Provenance, board_or_files, columns, finish};
-use crate::calibration::temperature::{BLOCK_S, QUADRATIC_P, fit};
-use crate::calibration::{Calibration, Kind, Sensor};
 use crate::cli::calibrations::describe_calibration;
 use crate::cli::stored::open_store;
-use crate::record::Record;
 use anyhow::{Context, Result, anyhow};
+use imunoise::calibration::temperature::{BLOCK_S, QUADRATIC_P, fit};
+use imunoise::calibration::{Calibration, Kind, Sensor};
+use imunoise::record::Record;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
