@@ -1,43 +1,11 @@
 //! `imunoise analyze` as a user runs it: inputs (the real MPU-6050 logger file, CSV with a
 //! time column, NumPy), the JSON document's contract, the output files, and the errors.
 
+mod common;
+
+use common::{TempStore, json as json_of, mpu_record, run, scratch, stderr};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn imunoise(args: &[&str]) -> Output {
-    // A store of the tests' own: a name that is not a file is looked up as a session, and
-    // the user's store must neither answer nor be touched.
-    let store = std::env::temp_dir().join(format!("imunoise-analyze-tests-{}", std::process::id()));
-    Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .env("IMUNOISE_STORE", store)
-        .args(args)
-        .output()
-        .expect("the imunoise binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn json_of(o: &Output) -> Value {
-    assert!(o.status.success(), "{}", stderr(o));
-    serde_json::from_slice(&o.stdout).expect("stdout is JSON")
-}
-
-fn mpu_record() -> String {
-    concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../tests/data/mpu6050_static_100hz/example_data_tinit_calc.csv"
-    )
-    .to_string()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("imunoise-analyze-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
+use std::path::Path;
 
 /// A channel's fitted white-noise term N, checked to be in a gyro's or an accelerometer's
 /// SI unit.
@@ -85,7 +53,7 @@ fn published_n(axis: &str) -> f64 {
 
 #[test]
 fn the_real_mpu6050_record_in_raw_counts() {
-    let out = imunoise(&["analyze", &mpu_record(), "--counts", "--json", "-"]);
+    let out = run(&["analyze", &mpu_record(), "--counts", "--json", "-"]);
     let doc = json_of(&out);
     assert_eq!(doc["rate_hz"], 100.0); // from the file's `Fs,100` header line
     assert_eq!(doc["samples"], 44930);
@@ -151,7 +119,8 @@ fn the_real_mpu6050_record_in_raw_counts() {
 
 #[test]
 fn every_estimator_and_grid_on_a_csv_with_a_time_column() {
-    let path = scratch("timed.csv");
+    let tmp = scratch();
+    let path = tmp.path().join("timed.csv");
     let mut text = String::from("# a comment\ntime,gx,temp\n");
     let mut uniform = uniform(12345);
     for i in 0..4000 {
@@ -164,7 +133,7 @@ fn every_estimator_and_grid_on_a_csv_with_a_time_column() {
     for e in ["oadev", "adev", "mdev", "hdev", "ohdev", "tdev", "totdev"] {
         args.extend(["--estimator", e]);
     }
-    let doc = json_of(&imunoise(&args));
+    let doc = json_of(&run(&args));
     assert_eq!(doc["rate_hz"], 200.0); // from the time column
     let gx = &doc["channels"][0];
     assert_eq!(gx["name"], "gx");
@@ -178,8 +147,9 @@ fn every_estimator_and_grid_on_a_csv_with_a_time_column() {
 
 #[test]
 fn phase_input_gives_the_same_allan_deviation_as_rate_input() {
-    let rate = scratch("rate.csv");
-    let phase = scratch("phase.csv");
+    let tmp = scratch();
+    let rate = tmp.path().join("rate.csv");
+    let phase = tmp.path().join("phase.csv");
     let (mut r, mut p) = (String::from("gx\n"), String::from("gx\n"));
     let (mut x, mut s) = (0.0f64, 99u64);
     p.push_str("0\n");
@@ -194,7 +164,7 @@ fn phase_input_gives_the_same_allan_deviation_as_rate_input() {
     }
     std::fs::write(&rate, r).unwrap();
     std::fs::write(&phase, p).unwrap();
-    let a = json_of(&imunoise(&[
+    let a = json_of(&run(&[
         "analyze",
         rate.to_str().unwrap(),
         "--rate",
@@ -202,7 +172,7 @@ fn phase_input_gives_the_same_allan_deviation_as_rate_input() {
         "--json",
         "-",
     ]));
-    let b = json_of(&imunoise(&[
+    let b = json_of(&run(&[
         "analyze",
         phase.to_str().unwrap(),
         "--rate",
@@ -224,14 +194,15 @@ fn phase_input_gives_the_same_allan_deviation_as_rate_input() {
 
 #[test]
 fn output_files_plot_kalibr_and_report() {
+    let tmp = scratch();
     let (svg, png, yaml, html, json) = (
-        scratch("fig.svg"),
-        scratch("fig.png"),
-        scratch("imu.yaml"),
-        scratch("report.html"),
-        scratch("out.json"),
+        tmp.path().join("fig.svg"),
+        tmp.path().join("fig.png"),
+        tmp.path().join("imu.yaml"),
+        tmp.path().join("report.html"),
+        tmp.path().join("out.json"),
     );
-    let out = imunoise(&[
+    let out = run(&[
         "analyze",
         &mpu_record(),
         "--counts",
@@ -252,7 +223,7 @@ fn output_files_plot_kalibr_and_report() {
     );
     let svg_text = std::fs::read_to_string(&svg).unwrap();
     assert!(svg_text.contains("Gyroscope") && svg_text.contains("Accelerometer"));
-    let out = imunoise(&[
+    let out = run(&[
         "analyze",
         &mpu_record(),
         "--counts",
@@ -281,12 +252,13 @@ fn output_files_plot_kalibr_and_report() {
 
 #[test]
 fn numpy_input_with_names() {
-    let path = scratch("two.npy");
+    let tmp = scratch();
+    let path = tmp.path().join("two.npy");
     let values: Vec<f64> = (0..2000)
         .map(|i| ((i * 7919) % 1000) as f64 * 1e-3)
         .collect();
     imunoise::input::write_npy(Path::new(&path), &values).unwrap();
-    let doc = json_of(&imunoise(&[
+    let doc = json_of(&run(&[
         "analyze",
         path.to_str().unwrap(),
         "--rate",
@@ -331,20 +303,21 @@ fn bad_inputs_get_clear_errors() {
             "--column gy: no such channel",
         ),
     ];
+    let tmp = scratch();
     for (name, text, extra, expected) in cases {
-        let path = scratch(name);
+        let path = tmp.path().join(name);
         std::fs::write(&path, text).unwrap();
         let mut args = vec!["analyze", path.to_str().unwrap()];
         args.extend_from_slice(extra);
-        let out = imunoise(&args);
+        let out = run(&args);
         assert_eq!(out.status.code(), Some(1), "{name}");
         let err = stderr(&out);
         assert!(err.contains(expected), "{name}: {err}");
         assert!(!err.contains("panicked"), "{name}: {err}");
     }
-    let out = imunoise(&["analyze", "/nonexistent/x.csv", "--rate", "1"]);
+    let out = run(&["analyze", "/nonexistent/x.csv", "--rate", "1"]);
     assert!(stderr(&out).contains("/nonexistent/x.csv"));
-    let out = imunoise(&["analyze", &mpu_record(), "--counts", "--estimator", "avar"]);
+    let out = run(&["analyze", &mpu_record(), "--counts", "--estimator", "avar"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("unknown estimator 'avar'"));
 }
@@ -353,6 +326,7 @@ fn bad_inputs_get_clear_errors() {
 /// run on request, with every loss reported.
 #[test]
 fn gapped_captures_are_refused_or_cut_to_their_longest_run() {
+    let tmp = scratch();
     use imunoise::capture::CaptureWriter;
     use protocol::{
         DeviceInfo, DeviceMessage, FirmwareVersion, PROTOCOL_VERSION, RawSample, SampleBatch,
@@ -396,17 +370,17 @@ fn gapped_captures_are_refused_or_cut_to_their_longest_run() {
         }))
         .unwrap();
     }
-    let path = scratch("gapped.imucap");
+    let path = tmp.path().join("gapped.imucap");
     std::fs::write(&path, w.into_inner()).unwrap();
     let path = path.to_str().unwrap();
-    let out = imunoise(&["analyze", path, "--column", "gx"]);
+    let out = run(&["analyze", path, "--column", "gx"]);
     assert_eq!(out.status.code(), Some(1));
     assert!(
         stderr(&out).contains("64 samples lost in 1 gap(s) (first at index 3200)"),
         "{}",
         stderr(&out)
     );
-    let out = imunoise(&[
+    let out = run(&[
         "analyze",
         path,
         "--column",
@@ -471,11 +445,12 @@ const ACCEL_G: f64 = 0.002;
 /// probability 0.98 and a unit error (57x for deg/s, 9.8x for g) lies far outside them.
 #[test]
 fn a_host_stamped_gzipped_log_with_units_analyses_with_no_preparation() {
+    let tmp = scratch();
     let rate = 99.87;
     let text = host_stamped_log(60_000, rate, &[20_000..20_012, 45_000..45_020]);
-    let path = scratch("arduino.csv.gz");
+    let path = tmp.path().join("arduino.csv.gz");
     std::fs::write(&path, gzipped(&text)).unwrap();
-    let out = imunoise(&[
+    let out = run(&[
         "analyze",
         path.to_str().unwrap(),
         "--confidence",
@@ -524,6 +499,7 @@ fn a_host_stamped_gzipped_log_with_units_analyses_with_no_preparation() {
 /// line, time and count; `--ignore-time` takes the rows as they are, also for an import.
 #[test]
 fn rate_overrides_and_ignore_time_sets_aside_a_time_column() {
+    let tmp = scratch();
     let mut text = String::from("t,gx_dps\n");
     for i in 0..3000 {
         if !(1000..1005).contains(&i) {
@@ -534,10 +510,10 @@ fn rate_overrides_and_ignore_time_sets_aside_a_time_column() {
             ));
         }
     }
-    let gapped = scratch("gapped.txt.gz");
+    let gapped = tmp.path().join("gapped.txt.gz");
     std::fs::write(&gapped, gzipped(&text)).unwrap();
     let gapped = gapped.to_str().unwrap();
-    let out = imunoise(&["analyze", gapped, "--rate", "100"]);
+    let out = run(&["analyze", gapped, "--rate", "100"]);
     assert_eq!(out.status.code(), Some(1));
     assert!(
         stderr(&out).contains(&format!(
@@ -547,7 +523,7 @@ fn rate_overrides_and_ignore_time_sets_aside_a_time_column() {
         "{}",
         stderr(&out)
     );
-    let out = imunoise(&["analyze", gapped, "--rate", "100", "--ignore-time"]);
+    let out = run(&["analyze", gapped, "--rate", "100", "--ignore-time"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let shown = String::from_utf8_lossy(&out.stdout);
     assert!(
@@ -560,7 +536,7 @@ fn rate_overrides_and_ignore_time_sets_aside_a_time_column() {
     );
     assert!(shown.contains("2995 samples at 100.000 Hz"), "{shown}");
 
-    let whole = scratch("whole.csv");
+    let whole = tmp.path().join("whole.csv");
     let mut text = String::from("t,gx\n");
     for i in 0..3000 {
         text.push_str(&format!(
@@ -570,7 +546,7 @@ fn rate_overrides_and_ignore_time_sets_aside_a_time_column() {
         ));
     }
     std::fs::write(&whole, text).unwrap();
-    let out = imunoise(&[
+    let out = run(&[
         "analyze",
         whole.to_str().unwrap(),
         "--rate",
@@ -588,21 +564,9 @@ fn rate_overrides_and_ignore_time_sets_aside_a_time_column() {
     );
 
     // An import keeps --ignore-time for every later read.
-    let store = tempfile::tempdir().unwrap();
-    let store = store.path().to_str().unwrap();
-    let out = imunoise(&[
-        "--store",
-        store,
-        "import",
-        gapped,
-        "--rate",
-        "100",
-        "--ignore-time",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let doc = json_of(&imunoise(&[
-        "--store", store, "analyze", "1", "--json", "-",
-    ]));
+    let store = TempStore::new();
+    store.ok(&["import", gapped, "--rate", "100", "--ignore-time"]);
+    let doc = json_of(&store.run(&["analyze", "1", "--json", "-"]));
     assert_eq!(doc["samples"], 2995);
     assert_eq!(doc["input"]["ignored_time_column"], "t");
 }
@@ -612,7 +576,8 @@ fn rate_overrides_and_ignore_time_sets_aside_a_time_column() {
 /// against the record (2000 samples), never dropped in silence.
 #[test]
 fn bad_outputs_and_ranges_fail_before_anything_is_printed() {
-    let path = scratch("outputs.csv");
+    let tmp = scratch();
+    let path = tmp.path().join("outputs.csv");
     let mut text = String::from("gx\n");
     let mut uniform = uniform(99);
     for _ in 0..2000 {
@@ -620,7 +585,7 @@ fn bad_outputs_and_ranges_fail_before_anything_is_printed() {
     }
     std::fs::write(&path, text).unwrap();
     let path = path.to_str().unwrap();
-    let jpg = scratch("x.jpg");
+    let jpg = tmp.path().join("x.jpg");
     let cases: [(&[&str], String); 7] = [
         (
             &["--plot", jpg.to_str().unwrap()],
@@ -659,7 +624,7 @@ fn bad_outputs_and_ranges_fail_before_anything_is_printed() {
     for (extra, expected) in cases {
         let mut args = vec!["analyze", path, "--rate", "100"];
         args.extend_from_slice(extra);
-        let out = imunoise(&args);
+        let out = run(&args);
         assert_eq!(out.status.code(), Some(1), "{extra:?}: {}", stderr(&out));
         assert!(
             stderr(&out).contains(&expected),
@@ -670,7 +635,7 @@ fn bad_outputs_and_ranges_fail_before_anything_is_printed() {
         assert!(!jpg.exists());
     }
     // The whole record is a valid segment: the PSD has one.
-    let doc = json_of(&imunoise(&[
+    let doc = json_of(&run(&[
         "analyze",
         path,
         "--rate",
@@ -682,8 +647,8 @@ fn bad_outputs_and_ranges_fail_before_anything_is_printed() {
     ]));
     assert_eq!(doc["channels"][0]["psd"]["segments"], 1);
     // A sweep checks its outputs before it captures for hours.
-    let store = scratch("sweep-store");
-    let out = imunoise(&[
+    let store = tmp.path().join("sweep-store");
+    let out = run(&[
         "--store",
         store.to_str().unwrap(),
         "sweep",

@@ -10,9 +10,12 @@
 //! leave N unchanged at long averaging times (the bandwidth is below Nyquist), and the LSB
 //! (6e-4 m/s^2, 1.3e-4 rad/s) is far below the per-sample noise, which dithers it.
 
+mod common;
+
+use common::{TempStore, stderr};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::PathBuf;
+use std::process::Output;
 
 const G: f64 = 9.80665;
 const DEG: f64 = std::f64::consts::PI / 180.0;
@@ -38,7 +41,7 @@ const GYRO_TEMP: f64 = 1e-4; // rad/s/degC
 const ACCEL_TEMP: f64 = 1e-3; // m/s^2/degC
 
 /// The model file: at 25 degC (the coupling's reference) unless `warmup`.
-fn model(dir: &Path, warmup: bool) -> PathBuf {
+fn model(store: &TempStore, warmup: bool) -> PathBuf {
     let m = |x: [[f64; 3]; 3]| format!("{x:?}");
     let text = format!(
         "[gyro]\nnoise_density = {GYRO_N}\nbias = {:?}\nscale_factor = {:?}\nmisalignment = {}\n\
@@ -58,7 +61,7 @@ fn model(dir: &Path, warmup: bool) -> PathBuf {
             ""
         }
     );
-    let path = dir.join(if warmup { "warm.toml" } else { "model.toml" });
+    let path = store.file(if warmup { "warm.toml" } else { "model.toml" });
     std::fs::write(&path, text).unwrap();
     path
 }
@@ -74,34 +77,8 @@ fn sim_matrix(scale: [f64; 3], mis: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
     k
 }
 
-fn run(store: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .arg("--store")
-        .arg(store)
-        .args(args)
-        .output()
-        .expect("the imunoise binary runs")
-}
-
-fn ok(store: &Path, args: &[&str]) -> Output {
-    let out = run(store, args);
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
 fn json(out: &Output) -> Value {
     serde_json::from_slice(&out.stdout).expect("JSON on stdout")
-}
-
-fn dir(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 fn vec3(v: &Value) -> [f64; 3] {
@@ -131,7 +108,7 @@ const SIM: [&str; 6] = ["--port", "sim", "--rate", "100", "--bandwidth", "42"];
 
 #[test]
 fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_session() {
-    let store = dir("calibrate-sim");
+    let store = TempStore::new();
     let model = model(&store, false);
     let model = model.to_str().unwrap();
 
@@ -146,7 +123,7 @@ fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_s
         &["--model", model, "--seconds", "20", "--json"],
     ]
     .concat();
-    let out = ok(&store, &args);
+    let out = store.ok(&args);
     let doc = json(&out);
     let accel = &doc["calibration"]["corrections"][0];
     assert_eq!(accel["sensor"], "accel");
@@ -157,7 +134,7 @@ fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_s
         4.0 * sigma_m / 6f64.sqrt(),
         4.0 * sigma_m * 2f64.sqrt() / (2.0 * G),
     );
-    // The paper's up/down gives the same diagonal: bias (f_up + f_down)/2 has sigma_m /
+    // The settings study's up/down gives the same diagonal: bias (f_up + f_down)/2 has sigma_m /
     // sqrt(2); the scale factor the same sigma as K_jj.
     for (j, t) in doc["calibration"]["details"]["up_down"]
         .as_array()
@@ -190,7 +167,7 @@ fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_s
         .collect::<Vec<_>>();
     let mut args = vec!["calibrate", "accel", "--json", "--dry-run"];
     args.extend(positions.iter().map(String::as_str));
-    let again = json(&ok(&store, &args));
+    let again = json(&store.ok(&args));
     assert_eq!(again["calibration"], doc["calibration"]);
     assert_eq!(again["board_id"], doc["board_id"]);
 
@@ -212,7 +189,7 @@ fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_s
         ],
     ]
     .concat();
-    let doc = json(&ok(&store, &args));
+    let doc = json(&store.ok(&args));
     check_correction(
         &doc["calibration"]["corrections"][0],
         GYRO_BIAS,
@@ -223,35 +200,32 @@ fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_s
 
     // The rate table as a file of (axis, commanded rate, record) lines naming the six stored
     // sessions (ids 7..12) gives the same calibration.
-    let table = store.join("table.txt");
+    let table = store.file("table.txt");
     let lines: String = ["x 100", "x -100", "y 100", "y -100", "z 100", "z -100"]
         .iter()
         .enumerate()
         .map(|(i, l)| format!("{l} {}\n", i + 7))
         .collect();
     std::fs::write(&table, format!("# axis rate_deg_s record\n{lines}")).unwrap();
-    let again = json(&ok(
-        &store,
-        &[
-            "calibrate",
-            "gyro",
-            "--rate-table",
-            table.to_str().unwrap(),
-            "--json",
-            "--dry-run",
-        ],
-    ));
+    let again = json(&store.ok(&[
+        "calibrate",
+        "gyro",
+        "--rate-table",
+        table.to_str().unwrap(),
+        "--json",
+        "--dry-run",
+    ]));
     assert_eq!(again["calibration"], doc["calibration"]);
 
     // Both are listed for the virtual board (board id 0x5349_4d00_0000_0000 | seed 1).
-    let list = json(&ok(&store, &["calibrations", "--json"]));
+    let list = json(&store.ok(&["calibrations", "--json"]));
     let list = list.as_array().unwrap();
     assert_eq!(list.len(), 2);
     assert!(list.iter().all(|c| c["board_id"] == "0x53494d0000000001"));
-    let shown = ok(&store, &["calibrations", "show", "1"]);
+    let shown = store.ok(&["calibrations", "show", "1"]);
     let text = String::from_utf8_lossy(&shown.stdout);
     assert!(text.contains("misalignment M (mrad"), "{text}");
-    let yaml = ok(&store, &["calibrations", "show", "1", "--yaml"]);
+    let yaml = store.ok(&["calibrations", "show", "1", "--yaml"]);
     let yaml = String::from_utf8_lossy(&yaml.stdout);
     assert!(yaml.contains("\n      matrix: [["), "{yaml}");
     assert!(yaml.contains("\n      sensor: \"accel\""), "{yaml}");
@@ -276,7 +250,7 @@ fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_s
         ],
     ]
     .concat();
-    ok(&store, &args);
+    store.ok(&args);
     let raw = export_means(&store, false);
     let corrected = export_means(&store, true);
     close(
@@ -313,42 +287,39 @@ fn accel_six_positions_and_gyro_rate_table_recover_the_simulator_and_correct_a_s
         ],
     ]
     .concat();
-    ok(&store, &args);
-    let out = ok(&store, &["export", "fast", "--calibrated"]);
-    let err = String::from_utf8_lossy(&out.stderr);
+    store.ok(&args);
+    let out = store.ok(&["export", "fast", "--calibrated"]);
+    let err = stderr(&out);
     assert!(
         err.contains("warning: calibration 1 was made at 100 Hz") && err.contains("at 200 Hz"),
         "{err}"
     );
     // analyze applies the same correction (and says so); a file has no board to look up.
-    let out = ok(
-        &store,
-        &[
-            "analyze",
-            "rest",
-            "--calibrated",
-            "--column",
-            "gx",
-            "--json",
-            "-",
-        ],
-    );
-    assert!(String::from_utf8_lossy(&out.stderr).contains("Gyro corrected"));
-    let csv = store.join("rest.csv");
+    let out = store.ok(&[
+        "analyze",
+        "rest",
+        "--calibrated",
+        "--column",
+        "gx",
+        "--json",
+        "-",
+    ]);
+    assert!(stderr(&out).contains("Gyro corrected"));
+    let csv = store.file("rest.csv");
     let csv = csv.to_str().unwrap();
-    ok(&store, &["export", "rest", "--out", csv]);
-    let out = run(&store, &["analyze", csv, "--calibrated"]);
+    store.ok(&["export", "rest", "--out", csv]);
+    let out = store.run(&["analyze", csv, "--calibrated"]);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("is a file"));
+    assert!(stderr(&out).contains("is a file"));
 }
 
 /// Means of gx gy gz ax ay az of the session 'rest', exported raw or `--calibrated`.
-fn export_means(store: &Path, calibrated: bool) -> [f64; 6] {
+fn export_means(store: &TempStore, calibrated: bool) -> [f64; 6] {
     let mut args = vec!["export", "rest"];
     if calibrated {
         args.push("--calibrated");
     }
-    let out = ok(store, &args);
+    let out = store.ok(&args);
     let text = String::from_utf8(out.stdout).unwrap();
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
@@ -370,7 +341,7 @@ fn export_means(store: &Path, calibrated: bool) -> [f64; 6] {
 
 #[test]
 fn temperature_coefficients_are_recovered_from_a_warm_up() {
-    let store = dir("calibrate-temperature");
+    let store = TempStore::new();
     let model = model(&store, true);
     let args = [
         &["calibrate", "temperature"][..],
@@ -384,7 +355,7 @@ fn temperature_coefficients_are_recovered_from_a_warm_up() {
         ],
     ]
     .concat();
-    let doc = json(&ok(&store, &args));
+    let doc = json(&store.ok(&args));
     // The slope's standard error: block noise N / sqrt(1 s) over sqrt(n) blocks times the
     // temperatures' spread, here the profile 25 + 6 (1 - exp(-t / 120 s)) at the 600 blocks.
     let temps: Vec<f64> = (0..600)
@@ -414,33 +385,30 @@ fn temperature_coefficients_are_recovered_from_a_warm_up() {
 
 #[test]
 fn bad_calibration_inputs_are_named() {
-    let store = dir("calibrate-errors");
-    let out = run(&store, &["calibrate", "accel", "--position", "+x=a.csv"]);
+    let store = TempStore::new();
+    let out = store.run(&["calibrate", "accel", "--position", "+x=a.csv"]);
     assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = stderr(&out);
     assert!(
         err.contains("-x=INPUT") && err.contains("exactly once"),
         "{err}"
     );
     // Refused before the store is opened: none is created.
     assert!(!err.contains("created a new store"), "{err}");
-    assert!(!store.join("catalog.sqlite").exists());
-    let table = store.join("table.txt");
+    assert!(!store.path().exists());
+    let table = store.file("table.txt");
     std::fs::write(&table, "# axis rate record\nx 100 a.csv\nw 100 b.csv\n").unwrap();
-    let out = run(
-        &store,
-        &["calibrate", "gyro", "--rate-table", table.to_str().unwrap()],
-    );
-    let err = String::from_utf8_lossy(&out.stderr);
+    let out = store.run(&["calibrate", "gyro", "--rate-table", table.to_str().unwrap()]);
+    let err = stderr(&out);
     assert!(!out.status.success());
     assert!(err.contains("table.txt:2"), "{err}");
-    let out = run(&store, &["calibrate", "gyro"]);
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--port"));
+    let out = store.run(&["calibrate", "gyro"]);
+    assert!(stderr(&out).contains("--port"));
 }
 
 #[test]
 fn local_gravity_from_latitude_and_height_is_used_as_the_reference() {
-    let store = dir("calibrate-gravity");
+    let store = TempStore::new();
     let args = [
         &["calibrate", "accel"][..],
         &SIM,
@@ -456,7 +424,7 @@ fn local_gravity_from_latitude_and_height_is_used_as_the_reference() {
         ],
     ]
     .concat();
-    let doc = json(&ok(&store, &args));
+    let doc = json(&store.ok(&args));
     // WGS84 normal gravity at 45 deg (9.806199 m/s^2) less the free-air 3.086e-6 s^-2 x 100 m.
     let g = doc["calibration"]["details"]["gravity_m_s2"]
         .as_f64()
@@ -465,10 +433,7 @@ fn local_gravity_from_latitude_and_height_is_used_as_the_reference() {
     // The virtual board was turned under that gravity: the +x position's truth is +g.
     let truth = &doc["calibration"]["details"]["observations"][0]["truth"];
     assert_eq!(truth[0].as_f64().unwrap(), g);
-    let out = run(
-        &store,
-        &["calibrate", "accel", "--port", "sim", "--gravity", "1.0"],
-    );
+    let out = store.run(&["calibrate", "accel", "--port", "sim", "--gravity", "1.0"]);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--gravity 1"));
+    assert!(stderr(&out).contains("--gravity 1"));
 }

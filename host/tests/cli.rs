@@ -1,48 +1,13 @@
 //! The `imunoise` binary as a user runs it: output, JSON, errors and exit codes.
 
+mod common;
+
+use common::{run, scratch, sim_capture, stderr, stdout};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn imunoise(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .args(args)
-        .output()
-        .expect("the imunoise binary runs")
-}
-
-/// A capture from the virtual board at full speed into `store`, which must succeed.
-fn sim_capture(store: &str, rate: &str, bandwidth: &str, duration: &str, name: &str) {
-    let out = imunoise(&[
-        "--store",
-        store,
-        "capture",
-        "--port",
-        "sim",
-        "--rate",
-        rate,
-        "--bandwidth",
-        bandwidth,
-        "--duration",
-        duration,
-        "--speed",
-        "max",
-        "--name",
-        name,
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 #[test]
 fn settings_resolves_the_papers_settings_to_registers() {
-    let out = imunoise(&["settings", "--rate", "200", "--bandwidth", "42", "--json"]);
+    let out = run(&["settings", "--rate", "200", "--bandwidth", "42", "--json"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let v: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
     assert_eq!(v["output_rate_hz"], 200.0);
@@ -52,7 +17,7 @@ fn settings_resolves_the_papers_settings_to_registers() {
     assert_eq!(v["gyro_bandwidth_hz"], 42.0);
     assert_eq!(v["bandwidth_exceeds_half_rate"], false);
 
-    let out = imunoise(&[
+    let out = run(&[
         "settings",
         "--rate",
         "50",
@@ -77,19 +42,19 @@ fn settings_resolves_the_papers_settings_to_registers() {
 
 #[test]
 fn settings_table_lists_every_dlpf_row() {
-    let out = imunoise(&["settings", "--json"]);
+    let out = run(&["settings", "--json"]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
     let rows = v["dlpf"].as_array().unwrap();
     assert_eq!(rows.len(), 7);
     assert_eq!(rows[0]["gyro_internal_rate_hz"], 8000.0);
     assert_eq!(rows[6]["gyro_bandwidth_hz"], 5.0);
-    let text = stdout(&imunoise(&["settings"]));
+    let text = stdout(&run(&["settings"]));
     assert!(text.contains("reserved"), "{text}");
 }
 
 #[test]
 fn unreachable_settings_fail_with_the_nearest_choices() {
-    let out = imunoise(&["settings", "--rate", "150", "--bandwidth", "42"]);
+    let out = run(&["settings", "--rate", "150", "--bandwidth", "42"]);
     assert_eq!(out.status.code(), Some(1));
     let err = stderr(&out);
     assert!(err.contains("--rate 150 --bandwidth 42"), "{err}");
@@ -98,7 +63,7 @@ fn unreachable_settings_fail_with_the_nearest_choices() {
         "{err}"
     );
 
-    let out = imunoise(&["settings", "--rate", "100", "--bandwidth", "40"]);
+    let out = run(&["settings", "--rate", "100", "--bandwidth", "40"]);
     assert_eq!(out.status.code(), Some(1));
     assert!(
         stderr(&out).contains("nearest: 42 Hz (DLPF_CFG 3)"),
@@ -106,7 +71,7 @@ fn unreachable_settings_fail_with_the_nearest_choices() {
         stderr(&out)
     );
 
-    let out = imunoise(&[
+    let out = run(&[
         "settings",
         "--rate",
         "100",
@@ -123,16 +88,16 @@ fn unreachable_settings_fail_with_the_nearest_choices() {
     );
 
     // A rate without a bandwidth is a usage error (clap's exit code 2).
-    let out = imunoise(&["settings", "--rate", "100"]);
+    let out = run(&["settings", "--rate", "100"]);
     assert_eq!(out.status.code(), Some(2));
 }
 
 #[test]
 fn demo_accounts_for_every_sample() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = scratch();
     let store = dir.path().join("store");
     let store = store.to_str().unwrap();
-    let out = imunoise(&["--store", store, "demo", "--duration", "2m"]);
+    let out = run(&["--store", store, "demo", "--duration", "2m"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let text = stdout(&out);
     // 10 s at 200 Hz = 2000 samples in 63 batches; one flipped and one truncated frame lose
@@ -144,7 +109,7 @@ fn demo_accounts_for_every_sample() {
         "{text}"
     );
     // Its sessions' analyses keep the command that made them and their options, as JSON.
-    let shown = imunoise(&["--store", store, "show", "demo-200hz-42hz", "--json"]);
+    let shown = run(&["--store", store, "show", "demo-200hz-42hz", "--json"]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&shown)).unwrap();
     let made = &v["analyses"][0]["options"];
     assert_eq!(
@@ -158,16 +123,16 @@ fn demo_accounts_for_every_sample() {
 /// nothing on stderr, where println! would panic on the closed pipe.
 #[test]
 fn a_closed_pipe_ends_the_command_quietly() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = scratch();
     let store = dir.path().join("store");
     let store = store.to_str().unwrap();
-    sim_capture(store, "1000", "188", "20s", "pipe");
+    sim_capture(Path::new(store), "1000", "188", "20s", "pipe");
     for args in [
         vec!["--store", store, "export", "pipe"],
         vec!["--store", store, "show", "pipe", "--json"],
         vec!["--store", store, "sessions"],
     ] {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        let mut child = common::imunoise()
             .args(&args)
             .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::piped())
@@ -190,13 +155,13 @@ fn a_closed_pipe_ends_the_command_quietly() {
 /// raw file>` is refused and the session stays byte for byte as it was.
 #[test]
 fn outputs_never_overwrite_inputs_or_store_files() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = scratch();
     let store = dir.path().join("store");
     let s = store.to_str().unwrap();
-    sim_capture(s, "200", "42", "5s", "keep");
+    sim_capture(&store, "200", "42", "5s", "keep");
     let raw = store.join("sessions/1.imucap");
     let before = std::fs::read(&raw).unwrap();
-    let out = imunoise(&[
+    let out = run(&[
         "--store",
         s,
         "export",
@@ -207,7 +172,7 @@ fn outputs_never_overwrite_inputs_or_store_files() {
     assert!(!out.status.success());
     assert!(stderr(&out).contains("own input"), "{}", stderr(&out));
     let catalog = store.join("catalog.sqlite");
-    let out = imunoise(&[
+    let out = run(&[
         "--store",
         s,
         "analyze",
@@ -223,7 +188,7 @@ fn outputs_never_overwrite_inputs_or_store_files() {
     );
     // A file analysed onto itself.
     let csv = dir.path().join("x.csv");
-    let out = imunoise(&[
+    let out = run(&[
         "--store",
         s,
         "export",
@@ -233,7 +198,7 @@ fn outputs_never_overwrite_inputs_or_store_files() {
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let exported = std::fs::read(&csv).unwrap();
-    let out = imunoise(&[
+    let out = run(&[
         "analyze",
         csv.to_str().unwrap(),
         "--json",
@@ -249,7 +214,7 @@ fn outputs_never_overwrite_inputs_or_store_files() {
 /// not a usage error), and `--position -x=FILE` names the position -x.
 #[test]
 fn hyphen_values_are_values() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = scratch();
     let store = dir.path().join("store");
     let store = store.to_str().unwrap();
     let model = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/mpu6050.toml");
@@ -270,7 +235,7 @@ fn hyphen_values_are_values() {
             .collect(),
     ];
     for args in runs {
-        let out = imunoise(&args);
+        let out = run(&args);
         assert_eq!(out.status.code(), Some(1), "{args:?}: {}", stderr(&out));
         assert!(
             stderr(&out).contains("the output rate must be a positive number of Hz, not -100"),
@@ -287,7 +252,7 @@ fn hyphen_values_are_values() {
     for p in &positions {
         args.extend(["--position", p]);
     }
-    let out = imunoise(&args);
+    let out = run(&args);
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     assert!(
         stderr(&out).contains("/nowhere/+x.csv: no such file"),
@@ -300,11 +265,11 @@ fn hyphen_values_are_values() {
 /// stream it: `capture` says so, naming the firmware's limit, before it opens anything.
 #[test]
 fn capture_names_the_firmwares_rate_limit() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = scratch();
     let store = dir.path().join("store");
     let store = store.to_str().unwrap();
     let fast = ["--rate", "2000", "--bandwidth", "256"];
-    let out = imunoise(&["settings", fast[0], fast[1], fast[2], fast[3]]);
+    let out = run(&["settings", fast[0], fast[1], fast[2], fast[3]]);
     assert!(
         stdout(&out).contains("2000 Hz output (SMPLRT_DIV 3)"),
         "{}",
@@ -312,7 +277,7 @@ fn capture_names_the_firmwares_rate_limit() {
     );
     let mut args = vec!["--store", store, "capture", "--port", "sim"];
     args.extend(fast);
-    let out = imunoise(&args);
+    let out = run(&args);
     assert_eq!(out.status.code(), Some(1));
     assert!(
         stderr(&out).contains(&format!(
@@ -323,7 +288,7 @@ fn capture_names_the_firmwares_rate_limit() {
         stderr(&out)
     );
     assert!(!Path::new(store).exists());
-    let out = imunoise(&[
+    let out = run(&[
         "--store",
         store,
         "sweep",
@@ -344,7 +309,7 @@ fn capture_names_the_firmwares_rate_limit() {
 /// their units in the key names.
 #[test]
 fn info_json_has_a_hex_board_id_and_numeric_ranges() {
-    let out = imunoise(&["info", "--port", "sim", "--seed", "5", "--json"]);
+    let out = run(&["info", "--port", "sim", "--seed", "5", "--json"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let v: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
     let info = &v["info"];
@@ -359,20 +324,35 @@ fn info_json_has_a_hex_board_id_and_numeric_ranges() {
     assert_eq!(v["status"]["samples_lost"], 0);
 }
 
-/// The help and the README say what the program does, not when it did what (none of the
-/// timeline phrases listed below); simulate names every format it writes; every sweep of
-/// the virtual board in the README runs at `--speed max` (else it takes hours).
+/// The help, the README and the guide say what the program does, not when it did what (none
+/// of the timeline phrases listed below); simulate names every format it writes; every sweep
+/// of the virtual board in the docs runs at `--speed max` (else it takes hours).
 #[test]
-fn help_and_readme_say_what_is() {
-    let readme =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap();
-    let mut texts = vec![("README.md".to_string(), readme.clone())];
+fn help_and_docs_say_what_is() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut docs = vec![root.join("README.md")];
+    let mut guide: Vec<_> = std::fs::read_dir(root.join("docs/guide"))
+        .unwrap()
+        .map(|entry| entry.unwrap().path())
+        .filter(|path| path.extension().is_some_and(|e| e == "md"))
+        .collect();
+    guide.sort();
+    assert!(guide.len() >= 8, "{guide:?}");
+    docs.extend(guide);
+    let mut texts: Vec<(String, String)> = docs
+        .iter()
+        .map(|path| {
+            let text = std::fs::read_to_string(path).unwrap();
+            (path.display().to_string(), text)
+        })
+        .collect();
+    let doc_count = texts.len();
     for command in ["", "demo", "simulate", "capture", "sweep"] {
         let args: Vec<&str> = [command, "--help"]
             .into_iter()
             .filter(|a| !a.is_empty())
             .collect();
-        let out = imunoise(&args);
+        let out = run(&args);
         assert!(out.status.success());
         texts.push((format!("imunoise {command} --help"), stdout(&out)));
     }
@@ -381,7 +361,7 @@ fn help_and_readme_say_what_is() {
             assert!(!text.contains(stale), "{name} says '{stale}'");
         }
     }
-    let top = &texts[1].1;
+    let top = &texts[doc_count].1;
     let simulate = top
         .lines()
         .find(|l| l.trim_start().starts_with("simulate"))
@@ -390,10 +370,9 @@ fn help_and_readme_say_what_is() {
         simulate.contains("CSV, or the bytes a board would send"),
         "{simulate}"
     );
-    for line in readme
-        .lines()
-        .filter(|l| l.contains("imunoise sweep --port"))
-    {
-        assert!(line.contains("--speed max"), "{line}");
+    for (name, text) in &texts[..doc_count] {
+        for line in text.lines().filter(|l| l.contains("imunoise sweep --port")) {
+            assert!(line.contains("--speed max"), "{name}: {line}");
+        }
     }
 }

@@ -6,6 +6,9 @@
 //! of `tests/tests/fit_coverage.rs`, where each term owns a stretch of the curve: white
 //! below 25 s, the flicker floor 25-300 s, the random walk beyond).
 
+mod common;
+
+use common::{TempStore, json};
 use imunoise::analysis::compare::{self, Comparison, SessionFits};
 use imunoise::analysis::pipeline::{self, ChannelResult, Options};
 use imunoise::analysis::units::NoiseTerm;
@@ -13,7 +16,6 @@ use imunoise::record::{Channel, Record};
 use imunoise::sim::noise::{AxisNoise, NoiseTerms};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use std::process::Command;
 
 const RATE_HZ: f64 = 50.0;
 const SAMPLES: usize = 3600 * 50;
@@ -122,20 +124,13 @@ fn doubled_white_noise_is_flagged() {
     assert_eq!(n.flagged(), vec![0, 1, 2]);
 }
 
-fn imunoise(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .args(args)
-        .output()
-        .expect("the imunoise binary runs")
-}
-
 /// A stored session (imported CSV) against a file with N doubled, and against a file of the
 /// same model, through the CLI.
 #[test]
 fn cli_compares_a_session_with_files() {
-    let dir = tempfile::tempdir().unwrap();
+    let store = TempStore::new();
     let write = |name: &str, n: f64, seed: u64| {
-        let path = dir.path().join(name);
+        let path = store.file(name);
         let terms = NoiseTerms {
             n,
             ..NoiseTerms::default()
@@ -152,26 +147,11 @@ fn cli_compares_a_session_with_files() {
         write("same.csv", 1e-3, 2),
         write("doubled.csv", 2e-3, 3),
     );
-    let store = dir.path().join("store");
-    let store = store.to_str().unwrap();
-    let out = imunoise(&[
-        "--store", store, "import", &base, "--rate", "50", "--name", "bench-a",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    store.ok(&["import", &base, "--rate", "50", "--name", "bench-a"]);
 
-    let out = imunoise(&[
-        "--store", store, "compare", "bench-a", &same, &doubled, "--rate", "50", "--json", "-",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let doc = json(&store.run(&[
+        "compare", "bench-a", &same, &doubled, "--rate", "50", "--json", "-",
+    ]));
     let c = &doc["comparison"];
     assert!(c["sessions"][0].as_str().unwrap().contains("bench-a"));
     assert!(c["test"].as_str().unwrap().contains("Holm"));
@@ -188,26 +168,19 @@ fn cli_compares_a_session_with_files() {
         .collect();
     assert_eq!(significant, vec![(0, 2), (1, 2)]);
 
-    let table = imunoise(&[
-        "--store", store, "compare", "bench-a", &doubled, "--rate", "50",
-    ]);
+    let table = store.ok(&["compare", "bench-a", &doubled, "--rate", "50"]);
     let text = String::from_utf8_lossy(&table.stdout);
-    assert!(
-        table.status.success(),
-        "{}",
-        String::from_utf8_lossy(&table.stderr)
-    );
     assert!(text.contains("DIFFER: [1] vs [2]"), "{text}");
     assert!(text.contains("rows differ significantly: gx N"), "{text}");
     assert!(text.contains("rad/s/sqrt(Hz)"), "{text}");
 
-    let one = imunoise(&["--store", store, "compare", "bench-a"]);
+    let one = store.run(&["compare", "bench-a"]);
     assert_eq!(
         one.status.code(),
         Some(2),
         "a single input is a usage error"
     );
-    let missing = imunoise(&["--store", store, "compare", "bench-a", "nope"]);
+    let missing = store.run(&["compare", "bench-a", "nope"]);
     assert_eq!(missing.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&missing.stderr).contains("nope"));
 }

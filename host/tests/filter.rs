@@ -2,6 +2,8 @@
 //! Gauss-Markov bias recovered from a simulated record, the discrete-time convention checked
 //! by simulating with the produced numbers, and the CLI's table, JSON and YAML.
 
+mod common;
+
 use imunoise::analysis::filter::{self, FilterNoise};
 use imunoise::analysis::fit::{Goodness, NoiseFit, Support, Term, TermSupport};
 use imunoise::analysis::gauss_markov::{self, GaussMarkovFit};
@@ -13,7 +15,6 @@ use imunoise::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms, gauss_markov_avar
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
-use std::process::Command;
 
 /// White noise N = 1e-3 rad/s/sqrt(Hz) plus a Gauss-Markov bias of sigma = 1e-3 rad/s and
 /// tau_c = 20 s, 2 h at 20 Hz. The Gauss-Markov hump (Allan deviation 0.617 sigma at 38 s)
@@ -204,7 +205,7 @@ fn filter_numbers(n: f64, k: f64, gm: GaussMarkov, dt: f64) -> FilterNoise {
 
 /// `imunoise analyze FILE --rate 50 ARGS...`.
 fn analyze(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_imunoise"))
+    common::imunoise()
         .arg("analyze")
         .args(args)
         .args(["--rate", "50"])
@@ -217,7 +218,7 @@ fn analyze(args: &[&str]) -> std::process::Output {
 /// module documentation says.
 #[test]
 fn cli_writes_filter_json_and_yaml() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::scratch();
     let csv = dir.path().join("gx.csv");
     let terms = NoiseTerms {
         n: 1e-3,

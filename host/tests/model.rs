@@ -1,13 +1,14 @@
 //! `imunoise model` end to end: a CSV with a hidden sinusoid gives one step naming it, in
 //! JSON with the documented keys, and an HTML report.
 
-use std::process::Command;
+mod common;
+
+use common::{json, run, scratch};
 
 #[test]
 fn model_names_a_sinusoid_in_json_and_html() {
-    let dir = std::env::temp_dir().join(format!("imunoise-model-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let csv = dir.join("in.csv");
+    let dir = scratch();
+    let csv = dir.path().join("in.csv");
     // White noise (a fixed LCG + Box-Muller, N = 1e-4 rad/s/sqrt(Hz) at 20 Hz) plus a
     // 0.02 Hz sinusoid of 1e-4 rad/s, 30 minutes.
     let mut state: u64 = 12345;
@@ -25,25 +26,19 @@ fn model_names_a_sinusoid_in_json_and_html() {
         text.push_str(&format!("{y}\n"));
     }
     std::fs::write(&csv, text).unwrap();
-    let html = dir.join("model.html");
-    let out = Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .args([
-            "model",
-            csv.to_str().unwrap(),
-            "--rate",
-            "20",
-            "--json",
-            "-",
-        ])
-        .args(["--report", html.to_str().unwrap(), "--seed", "3"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let html = dir.path().join("model.html");
+    let doc = json(&run(&[
+        "model",
+        csv.to_str().unwrap(),
+        "--rate",
+        "20",
+        "--json",
+        "-",
+        "--report",
+        html.to_str().unwrap(),
+        "--seed",
+        "3",
+    ]));
     for key in ["baseline", "gap_initial", "steps", "gap_final", "model"] {
         assert!(doc.get(key).is_some(), "no {key}");
     }
@@ -56,5 +51,4 @@ fn model_names_a_sinusoid_in_json_and_html() {
     assert!(doc["model"]["sinusoid"]["amplitude"].as_f64().is_some());
     let page = std::fs::read_to_string(&html).unwrap();
     assert!(page.matches("<svg").count() >= 2);
-    std::fs::remove_dir_all(&dir).ok();
 }

@@ -3,6 +3,8 @@
 //! sample accounted for, nothing may panic, and a live capture must decode exactly as its
 //! replay.
 
+mod common;
+
 use imunoise::capture::{Capture, CaptureWriter};
 use imunoise::link::Link;
 use imunoise::recorder::{self, Ending, RecordOptions};
@@ -119,7 +121,7 @@ fn frame(m: &DeviceMessage, tags: Vec<i16>) -> Frame {
 }
 
 fn record(bytes: Vec<u8>, fail_at_end: bool) -> (tempfile::TempDir, Store, recorder::Outcome) {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::scratch();
     let store = Store::open(dir.path()).unwrap();
     let options = RecordOptions {
         keep_samples: true,
@@ -266,7 +268,7 @@ fn a_failing_disk_is_an_error_naming_the_file_and_keeps_what_was_written() {
         .into_iter()
         .flat_map(|f| f.bytes)
         .collect();
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::scratch();
     let store = Store::open(dir.path()).unwrap();
     let writer = store.begin_capture(Some("full"), None).unwrap();
     // Room to close the session when the disk is full, held while it records.

@@ -1,21 +1,15 @@
 //! `imunoise simulate` as a user runs it: the CSV's header, row count and quantization.
 
+mod common;
+
+use common::{example_model, ok, scratch};
 use std::path::PathBuf;
-use std::process::Command;
-
-fn example_model() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples/mpu6050.toml")
-}
-
-fn out_path(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
-    dir.join(name)
-}
 
 #[test]
 fn csv_has_the_header_rows_and_quantized_values() {
-    let out = out_path("simulate_200_42.csv");
-    let status = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+    let tmp = scratch();
+    let out = tmp.path().join("simulate_200_42.csv");
+    let status = common::imunoise()
         .args(["simulate", "--model"])
         .arg(example_model())
         .args([
@@ -66,8 +60,8 @@ fn csv_has_the_header_rows_and_quantized_values() {
     assert!((mean(6) - 9.8).abs() < 0.5, "{}", mean(6));
     assert!((mean(7) - 25.5).abs() < 1.0, "{}", mean(7));
     // Reproducible.
-    let again = out_path("simulate_200_42_again.csv");
-    let status = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+    let again = tmp.path().join("simulate_200_42_again.csv");
+    let status = common::imunoise()
         .args(["simulate", "--model"])
         .arg(example_model())
         .args([
@@ -88,14 +82,15 @@ fn csv_has_the_header_rows_and_quantized_values() {
 
 #[test]
 fn errors_name_what_is_wrong() {
+    let tmp = scratch();
     // (model, rate, duration, format)
     let run_with = |model: PathBuf, rate: &str, duration: &str, format: &str| {
-        let out = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+        let out = common::imunoise()
             .args(["simulate", "--model"])
             .arg(model)
             .args(["--rate", rate, "--bandwidth", "42", "--duration", duration])
             .args(["--format", format, "--out"])
-            .arg(out_path("simulate_err.csv"))
+            .arg(tmp.path().join("simulate_err.csv"))
             .output()
             .unwrap();
         assert!(!out.status.success());
@@ -105,7 +100,7 @@ fn errors_name_what_is_wrong() {
     assert!(run("200", "1s", "npz").contains("--format npz: unknown format"));
     assert!(run("200", "2d", "csv").contains("--duration"));
     assert!(run("150", "1s", "csv").contains("not reachable"));
-    let bad = out_path("bad_model.toml");
+    let bad = tmp.path().join("bad_model.toml");
     std::fs::write(&bad, "[gyro]\nnoise_densty = 1\n").unwrap();
     let e = run_with(bad, "200", "1s", "csv");
     assert!(
@@ -114,29 +109,20 @@ fn errors_name_what_is_wrong() {
     );
 }
 
-fn run_ok(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
 /// The same seed written as a capture (the board's framed bytes) and as CSV analyses to the
 /// same numbers: the capture carries the settings, and its counts convert to the CSV's SI
 /// values exactly.
 #[test]
 fn a_capture_analyses_like_the_csv_of_the_same_run() {
+    let tmp = scratch();
     let model = example_model();
     let model = model.to_str().unwrap();
-    let (cap, csv) = (out_path("sim_50_42.imucap"), out_path("sim_50_42.csv"));
+    let (cap, csv) = (
+        tmp.path().join("sim_50_42.imucap"),
+        tmp.path().join("sim_50_42.csv"),
+    );
     for (path, format) in [(&cap, "capture"), (&csv, "csv")] {
-        run_ok(&[
+        ok(&[
             "simulate",
             "--model",
             model,
@@ -157,7 +143,7 @@ fn a_capture_analyses_like_the_csv_of_the_same_run() {
     let bytes = std::fs::read(&cap).unwrap();
     assert_eq!(bytes[0], 0x00, "a capture starts with a frame delimiter");
     let json = |path: &PathBuf| -> serde_json::Value {
-        let text = run_ok(&["analyze", path.to_str().unwrap(), "--json", "-"]);
+        let text = ok(&["analyze", path.to_str().unwrap(), "--json", "-"]);
         serde_json::from_str(&text).unwrap()
     };
     let (a, b) = (json(&cap), json(&csv));

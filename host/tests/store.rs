@@ -2,19 +2,12 @@
 //! capture killed with SIGKILL stays listed and readable; Ctrl-C ends one as complete;
 //! import, export, show, replay, rm; errors name the thing at fault.
 
+mod common;
+
+use common::{example_model, run_in, scratch, sim_capture};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::Duration;
-
-fn imunoise(store: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_imunoise"))
-        .arg("--store")
-        .arg(store)
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .expect("the imunoise binary runs")
-}
 
 fn ok(o: Output) -> String {
     assert!(
@@ -32,9 +25,9 @@ fn err(o: Output) -> String {
 
 /// A simulated 200 Hz / 42 Hz capture of `seconds`.
 fn capture_file(dir: &Path, seconds: u32) -> PathBuf {
-    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/mpu6050.toml");
+    let model = example_model();
     let out = dir.join(format!("sim{seconds}.imucap"));
-    let o = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+    let o = common::imunoise()
         .args(["simulate", "--model"])
         .arg(&model)
         .args(["--rate", "200", "--bandwidth", "42", "--format", "capture"])
@@ -54,7 +47,7 @@ fn json(text: &str) -> serde_json::Value {
 
 /// `imunoise capture --from-file SOURCE ARGS` running in the background.
 fn spawn_capture(store: &Path, source: &Path, args: &[&str]) -> std::process::Child {
-    Command::new(env!("CARGO_BIN_EXE_imunoise"))
+    common::imunoise()
         .arg("--store")
         .arg(store)
         .arg("capture")
@@ -77,7 +70,7 @@ fn signal(pid: u32, sig: &str) {
 
 #[test]
 fn a_capture_killed_with_sigkill_is_listed_and_readable() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = scratch();
     let store = tmp.path().join("store");
     let source = capture_file(tmp.path(), 60);
     let mut child = spawn_capture(&store, &source, &["--speed", "1", "--name", "killed"]);
@@ -85,7 +78,7 @@ fn a_capture_killed_with_sigkill_is_listed_and_readable() {
     signal(child.id(), "-KILL");
     child.wait().unwrap();
 
-    let list = json(&ok(imunoise(&store, &["sessions", "--json"])));
+    let list = json(&ok(run_in(&store, &["sessions", "--json"])));
     let s = &list[0];
     assert_eq!(s["name"], "killed");
     assert_eq!(s["state"], "incomplete");
@@ -93,10 +86,10 @@ fn a_capture_killed_with_sigkill_is_listed_and_readable() {
     let received = s["counts"]["samples_received"].as_u64().unwrap();
     // ~2 s at 200 Hz were sent; at most the last second (and the start-up) may be missing.
     assert!((150..=420).contains(&received), "{received} samples");
-    let table = ok(imunoise(&store, &["sessions"]));
+    let table = ok(run_in(&store, &["sessions"]));
     assert!(table.contains("incomplete (interrupted)"), "{table}");
 
-    let shown = ok(imunoise(&store, &["show", "killed"]));
+    let shown = ok(run_in(&store, &["show", "killed"]));
     assert!(shown.contains("may not have reached the disk"), "{shown}");
     let file = PathBuf::from(s["file"].as_str().unwrap());
     let bytes = std::fs::read(&file).unwrap();
@@ -109,7 +102,7 @@ fn a_capture_killed_with_sigkill_is_listed_and_readable() {
 
 #[test]
 fn ctrl_c_ends_a_capture_as_complete() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = scratch();
     let store = tmp.path().join("store");
     let source = capture_file(tmp.path(), 60);
     let child = spawn_capture(&store, &source, &["--speed", "2"]);
@@ -117,7 +110,7 @@ fn ctrl_c_ends_a_capture_as_complete() {
     signal(child.id(), "-INT");
     let out = ok(child.wait_with_output().unwrap());
     assert!(out.contains("complete"), "{out}");
-    let list = json(&ok(imunoise(&store, &["sessions", "--json"])));
+    let list = json(&ok(run_in(&store, &["sessions", "--json"])));
     assert_eq!(list[0]["state"], "complete");
     assert_eq!(list[0]["end_reason"], "interrupted by the user");
     assert!(list[0]["ended_at"].is_string());
@@ -126,11 +119,11 @@ fn ctrl_c_ends_a_capture_as_complete() {
 
 #[test]
 fn sessions_show_export_replay_analyze_rm() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = scratch();
     let store = tmp.path().join("store");
     let source = capture_file(tmp.path(), 20);
     let src = source.to_str().unwrap();
-    ok(imunoise(
+    ok(run_in(
         &store,
         &[
             "capture",
@@ -142,7 +135,7 @@ fn sessions_show_export_replay_analyze_rm() {
             src,
         ],
     ));
-    ok(imunoise(
+    ok(run_in(
         &store,
         &[
             "capture",
@@ -156,20 +149,20 @@ fn sessions_show_export_replay_analyze_rm() {
             src,
         ],
     ));
-    let list = json(&ok(imunoise(&store, &["sessions", "--json"])));
+    let list = json(&ok(run_in(&store, &["sessions", "--json"])));
     assert_eq!(list[0]["counts"]["samples_received"], 4000);
     assert_eq!(list[0]["board"]["dlpf_cfg"], 3);
     assert_eq!(list[0]["board"]["smplrt_div"], 4);
     assert!(list[1]["counts"]["samples_received"].as_u64().unwrap() >= 1000);
 
     // Ambiguity and absence list the close names.
-    let e = err(imunoise(&store, &["show", "bench"]));
+    let e = err(run_in(&store, &["show", "bench"]));
     assert!(e.contains("bench-a (1), bench-b (2)"), "{e}");
-    let e = err(imunoise(&store, &["show", "bench-c"]));
+    let e = err(run_in(&store, &["show", "bench-c"]));
     assert!(e.contains("did you mean") && e.contains("bench-a"), "{e}");
 
     // Export: SI, time from the index; identical to the capture's record.
-    let csv = ok(imunoise(&store, &["export", "bench-a"]));
+    let csv = ok(run_in(&store, &["export", "bench-a"]));
     let mut lines = csv.lines();
     assert_eq!(lines.next(), Some("time,gx,gy,gz,ax,ay,az,temp"));
     assert!(lines.next().unwrap().starts_with("0,"));
@@ -177,15 +170,15 @@ fn sessions_show_export_replay_analyze_rm() {
     assert_eq!(csv.lines().count(), 4001);
 
     // Replay and analyze by name store their analyses.
-    ok(imunoise(
+    ok(run_in(
         &store,
         &["replay", "bench-a", "--column", "gx", "--taus", "octave"],
     ));
-    ok(imunoise(
+    ok(run_in(
         &store,
         &["analyze", "1", "--column", "gz", "--taus", "octave"],
     ));
-    let shown = json(&ok(imunoise(&store, &["show", "1", "--json"])));
+    let shown = json(&ok(run_in(&store, &["show", "1", "--json"])));
     let analyses = shown["analyses"].as_array().unwrap();
     assert_eq!(analyses.len(), 2);
     assert_eq!(analyses[0]["document"]["samples"], 4000);
@@ -194,7 +187,7 @@ fn sessions_show_export_replay_analyze_rm() {
     // Import the exported CSV: a copy plus metadata, analysed the same way.
     let exported = tmp.path().join("a.csv");
     std::fs::write(&exported, &csv).unwrap();
-    let out = ok(imunoise(
+    let out = ok(run_in(
         &store,
         &[
             "import",
@@ -206,17 +199,17 @@ fn sessions_show_export_replay_analyze_rm() {
         ],
     ));
     assert!(out.contains("4000 samples at 200 Hz"), "{out}");
-    let shown = json(&ok(imunoise(&store, &["show", "from-csv", "--json"])));
+    let shown = json(&ok(run_in(&store, &["show", "from-csv", "--json"])));
     assert_eq!(shown["session"]["kind"], "imported");
     assert_eq!(shown["session"]["notes"], "exported");
-    let again = ok(imunoise(&store, &["export", "from-csv"]));
+    let again = ok(run_in(&store, &["export", "from-csv"]));
     assert_eq!(again.lines().count(), 4001);
 
     // rm needs --yes without a terminal.
-    let e = err(imunoise(&store, &["rm", "bench-b"]));
+    let e = err(run_in(&store, &["rm", "bench-b"]));
     assert!(e.contains("--yes"), "{e}");
-    ok(imunoise(&store, &["rm", "bench-b", "--yes"]));
-    let list = json(&ok(imunoise(&store, &["sessions", "--json"])));
+    ok(run_in(&store, &["rm", "bench-b", "--yes"]));
+    let list = json(&ok(run_in(&store, &["sessions", "--json"])));
     assert_eq!(list.as_array().unwrap().len(), 2);
     assert!(!store.join("sessions/2.imucap").exists());
 }
@@ -225,7 +218,7 @@ fn sessions_show_export_replay_analyze_rm() {
 fn export_marks_gaps_without_bridging_them() {
     use imunoise::capture::CaptureWriter;
     use protocol::{DeviceInfo, DeviceMessage, FirmwareVersion, RawSample, SampleBatch};
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = scratch();
     let store = tmp.path().join("store");
     let mut w = CaptureWriter::new(Vec::new());
     w.message(&DeviceMessage::Info(DeviceInfo {
@@ -253,8 +246,8 @@ fn export_marks_gaps_without_bridging_them() {
     }
     let file = tmp.path().join("gaps.imucap");
     std::fs::write(&file, w.into_inner()).unwrap();
-    ok(imunoise(&store, &["import", file.to_str().unwrap()]));
-    let csv = ok(imunoise(&store, &["export", "1"]));
+    ok(run_in(&store, &["import", file.to_str().unwrap()]));
+    let csv = ok(run_in(&store, &["export", "1"]));
     let times: Vec<&str> = csv.lines().map(|l| l.split(',').next().unwrap()).collect();
     assert_eq!(
         times,
@@ -274,16 +267,16 @@ fn export_marks_gaps_without_bridging_them() {
 
 #[test]
 fn an_unwritable_store_is_a_clear_error() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = scratch();
     let blocker = tmp.path().join("not-a-dir");
     std::fs::write(&blocker, "x").unwrap();
     let store = blocker.join("store");
-    let e = err(imunoise(&store, &["sessions"]));
+    let e = err(run_in(&store, &["sessions"]));
     assert!(e.contains(store.to_str().unwrap()), "{e}");
-    let e = err(imunoise(&tmp.path().join("s"), &["show", "nothing"]));
+    let e = err(run_in(&tmp.path().join("s"), &["show", "nothing"]));
     assert!(e.contains("no store at"), "{e}");
     // rm writes: it opens (and creates) the store, then finds no such session.
-    let e = err(imunoise(&tmp.path().join("s"), &["rm", "nothing", "--yes"]));
+    let e = err(run_in(&tmp.path().join("s"), &["rm", "nothing", "--yes"]));
     assert!(e.contains("no session 'nothing'"), "{e}");
 }
 
@@ -291,33 +284,16 @@ fn an_unwritable_store_is_a_clear_error() {
 /// orphaned session's raw file stays byte for byte as it was.
 #[test]
 fn a_lost_catalog_never_reuses_an_id_or_a_file() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = scratch();
     let store = dir.path().join("store");
     let capture = |name: &str| {
-        ok(imunoise(
-            &store,
-            &[
-                "capture",
-                "--port",
-                "sim",
-                "--rate",
-                "200",
-                "--bandwidth",
-                "42",
-                "--duration",
-                "5s",
-                "--speed",
-                "max",
-                "--name",
-                name,
-            ],
-        ))
+        sim_capture(&store, "200", "42", "5s", name);
     };
     capture("first");
     let first = store.join("sessions/1.imucap");
     let before = std::fs::read(&first).unwrap();
-    let exported = ok(imunoise(&store, &["export", "first"]));
-    let shown = json(&ok(imunoise(&store, &["show", "first", "--json"])));
+    let exported = ok(run_in(&store, &["export", "first"]));
+    let shown = json(&ok(run_in(&store, &["show", "first", "--json"])));
     // The duration is the record's (5 s of samples), not the capture's wall time (a
     // fraction of a second at --speed max).
     let record_s = shown["session"]["duration_s"].as_f64().unwrap();
@@ -326,36 +302,34 @@ fn a_lost_catalog_never_reuses_an_id_or_a_file() {
     for f in ["catalog.sqlite", "catalog.sqlite-wal", "catalog.sqlite-shm"] {
         let _ = std::fs::remove_file(store.join(f));
     }
-    assert!(ok(imunoise(&store, &["sessions"])).contains("no sessions"));
+    assert!(ok(run_in(&store, &["sessions"])).contains("no sessions"));
     capture("second");
     assert_eq!(
         std::fs::read(&first).unwrap(),
         before,
         "the orphan is untouched"
     );
-    let listed = json(&ok(imunoise(&store, &["show", "second", "--json"])));
+    let listed = json(&ok(run_in(&store, &["show", "second", "--json"])));
     assert_eq!(listed["session"]["id"], 2, "{listed}");
     assert!(store.join("sessions/2.imucap").exists());
     // The catalog against the files: session 1's file is an orphan; repair gives it its
     // row back, from its bytes, and the two agree again.
-    let problems = err(imunoise(&store, &["store", "check"]));
+    let problems = err(run_in(&store, &["store", "check"]));
     assert!(problems.contains("1 problem(s)"), "{problems}");
     let listed = json(&String::from_utf8_lossy(
-        &imunoise(&store, &["store", "check", "--json"]).stdout,
+        &run_in(&store, &["store", "check", "--json"]).stdout,
     ));
     assert_eq!(listed[0]["problem"], "orphan");
     assert_eq!(listed[0]["id"], 1);
-    assert!(
-        ok(imunoise(&store, &["store", "repair"])).contains("restored session 1 'recovered-1'")
-    );
-    assert!(ok(imunoise(&store, &["store", "check"])).contains("agree"));
+    assert!(ok(run_in(&store, &["store", "repair"])).contains("restored session 1 'recovered-1'"));
+    assert!(ok(run_in(&store, &["store", "check"])).contains("agree"));
     assert_eq!(
         std::fs::read(&first).unwrap(),
         before,
         "repair rewrites nothing"
     );
-    assert_eq!(ok(imunoise(&store, &["export", "1"])), exported);
-    let restored = json(&ok(imunoise(&store, &["show", "1", "--json"])));
+    assert_eq!(ok(run_in(&store, &["export", "1"])), exported);
+    let restored = json(&ok(run_in(&store, &["show", "1", "--json"])));
     for key in ["samples_received", "samples_lost", "bytes"] {
         assert_eq!(
             restored["session"]["counts"][key], shown["session"]["counts"][key],
@@ -363,26 +337,26 @@ fn a_lost_catalog_never_reuses_an_id_or_a_file() {
         );
     }
     assert_eq!(restored["session"]["board"], shown["session"]["board"]);
-    assert!(ok(imunoise(&store, &["sessions"])).contains("second"));
+    assert!(ok(run_in(&store, &["sessions"])).contains("second"));
     // Stale counts (a catalog restored from an old backup, say) are found and recounted.
     let catalog = rusqlite::Connection::open(store.join("catalog.sqlite")).unwrap();
     catalog
         .execute("UPDATE sessions SET samples_received = 5 WHERE id = 2", [])
         .unwrap();
     drop(catalog);
-    let checked = imunoise(&store, &["store", "check"]);
+    let checked = run_in(&store, &["store", "check"]);
     assert!(!checked.status.success());
     let problems = String::from_utf8_lossy(&checked.stdout);
     assert!(
         problems.contains("counts: session 2 'second'"),
         "{problems}"
     );
-    assert!(ok(imunoise(&store, &["store", "repair"])).contains("recounted session 2"));
-    assert!(ok(imunoise(&store, &["store", "check"])).contains("agree"));
+    assert!(ok(run_in(&store, &["store", "repair"])).contains("recounted session 2"));
+    assert!(ok(run_in(&store, &["store", "check"])).contains("agree"));
     // Removing the newest session does not free its id either.
-    ok(imunoise(&store, &["rm", "second", "--yes"]));
+    ok(run_in(&store, &["rm", "second", "--yes"]));
     capture("third");
-    let listed = json(&ok(imunoise(&store, &["show", "third", "--json"])));
+    let listed = json(&ok(run_in(&store, &["show", "third", "--json"])));
     assert_eq!(listed["session"]["id"], 3, "{listed}");
 }
 
@@ -390,14 +364,14 @@ fn a_lost_catalog_never_reuses_an_id_or_a_file() {
 /// command creates the store and says so.
 #[test]
 fn only_writing_commands_create_a_store() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = scratch();
     let typo = dir.path().join("stroe");
     for args in [&["sessions"][..], &["show", "1"], &["export", "1"]] {
-        let text = err(imunoise(&typo, args));
+        let text = err(run_in(&typo, args));
         assert!(text.contains("no store at"), "{args:?}: {text}");
     }
     assert!(!typo.exists());
-    let o = imunoise(
+    let o = run_in(
         &typo,
         &[
             "capture",
@@ -416,7 +390,7 @@ fn only_writing_commands_create_a_store() {
     let said = String::from_utf8_lossy(&o.stderr).into_owned();
     ok(o);
     assert!(said.contains("created a new store at"), "{said}");
-    assert!(ok(imunoise(&typo, &["sessions"])).contains("complete"));
+    assert!(ok(run_in(&typo, &["sessions"])).contains("complete"));
 }
 
 /// A capture that fills the disk ends with that reason, in the catalog on the same full disk
@@ -430,7 +404,7 @@ fn a_full_disk_ends_a_capture_with_that_reason() {
         eprintln!("skipped: no private mount namespace (unshare -rm) on this machine");
         return;
     }
-    let dir = tempfile::tempdir().unwrap();
+    let dir = scratch();
     let script = r#"mount -t tmpfs -o size=512k tmpfs "$1" || exit 90
         "$2" --store "$1/s" capture --port sim --rate 1000 --bandwidth 188 --speed max --duration 1h
         echo "capture exit $?" >&2
@@ -458,9 +432,9 @@ fn a_full_disk_ends_a_capture_with_that_reason() {
 /// starts no other, and says which sessions it made.
 #[test]
 fn ctrl_c_stops_a_sweep_with_its_sessions_closed() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = scratch();
     let store = tmp.path().join("store");
-    let child = Command::new(env!("CARGO_BIN_EXE_imunoise"))
+    let child = common::imunoise()
         .arg("--store")
         .arg(&store)
         .args(["sweep", "--port", "sim", "--settings", "200:42,50:42"])
@@ -472,7 +446,7 @@ fn ctrl_c_stops_a_sweep_with_its_sessions_closed() {
     // Until the first session is recording (the handler is in place before it begins).
     let recording = (0..200).any(|_| {
         std::thread::sleep(Duration::from_millis(100));
-        let o = imunoise(&store, &["sessions", "--json"]);
+        let o = run_in(&store, &["sessions", "--json"]);
         o.status.success() && json(&String::from_utf8_lossy(&o.stdout))[0]["state"] == "recording"
     });
     assert!(recording, "the sweep never started its first session");
@@ -486,7 +460,7 @@ fn ctrl_c_stops_a_sweep_with_its_sessions_closed() {
         ),
         "{said}"
     );
-    let list = json(&ok(imunoise(&store, &["sessions", "--json"])));
+    let list = json(&ok(run_in(&store, &["sessions", "--json"])));
     assert_eq!(list.as_array().unwrap().len(), 1, "{list}");
     assert_eq!(list[0]["state"], "complete");
     assert_eq!(list[0]["end_reason"], "interrupted by the user");
@@ -497,7 +471,7 @@ fn ctrl_c_stops_a_sweep_with_its_sessions_closed() {
 /// sweep's too); analyses stored with the options as text (older stores) still show.
 #[test]
 fn stored_analyses_keep_their_command_and_options_as_json() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = scratch();
     let store = tmp.path().join("store");
     let sweep = [
         "sweep",
@@ -510,12 +484,9 @@ fn stored_analyses_keep_their_command_and_options_as_json() {
         "--speed",
         "max",
     ];
-    ok(imunoise(&store, &sweep));
-    ok(imunoise(
-        &store,
-        &["analyze", "1", "--psd-window", "hamming"],
-    ));
-    let shown = json(&ok(imunoise(&store, &["show", "1", "--json"])));
+    ok(run_in(&store, &sweep));
+    ok(run_in(&store, &["analyze", "1", "--psd-window", "hamming"]));
+    let shown = json(&ok(run_in(&store, &["show", "1", "--json"])));
     let made = |i: usize| shown["analyses"][i]["options"].clone();
     let mut command = vec![serde_json::json!("--store"), serde_json::json!(store)];
     command.extend(sweep.iter().map(|a| serde_json::json!(a)));
@@ -527,7 +498,7 @@ fn stored_analyses_keep_their_command_and_options_as_json() {
     assert_eq!(made(0)["options"]["psd_window"], "hann");
     assert_eq!(made(1)["options"]["psd_window"], "hamming");
     assert_eq!(made(1)["command"][2], "analyze");
-    let text = ok(imunoise(&store, &["show", "1"]));
+    let text = ok(run_in(&store, &["show", "1"]));
     assert!(
         text.contains("sweep --port sim --settings 200:42"),
         "{text}"
@@ -543,12 +514,12 @@ fn stored_analyses_keep_their_command_and_options_as_json() {
         )
         .unwrap();
     drop(catalog);
-    let shown = json(&ok(imunoise(&store, &["show", "1", "--json"])));
+    let shown = json(&ok(run_in(&store, &["show", "1", "--json"])));
     assert_eq!(
         shown["analyses"][2]["options"]["options"],
         "Options { data_type: Rate, confidence: 0.683 }"
     );
-    let text = ok(imunoise(&store, &["show", "1"]));
+    let text = ok(run_in(&store, &["show", "1"]));
     assert!(
         text.contains("2025-01-01T00:00:00Z: imunoise sweep\n"),
         "{text}"

@@ -6,6 +6,26 @@
 //! becomes bytes is in [`frame`]; what a sensor setting means is in [`mpu6050`].
 //!
 //! `no_std`, no allocation: the firmware and the host share these very types.
+//!
+//! # Commands and replies
+//!
+//! The host sends a [`Request`] `{ seq, command }`; every reply that answers it carries the
+//! same `seq`. "Since" is the [`PROTOCOL_VERSION`] that introduced the row.
+//!
+//! | host sends ([`Command`]) | board replies ([`DeviceMessage`]) | refused with ([`ErrorCode`] in `Nack`) | since |
+//! | --- | --- | --- | --- |
+//! | `GetInfo` | `Info(`[`DeviceInfo`]`)` | never | 1 |
+//! | `Configure(`[`SensorSettings`]`)` | `Ack`, or `Nack` | `Busy` while streaming; `InvalidSettings`; the sensor's errors (`SensorNotResponding`, `WrongSensor`, `VerifyFailed`, `I2cFailure`) | 1 |
+//! | `Start` | `Ack`, then `Samples(`[`SampleBatch`]`)` until Stop; or `Nack` | `Busy` while streaming; the sensor's errors | 1 |
+//! | `Stop` | `Ack`, then a final `Status(`[`Status`]`)`; or `Nack` | `NotStreaming` | 1 |
+//! | `Ping` | `Pong` | never | 1 |
+//! | `GetStatus` | `Status(`[`Status`]`)` | never | 1 |
+//! | an intact frame that is no command | `Nack` | `UnknownCommand` | 2 |
+//!
+//! Unasked, while streaming, the board also sends `Samples`, `Fault(`[`ErrorCode`]`)` when the
+//! sensor fails (since 1) and `Recovered` when samples flow again (since 3); a fault that
+//! ends the run is `Fault(GaveUp)` (since 3). Every device frame carries its number
+//! ([`DeviceFrame`], since 3).
 #![no_std]
 #![forbid(unsafe_code)]
 // Nothing on the data path may panic: errors are values sent to the other side.

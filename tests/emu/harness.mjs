@@ -5,7 +5,7 @@
 //                               [--model FILE] [--journal FILE]
 //
 // then, in another terminal: imunoise capture --port PATH --rate 200 --bandwidth 42
-// Defaults are those `tests/emu/run` builds (see README, "Emulated board").
+// Defaults are those `tests/emu/run` builds (see docs/guide/emulated-board.md).
 
 import os from 'node:os';
 import path from 'node:path';

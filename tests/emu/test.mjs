@@ -3,8 +3,8 @@
 // through a pseudo-terminal.
 //
 //   1. handshake: info and protocol version through the pty;
-//   2. the paper's four settings, 10 s of emulated time each: every sample the sensor put
-//      in its FIFO arrives, in order, bit-exact, none lost;
+//   2. the settings study's four settings (docs/references.md), 10 s of emulated time
+//      each: every sample the sensor put in its FIFO arrives, in order, bit-exact, none lost;
 //   3. a stall (IN transfers refused for longer than the FIFO and the firmware's queue
 //      hold): the firmware's loss count equals the gap the host sees, every sample after
 //      the gap is the sensor's sample of that index, and streaming recovers;

@@ -214,8 +214,8 @@ fn issue_targets_on_two_hour_records() {
 /// 0.05, 12 below 0.1, 52 below 0.5. Bounds (binomial, +-2 s.d., rounded outwards): below
 /// 0.01 at most 3; below 0.5 within 40 ..= 60. With a flicker floor added (B at 0.3 times
 /// the CI flicker test's) 9 fall below 0.01 and 67 below 0.5, most of it the
-/// simulator's flicker lying 4 % below the textbook level the fit assumes (README,
-/// "Simulating a sensor"); with a flicker at that level, 4 and 60.
+/// simulator's flicker lying 4 % below the textbook level the fit assumes
+/// (docs/guide/simulation.md); with a flicker at that level, 4 and 60.
 #[test]
 fn goodness_calibration_study() {
     let results = analyse_all(0..100, 1800.0, |s| white_and_random_walk(s, 5.0, 50.0));

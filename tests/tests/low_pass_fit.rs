@@ -133,8 +133,8 @@ fn filtered_white_noise_gives_unbiased_n() {
     }
 }
 
-/// The experiment: 24 two-hour records at 200 Hz / 42 Hz, the settings known and
-/// fitted; and the four settings of the paper with the settings known.
+/// 24 two-hour records at 200 Hz / 42 Hz, the settings known and fitted; and the settings
+/// study's four settings (docs/references.md) with the settings known.
 /// Run: `cargo test --release -p imunoise-tests --test low_pass_fit -- --ignored --nocapture`.
 #[test]
 #[ignore = "24 records of 2 h; run with --release (see the doc comment)"]

@@ -45,7 +45,7 @@ const WATCHDOG_PERIOD_US: u32 = 1_000_000;
 /// devices (V-USB's free IDs), not an id of our own: other devices carry it too, and the host
 /// tells ours apart by the manufacturer and product strings below, as the rules for shared
 /// pairs ask. A lab with its own VID:PID (or a pid.codes allocation) changes it here and in
-/// `host/src/link/serial.rs` (README, "Unattended logging").
+/// `host/src/link/serial.rs` (docs/guide/hardware.md, "USB IDs").
 const USB_VID_PID: UsbVidPid = UsbVidPid(0x16c0, 0x27dd);
 
 /// The RP2040's 64-bit microsecond timer.
@@ -161,10 +161,10 @@ fn main() -> ! {
     let mut log = log::Changes::default();
     loop {
         watchdog.feed();
-        if usb.poll(&mut [&mut serial]) {
-            if let Ok(n) = serial.read(&mut rx) {
-                fw.handle_bytes(&rx[..n], &mut |frame| tx.push_frame(frame));
-            }
+        if usb.poll(&mut [&mut serial])
+            && let Ok(n) = serial.read(&mut rx)
+        {
+            fw.handle_bytes(&rx[..n], &mut |frame| tx.push_frame(frame));
         }
         // A host that closes the port drops DTR: stop streaming into nowhere.
         let dtr = serial.dtr();
@@ -210,7 +210,7 @@ fn board_id() -> u64 {
     let mut id = [0u8; 8];
     // SAFETY: single core, no DMA yet, interrupts off for the duration (the ROM routine
     // runs from RAM while flash is in command mode).
-    cortex_m::interrupt::free(|_| unsafe { flash::flash_impl::flash_unique_id(&mut id, true) });
+    cortex_m::interrupt::free(|_| unsafe { flash::unique_id(&mut id) });
     u64::from_be_bytes(id)
 }
 

@@ -1,5 +1,5 @@
 //! Repeatability: do several sessions' fitted IEEE-952 terms differ by more than their
-//! intervals allow? (The paper's consistency check across runs and days.)
+//! intervals allow? (The settings study's check across runs and days, docs/references.md.)
 //!
 //! **The test.** For one channel and one term, each pair of sessions (a, b) is compared by a
 //! two-sided z-test, with each estimate's standard error recovered from its confidence

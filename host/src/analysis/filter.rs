@@ -11,8 +11,9 @@
 //! | rate random walk K (bias state b' = w) | q_b = K^2, u^2 Hz = u^2/s | Q_d = K^2 dt, u^2 |
 //! | Gauss-Markov bias (b' = -b / tau_c + w) | sigma, tau_c; driving q = 2 sigma^2 / tau_c, u^2/s | phi = exp(-dt / tau_c), Q_d = sigma^2 (1 - phi^2), u^2 |
 //!
-//! The random-walk rows are the paper's "Q = sigma^2 x period": for a continuous white
-//! noise of PSD q driving a state, the state's covariance grows by exactly q dt over dt
+//! The random-walk rows are the settings study's "Q = sigma^2 x period"
+//! (docs/references.md): for a continuous white noise of PSD q driving a state, the state's
+//! covariance grows by exactly q dt over dt
 //! (the discrete-time equivalent `Q_d = integral_0^dt Phi(s) G q G^T Phi(s)^T ds` with
 //! Phi = 1; Maybeck, *Stochastic Models, Estimation and Control*, vol. 1, ch. 4). The
 //! Gauss-Markov row is the same integral with Phi(s) = e^(-s/tau_c):

@@ -7,7 +7,7 @@ use crate::analysis::fit::householder_solve;
 use serde::Serialize;
 
 /// One axis from two opposite inputs of known magnitude m (the reading with the axis along
-/// +m and along -m), as in the first paper:
+/// +m and along -m), as in the settings study (docs/references.md):
 ///
 /// ```text
 ///   bias = (f_up + f_down) / 2        scale factor = (f_up - f_down - 2 m) / (2 m)

@@ -6,7 +6,8 @@
 //! difference of successive tau-averages, i.e. exactly the variance of one tau-average about
 //! the next. For white rate noise it equals the textbook N / sqrt(T) (the standard error of
 //! the mean); where bias instability or rate random walk dominate it stops falling or grows,
-//! which is the first paper's point that the bias estimate wanders the longer you wait. A
+//! which is the settings study's point (docs/references.md) that the bias estimate wanders
+//! the longer you wait. A
 //! record cannot measure its own sigma_A(T) (the longest overlapping tau is T/2), so it is
 //! the IEEE-952 five-term model fitted to the record's octave Allan curve
 //! ([`crate::analysis::fit::fit_deviation`]) evaluated at T. The best averaging time (the

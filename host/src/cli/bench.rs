@@ -22,7 +22,10 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
-const REFERENCE_SCRIPT: &str = include_str!("../../../scripts/bench_allantools.py");
+const REFERENCE_SCRIPT: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/assets/bench_allantools.py"
+));
 
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {

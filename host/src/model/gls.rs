@@ -8,7 +8,7 @@
 //! each frequency by the noise there (generalised least squares, `beta = (X^T S^-1 X)^-1 X^T
 //! S^-1 y`; Aitken, 1935) and sees what an Allan curve cannot: that a ramp is one straight
 //! line, while a random walk whose level explains the record's slow power also wanders at
-//! minutes. On the temperature family of [`super::families`] a least-squares estimate left
+//! minutes. On the temperature family of `model::families` a least-squares estimate left
 //! 1.2 to 2.3 times the Wald statistic on the table.
 //!
 //! **Why levels are estimated, and how the test stays calibrated.** K (and B) are what

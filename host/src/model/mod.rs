@@ -78,9 +78,10 @@ use std::f64::consts::PI;
 
 /// Chance, per round, that pure noise gets some candidate named: split evenly over the
 /// candidates of the round (Bonferroni). Half the one-in-ten false naming a workflow may
-/// afford on a record without an effect; the family study (README) measured what it buys:
-/// at 0.01, 78 of 100 records named right and no false name in 20 effect-free records; at
-/// 0.05, 85 of 100 (ramps 3 -> 7 of 10, tone and ramp 2 -> 6) and 2 false names in 20.
+/// afford on a record without an effect; the family study (docs/guide/model.md) measured
+/// what it buys: at 0.01, 78 of 100 records named right and no false name in 20 effect-free
+/// records; at 0.05, 85 of 100 (ramps 3 -> 7 of 10, tone and ramp 2 -> 6) and 2 false
+/// names in 20.
 pub const FAMILY_ALPHA: f64 = 0.05;
 /// Series drawn under the null for each regressor test: a draw is a few hundred block
 /// means and a restricted-likelihood fit, not a synthesis of the record.

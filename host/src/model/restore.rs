@@ -19,7 +19,7 @@
 //! quiet, a Gauss-Markov or Q term named to fill the hole). Flicker's, far smaller, is
 //! measured on [`LOSS_REALISATIONS`] paired simulations (each series' Allan variance before
 //! and after the same removal, so the scatter of the series themselves cancels), capped at
-//! [`MAX_SHARE`] of its basis. White noise and short Gauss-Markov processes
+//! `MAX_SHARE` of its basis. White noise and short Gauss-Markov processes
 //! lose a share of order `p / n` (p regressors, n samples) and are left as they are.
 //!
 //! **Refit** ([`super::refit::refit_cleaned`]). The K and B columns of a cleaned curve are

@@ -1,5 +1,5 @@
-//! The figures of a analysis, like the papers': one row per sensor (gyroscope,
-//! accelerometer, then any other channels), with an Allan-deviation panel per estimator
+//! The figures of a analysis, like the studies' (docs/references.md): one row per sensor
+//! (gyroscope, accelerometer, then any other channels), with an Allan-deviation panel per estimator
 //! (confidence band, and the fitted IEEE-952 model dashed) and a PSD panel (one-sided,
 //! log-binned, with the PSD read-outs' slope lines dashed).
 

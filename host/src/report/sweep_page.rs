@@ -1,9 +1,9 @@
 //! The HTML page of a settings sweep (`imunoise sweep --report`, `imunoise demo`): one
 //! session per MPU-6050 setting, its noise terms per axis, the Allan deviation of every axis
 //! at every setting, the gyro's white noise against the folding prediction, and a published
-//! table (the settings study's Table 2) beside the sweep in the same unit, with the unit
-//! assumed and what no stationary input can produce (docs/signal_chain.md). Self-contained,
-//! styled like `analyze`'s report ([`super::html`]).
+//! table (Table 2 of the settings study, docs/references.md) beside the sweep in the same
+//! unit, with the unit assumed and what no stationary input can produce
+//! (docs/signal_chain.md). Self-contained, styled like `analyze`'s report ([`super::html`]).
 
 use super::figures::{curve_lines, sensor_title};
 use super::html::{close_page, conventions_list, escape, open_page};

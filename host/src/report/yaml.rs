@@ -2,7 +2,7 @@
 //! and lists of mappings as blocks, lists of plain values inline (`[1.0, 2.0, 3.0]`, so a
 //! matrix reads as rows). Strings are double-quoted with JSON's escapes, which are YAML's
 //! too; keys are bare when they are plain words. Numbers print as serde_json prints them
-//! (shortest round trip), with a dot in every exponent's mantissa ([`number`]).
+//! (shortest round trip), with a dot in every exponent's mantissa (`number`).
 
 use serde_json::Value;
 

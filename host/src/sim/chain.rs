@@ -112,8 +112,8 @@ mod tests {
         assert_eq!(quantize(f64::NAN, 1.0), 0);
     }
 
-    /// White noise through the chain at the paper's four settings: the Allan-derived N at
-    /// tau = 1..4 s against N0 times the predicted inflation, inside the 99 % interval.
+    /// White noise through the chain at the settings study's four settings: the Allan-derived
+    /// N at tau = 1..4 s against N0 times the predicted inflation, inside the 99 % interval.
     /// (Gyro filters; unquantized so that the LSB does not add its own white noise.)
     #[test]
     fn folding_inflates_white_noise_as_predicted() {

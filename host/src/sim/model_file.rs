@@ -203,7 +203,7 @@ struct CycleSpec {
 
 /// The documented example model (examples/mpu6050.toml), built in so that the demo and the
 /// virtual board run anywhere.
-pub const EXAMPLE: &str = include_str!("../../../examples/mpu6050.toml");
+pub const EXAMPLE: &str = include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/mpu6050.toml"));
 
 /// [`EXAMPLE`], parsed.
 pub fn example() -> ImuModel {
