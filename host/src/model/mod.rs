@@ -7,7 +7,7 @@
 //! Allan variance. The fit's rate ramp R is left out: a ramp is deterministic, estimated far
 //! better by regressing the rate on time, and is one of the effects the workflow names.
 //!
-//! **Simulation.** The model's stochastic part is synthesised with [`AxisNoise`] at the
+//! **Simulation.** The model's stochastic part is synthesised with [`AxisNoise`](crate::sim::noise::AxisNoise) at the
 //! record's rate and length, `realisations` times (seeds `seed`, `seed + 1`, ...; the same
 //! seeds for every model, so models are compared on common random numbers), in parallel.
 //!
