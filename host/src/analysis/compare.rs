@@ -7,7 +7,7 @@
 //!
 //! - both intervals above zero: on the log of the value, `se = ln(hi / lo) / (2 z_c)` and
 //!   `z = (ln v_a - ln v_b) / sqrt(se_a^2 + se_b^2)`. The fit's intervals are chi-squared
-//!   shaped (`fit.rs`, `interval`), i.e. close to symmetric in the log, so the log is the
+//!   shaped (`fit/allan.rs`, `interval`), i.e. close to symmetric in the log, so the log is the
 //!   scale on which they are most nearly normal;
 //! - either interval reaching zero (a term the record does not resolve): on the squared
 //!   value theta = v^2, which is what the fit estimates linearly and whose interval is

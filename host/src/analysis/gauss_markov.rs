@@ -38,8 +38,8 @@
 //! fit's correlation model gives that ratio, `NoiseFit::effective_points`). Otherwise the
 //! reason is returned.
 
-use crate::analysis::fit;
 use crate::analysis::pipeline::ChannelResult;
+use crate::analysis::{fit, numerics};
 use crate::sim::noise::{GaussMarkov, gauss_markov_avar};
 use serde::Serialize;
 
@@ -202,7 +202,7 @@ fn fit_at(points: &[Point], tau_c: Option<f64>) -> (GaussMarkovFit, f64) {
             .map(|(r, w)| (0..4).map(|j| r[j] * w / norms[j]).collect())
             .collect();
         let y: Vec<f64> = points.iter().zip(&w).map(|(p, w)| p.avar * w).collect();
-        let scaled = fit::nnls(&g, &y);
+        let scaled = numerics::nnls(&g, &y);
         scaled.iter().zip(&norms).map(|(x, n)| x / n).collect()
     };
     let first = solve(&|p| p.avar);

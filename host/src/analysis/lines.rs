@@ -82,6 +82,7 @@
 //! record and a few O(n) passes per round, plus a few O(n) passes per tone; 0.2-0.3 s for
 //! 10^6 samples.
 
+use super::numerics::solve4;
 use realfft::num_complex::Complex;
 use realfft::{RealFftPlanner, RealToComplex};
 use serde::Serialize;
@@ -1265,34 +1266,6 @@ fn fit_at(y: &[f64], w: f64) -> Option<Tone> {
         bin: 0,
         statistic: 0.0,
     })
-}
-
-/// Gaussian elimination with partial pivoting; `None` if singular.
-fn solve4(mut g: [[f64; 4]; 4], mut h: [f64; 4]) -> Option<[f64; 4]> {
-    let scale = g.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-    for col in 0..4 {
-        let pivot = (col..4).max_by(|&a, &b| g[a][col].abs().total_cmp(&g[b][col].abs()))?;
-        if g[pivot][col].abs() <= 1e-12 * scale {
-            return None;
-        }
-        g.swap(col, pivot);
-        h.swap(col, pivot);
-        let (done, rest) = g.split_at_mut(col + 1);
-        let pivot_row = &done[col];
-        for (offset, row) in rest.iter_mut().enumerate() {
-            let f = row[col] / pivot_row[col];
-            for (r, p) in row.iter_mut().zip(pivot_row).skip(col) {
-                *r -= f * p;
-            }
-            h[col + 1 + offset] -= f * h[col];
-        }
-    }
-    let mut x = [0.0; 4];
-    for row in (0..4).rev() {
-        let tail: f64 = (row + 1..4).map(|j| g[row][j] * x[j]).sum();
-        x[row] = (h[row] - tail) / g[row][row];
-    }
-    Some(x)
 }
 
 fn subtract(y: &mut [f64], tone: &Tone) {

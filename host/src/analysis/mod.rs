@@ -18,9 +18,9 @@ pub mod gauss_markov;
 pub mod lines;
 pub mod low_pass;
 pub mod noise_id;
+pub mod numerics;
 pub mod pipeline;
 pub mod psd;
-pub mod psd_terms;
 pub mod taus;
 pub mod units;
 

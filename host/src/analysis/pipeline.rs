@@ -6,12 +6,13 @@
 //! search for the sensor's low-pass roll-off), so that a tone or a resonance does not become
 //! quantization noise, a bias instability, a rate ramp or a filter.
 
+use super::fit::{self, psd::PsdNoiseTerms};
 use super::lines::{self, Line, LineOptions};
 use super::low_pass::{self, LowPass};
 use super::psd::{self, BinnedPsd, Psd, WelchOptions, Window};
 use super::taus::TauGrid;
 use super::units::SensorKind;
-use super::{DataType, Deviation, Estimator, allan, ci, fit, phase_from_rate, psd_terms, taus};
+use super::{DataType, Deviation, Estimator, allan, ci, phase_from_rate, taus};
 use crate::record::{Channel, Quantity, Record};
 use protocol::mpu6050::SensorSettings;
 use rayon::prelude::*;
@@ -106,7 +107,7 @@ pub struct ChannelResult {
     /// The Welch PSD of the rate (one-sided), log-binned; `Err` says why there is none.
     pub psd: Result<(Psd, BinnedPsd), String>,
     /// N, B and K fitted to the multi-resolution PSD; `Err` says why there are none.
-    pub psd_terms: Result<psd_terms::PsdNoiseTerms, String>,
+    pub psd_terms: Result<PsdNoiseTerms, String>,
 }
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -277,12 +278,12 @@ fn analyze_channel(
     drop(phase);
     tick();
     let psd = spectrum(&rate, rate_hz, options);
-    let psd_options = psd_terms::PsdFitOptions {
+    let psd_options = fit::psd::PsdFitOptions {
         segment_len: options.psd_segment.unwrap_or(0),
         window: options.psd_window,
         confidence: options.confidence,
     };
-    let psd_terms = psd_terms::fit_psd(&rate, rate_hz, &psd_options).map_err(|e| e.to_string());
+    let psd_terms = fit::psd::fit_psd(&rate, rate_hz, &psd_options).map_err(|e| e.to_string());
     tick();
     ChannelResult {
         name: channel.name.clone(),

@@ -154,7 +154,7 @@ fn psd_noise(r: &ChannelResult) -> Value {
         Ok(p) => p,
         Err(e) => return json!({ "error": e }),
     };
-    let one = |t: NoiseTerm, x: &crate::analysis::psd_terms::PsdReadout| {
+    let one = |t: NoiseTerm, x: &crate::analysis::fit::psd::PsdReadout| {
         json!({
             "value": x.value, "lo": x.lo, "hi": x.hi, "unit": units::si_unit(r.kind, t),
             "resolved": x.resolved(), "dof": x.dof,
