@@ -180,8 +180,7 @@ pub fn align_fit_start(sessions: &mut [Vec<ChannelResult>], confidence: f64) -> 
                 low_pass: channel.fit.as_ref().ok().and_then(|f| f.low_pass.clone()),
                 ..options.clone()
             };
-            channel.fit = fit::fit_deviation(&channel.fit_curve.deviation, channel.n + 1, &options)
-                .map_err(|e| e.to_string());
+            channel.fit = fit::fit_deviation(&channel.fit_curve.deviation, channel.n + 1, &options);
         }
     }
     Some(start)
