@@ -424,7 +424,7 @@ pub struct Detection {
 /// (reweighted three times). chi2(f_c) is profiled over a log grid from f_s / 64 to 2 f_s and
 /// refined by golden section; no filter is G = 1.
 ///
-/// **Decision.** `Delta = (chi2(none) - chi2(f_c)) / (c B^2)`, c = [`HANN_BIN_CORRELATION`]
+/// **Decision.** `Delta = (chi2(none) - chi2(f_c)) / (c B^2)`, c = `HANN_BIN_CORRELATION`
 /// for the correlated bins and `B^2 = max(1, chi2 / dof)` the Birge ratio, which widens
 /// everything when the model does not describe the spectrum (lines, unmodelled processes).
 /// A low-pass is claimed when `Delta >= DETECTION_THRESHOLD` and the cutoff is below f_s / 2;

@@ -20,7 +20,7 @@
 //! would splice two stretches of data together, so such gaps are refused. A step of at least
 //! 1.5 periods is a candidate; it is a gap when the least offset over the stamps after it
 //! exceeds the least offset over the stamps before it by half a period or more. Least offsets
-//! over windows of [`window`] stamps (two seconds' worth) compare the undelayed baseline on
+//! over windows of `window` stamps (two seconds' worth) compare the undelayed baseline on
 //! either side: a burst is only ever late, so its catch-up settles back onto the baseline
 //! within the window, while a gap moves the baseline itself (a host that stalls for longer
 //! and then delivers its backlog at once is taken for a gap). Judging the cumulative offset,

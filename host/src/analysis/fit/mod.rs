@@ -18,9 +18,9 @@
 //! The one-sided PSD our Welch estimate returns is twice that.
 //!
 //! Three routes:
-//! - [`fit_allan`] ([`allan`]): weighted non-negative least squares of the whole Allan curve,
-//!   with intervals;
-//! - [`slope_readouts`] ([`slopes`]): the classic graphical read-outs (tangent lines of slope
+//! - [`fit_allan`] (`allan.rs`): weighted non-negative least squares of the whole Allan
+//!   curve, with intervals;
+//! - [`slope_readouts`] (`slopes.rs`): the classic graphical read-outs (tangent lines of slope
 //!   -1/2, +1/2, and the flat minimum);
 //! - [`psd::fit_psd`]: N, B and K fitted to the multi-resolution PSD, with intervals.
 

@@ -53,7 +53,7 @@ pub const SLOPE_TOLERANCE: f64 = 0.1;
 /// elements of the longer array); points are taken in increasing tau. The read-outs are
 /// biased where terms overlap (the run includes points where neighbouring terms add a few
 /// percent; the minimum lies above 0.664 B when N or K are not negligible there) — that is
-/// the classic method; [`fit_allan`] has no such bias.
+/// the classic method; [`super::fit_allan`] has no such bias.
 pub fn slope_readouts(tau: &[f64], adev: &[f64]) -> SlopeReadouts {
     let mut pts: Vec<(f64, f64)> = tau
         .iter()
