@@ -431,3 +431,24 @@ fn psd_noise(p: &PsdNoiseTerms, kind: SensorKind) -> PsdNoise {
         },
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Part;
+    use crate::analysis::fit::FitError;
+    use serde_json::json;
+
+    #[test]
+    fn a_part_is_its_value_or_its_error_text() {
+        let failed: Result<f64, FitError> = Err(FitError::TooFewPoints(0));
+        assert_eq!(
+            serde_json::to_value(Part::of(&failed, |x| *x)).unwrap(),
+            json!({ "error": "0 points: the noise fit needs at least 2" })
+        );
+        let done: Result<f64, FitError> = Ok(2.5);
+        assert_eq!(
+            serde_json::to_value(Part::of(&done, |x| *x)).unwrap(),
+            json!(2.5)
+        );
+    }
+}
