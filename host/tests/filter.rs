@@ -101,6 +101,7 @@ fn no_gauss_markov(terms: NoiseTerms, seed: u64) -> Result<(), String> {
         Ok(g) => Err(format!("seed {seed}: {g:?}")),
         Err(reason) => {
             eprintln!("seed {seed}: {reason}");
+            let reason = reason.to_string();
             assert!(reason.contains("not supported") || reason.contains("no Gauss-Markov"));
             assert!(!f.random_walk.upper_bound);
             Ok(())

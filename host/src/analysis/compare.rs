@@ -7,7 +7,7 @@
 //!
 //! - both intervals above zero: on the log of the value, `se = ln(hi / lo) / (2 z_c)` and
 //!   `z = (ln v_a - ln v_b) / sqrt(se_a^2 + se_b^2)`. The fit's intervals are chi-squared
-//!   shaped (`fit.rs`, `interval`), i.e. close to symmetric in the log, so the log is the
+//!   shaped (`fit/allan.rs`, `interval`), i.e. close to symmetric in the log, so the log is the
 //!   scale on which they are most nearly normal;
 //! - either interval reaching zero (a term the record does not resolve): on the squared
 //!   value theta = v^2, which is what the fit estimates linearly and whose interval is
@@ -180,8 +180,7 @@ pub fn align_fit_start(sessions: &mut [Vec<ChannelResult>], confidence: f64) -> 
                 low_pass: channel.fit.as_ref().ok().and_then(|f| f.low_pass.clone()),
                 ..options.clone()
             };
-            channel.fit = fit::fit_deviation(&channel.fit_curve.deviation, channel.n + 1, &options)
-                .map_err(|e| e.to_string());
+            channel.fit = fit::fit_deviation(&channel.fit_curve.deviation, channel.n + 1, &options);
         }
     }
     Some(start)

@@ -23,7 +23,7 @@
 //! is given as the upper end of its interval and marked, as in the Kalibr file.
 
 use crate::analysis::fit::NoiseFit;
-use crate::analysis::gauss_markov::{self, GaussMarkovFit};
+use crate::analysis::gauss_markov::{self, GaussMarkovError, GaussMarkovFit};
 use crate::analysis::pipeline::ChannelResult;
 use crate::analysis::units::{NoiseTerm, SensorKind, si_unit};
 use serde::Serialize;
@@ -53,7 +53,7 @@ pub struct FilterNoise {
     pub random_walk: RandomWalk,
     /// `Err`: why the data do not support a Gauss-Markov bias.
     #[serde(serialize_with = "serialize_gm")]
-    pub gauss_markov: Result<GaussMarkovState, String>,
+    pub gauss_markov: Result<GaussMarkovState, GaussMarkovError>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -93,17 +93,30 @@ pub struct GaussMarkovState {
 }
 
 fn serialize_gm<S: serde::Serializer>(
-    gm: &Result<GaussMarkovState, String>,
+    gm: &Result<GaussMarkovState, GaussMarkovError>,
     s: S,
 ) -> Result<S::Ok, S::Error> {
+    /// The document's form of a Gauss-Markov bias the data do not support.
+    #[derive(Serialize)]
+    struct Unsupported {
+        supported: bool,
+        reason: String,
+    }
     match gm {
         Ok(state) => state.serialize(s),
-        Err(reason) => serde_json::json!({ "supported": false, "reason": reason }).serialize(s),
+        Err(reason) => Unsupported {
+            supported: false,
+            reason: reason.to_string(),
+        }
+        .serialize(s),
     }
 }
 
 /// The filter parameters of every channel with a noise fit (the others are left out).
-pub fn for_channels(results: &[ChannelResult], period_s: f64) -> Result<Vec<FilterNoise>, String> {
+pub fn for_channels(
+    results: &[ChannelResult],
+    period_s: f64,
+) -> Result<Vec<FilterNoise>, BadPeriod> {
     check_period(period_s)?;
     Ok(results
         .iter()
@@ -115,12 +128,15 @@ pub fn for_channels(results: &[ChannelResult], period_s: f64) -> Result<Vec<Filt
         .collect())
 }
 
+/// A filter period that is not a positive, finite number of seconds.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("the filter period must be a positive number of seconds, not {0}")]
+pub struct BadPeriod(pub f64);
+
 /// A filter period must be a positive, finite number of seconds.
-pub fn check_period(period_s: f64) -> Result<(), String> {
+pub fn check_period(period_s: f64) -> Result<(), BadPeriod> {
     if !(period_s.is_finite() && period_s > 0.0) {
-        return Err(format!(
-            "the filter period must be a positive number of seconds, not {period_s}"
-        ));
+        return Err(BadPeriod(period_s));
     }
     Ok(())
 }
@@ -131,7 +147,7 @@ pub fn filter_noise(
     kind: SensorKind,
     unit: &'static str,
     fit: &NoiseFit,
-    gm: Result<GaussMarkovFit, String>,
+    gm: Result<GaussMarkovFit, GaussMarkovError>,
     dt: f64,
 ) -> FilterNoise {
     let u2 = squared(unit);

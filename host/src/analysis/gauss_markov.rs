@@ -38,8 +38,8 @@
 //! fit's correlation model gives that ratio, `NoiseFit::effective_points`). Otherwise the
 //! reason is returned.
 
-use crate::analysis::fit;
 use crate::analysis::pipeline::ChannelResult;
+use crate::analysis::{fit, numerics};
 use crate::sim::noise::{GaussMarkov, gauss_markov_avar};
 use serde::Serialize;
 
@@ -78,10 +78,48 @@ impl GaussMarkovFit {
     }
 }
 
+/// Why the data do not support a Gauss-Markov bias ([`fit_points`], [`fit_channel`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GaussMarkovError {
+    /// The channel has no noise fit to start from.
+    #[error("{0}")]
+    NoNoiseFit(fit::FitError),
+    #[error("no Allan variance points to fit")]
+    NoPoints,
+    #[error("{0} Allan points: too few to place a correlation time")]
+    TooFewPoints(usize),
+    #[error("no Gauss-Markov component: the fit puts its sigma at 0")]
+    NoComponent,
+    /// The best correlation time is the shortest (`short`) or the longest tau of the grid.
+    #[error(
+        "not supported by the data: the correlation time ran to the {} end of the record's taus ({tau_c:.3e} s), where a Gauss-Markov process cannot be told from {}",
+        if *.short { "short" } else { "long" },
+        if *.short { "white noise" } else { "a random walk" }
+    )]
+    AtGridEnd { short: bool, tau_c: f64 },
+    #[error(
+        "not supported by the data: the Allan deviation of the fitted Gauss-Markov (tau_c {tau_c:.3e} s) would peak at {peak:.3e} s, less than {TURNOVER_OCTAVES} octaves below the longest tau ({longest:.3e} s): its fall, which tells it from a random walk, is not in the record"
+    )]
+    NoFall { tau_c: f64, peak: f64, longest: f64 },
+    #[error(
+        "not supported by the data: the Gauss-Markov term improves the fit by {0:.1} (chi-squared, per independent point), under the {IMPROVEMENT_CHI2} its two parameters must earn"
+    )]
+    SmallImprovement(f64),
+    #[error(
+        "not supported by the data: the Gauss-Markov term is at most {:.0} % of the Allan variance at any tau (needs {:.0} %)",
+        100.0 * .0,
+        100.0 * MIN_SHARE
+    )]
+    SmallShare(f64),
+}
+
 /// The Gauss-Markov fit of a channel's overlapping Allan curve, from the tau where its noise
 /// fit starts; `Err` says why the data do not support one.
-pub fn fit_channel(channel: &ChannelResult) -> Result<GaussMarkovFit, String> {
-    let fit = channel.fit.as_ref().map_err(Clone::clone)?;
+pub fn fit_channel(channel: &ChannelResult) -> Result<GaussMarkovFit, GaussMarkovError> {
+    let fit = channel
+        .fit
+        .as_ref()
+        .map_err(|e| GaussMarkovError::NoNoiseFit(e.clone()))?;
     let curve = &channel.fit_curve;
     let first = curve
         .deviation
@@ -111,15 +149,12 @@ pub struct Point {
 
 /// The fit of the module documentation on `points` (ascending tau); `inflation` is the
 /// number of points per effectively independent point (1 for independent points).
-pub fn fit_points(points: &[Point], inflation: f64) -> Result<GaussMarkovFit, String> {
+pub fn fit_points(points: &[Point], inflation: f64) -> Result<GaussMarkovFit, GaussMarkovError> {
     let (Some(first), Some(last)) = (points.first(), points.last()) else {
-        return Err("no Allan variance points to fit".into());
+        return Err(GaussMarkovError::NoPoints);
     };
     if points.len() < 6 {
-        return Err(format!(
-            "{} Allan points: too few to place a correlation time",
-            points.len()
-        ));
+        return Err(GaussMarkovError::TooFewPoints(points.len()));
     }
     let decades = (last.tau / first.tau).log10();
     let steps = (decades * GRID_PER_DECADE).ceil().max(2.0) as usize;
@@ -134,38 +169,27 @@ pub fn fit_points(points: &[Point], inflation: f64) -> Result<GaussMarkovFit, St
         .expect("the grid has points");
     let improvement = (fit_at(points, None).1 - misfit) / inflation;
     if best.sigma <= 0.0 {
-        return Err("no Gauss-Markov component: the fit puts its sigma at 0".into());
+        return Err(GaussMarkovError::NoComponent);
     }
     if index == 0 || index == steps {
-        return Err(format!(
-            "not supported by the data: the correlation time ran to the {} end of the record's taus ({:.3e} s), where a Gauss-Markov process cannot be told from {}",
-            if index == 0 { "short" } else { "long" },
-            best.tau_c,
-            if index == 0 {
-                "white noise"
-            } else {
-                "a random walk"
-            }
-        ));
+        return Err(GaussMarkovError::AtGridEnd {
+            short: index == 0,
+            tau_c: best.tau_c,
+        });
     }
     let peak = PEAK_TAU_PER_TAU_C * best.tau_c;
     if peak * TURNOVER_OCTAVES.exp2() > last.tau {
-        return Err(format!(
-            "not supported by the data: the Allan deviation of the fitted Gauss-Markov (tau_c {:.3e} s) would peak at {peak:.3e} s, less than {TURNOVER_OCTAVES} octaves below the longest tau ({:.3e} s): its fall, which tells it from a random walk, is not in the record",
-            best.tau_c, last.tau
-        ));
+        return Err(GaussMarkovError::NoFall {
+            tau_c: best.tau_c,
+            peak,
+            longest: last.tau,
+        });
     }
     if improvement < IMPROVEMENT_CHI2 {
-        return Err(format!(
-            "not supported by the data: the Gauss-Markov term improves the fit by {improvement:.1} (chi-squared, per independent point), under the {IMPROVEMENT_CHI2} its two parameters must earn"
-        ));
+        return Err(GaussMarkovError::SmallImprovement(improvement));
     }
     if best.peak_share < MIN_SHARE {
-        return Err(format!(
-            "not supported by the data: the Gauss-Markov term is at most {:.0} % of the Allan variance at any tau (needs {:.0} %)",
-            100.0 * best.peak_share,
-            100.0 * MIN_SHARE
-        ));
+        return Err(GaussMarkovError::SmallShare(best.peak_share));
     }
     Ok(best)
 }
@@ -202,7 +226,7 @@ fn fit_at(points: &[Point], tau_c: Option<f64>) -> (GaussMarkovFit, f64) {
             .map(|(r, w)| (0..4).map(|j| r[j] * w / norms[j]).collect())
             .collect();
         let y: Vec<f64> = points.iter().zip(&w).map(|(p, w)| p.avar * w).collect();
-        let scaled = fit::nnls(&g, &y);
+        let scaled = numerics::nnls(&g, &y);
         scaled.iter().zip(&norms).map(|(x, n)| x / n).collect()
     };
     let first = solve(&|p| p.avar);
@@ -298,7 +322,14 @@ mod tests {
             .collect();
         let reason = fit_points(&points, 1.0).unwrap_err();
         assert!(
-            reason.contains("no Gauss-Markov") || reason.contains("not supported"),
+            matches!(
+                reason,
+                GaussMarkovError::NoComponent
+                    | GaussMarkovError::AtGridEnd { .. }
+                    | GaussMarkovError::NoFall { .. }
+                    | GaussMarkovError::SmallImprovement(_)
+                    | GaussMarkovError::SmallShare(_)
+            ),
             "{reason}"
         );
     }

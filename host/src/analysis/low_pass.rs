@@ -44,7 +44,7 @@
 //! at realistic noise levels (gyro: `(1.33e-4 rad/s)^2 / 12 / f_s` against N ~ 1.5e-4
 //! rad/s/sqrt(Hz)), so the model leaves it out.
 
-use crate::analysis::fit;
+use crate::analysis::numerics;
 use crate::analysis::psd::{self, WelchOptions, Window};
 use crate::sim::dlpf::{DlpfDesign, Sensor};
 use protocol::mpu6050::SensorSettings;
@@ -579,7 +579,7 @@ impl DetectionPsd {
 }
 
 /// Non-negative least squares of four columns with per-row standard deviations, on unit-norm
-/// columns ([`fit::nnls`]).
+/// columns ([`numerics::nnls`]).
 fn weighted_nnls4(rows: &[[f64; 4]], y: &[f64], sigma: &[f64]) -> [f64; 4] {
     let mut norms = [0.0f64; 4];
     for (r, s) in rows.iter().zip(sigma) {
@@ -594,7 +594,7 @@ fn weighted_nnls4(rows: &[[f64; 4]], y: &[f64], sigma: &[f64]) -> [f64; 4] {
         .map(|(r, s)| (0..4).map(|j| r[j] / s / norms[j]).collect())
         .collect();
     let b: Vec<f64> = y.iter().zip(sigma).map(|(y, s)| y / s).collect();
-    let x = fit::nnls(&g, &b);
+    let x = numerics::nnls(&g, &b);
     std::array::from_fn(|j| x[j] / norms[j])
 }
 

@@ -19,10 +19,10 @@ pub mod lines;
 pub mod live;
 pub mod low_pass;
 pub mod noise_id;
+pub mod numerics;
 pub mod pipeline;
 pub mod precision;
 pub mod psd;
-pub mod psd_terms;
 pub mod streaming;
 pub mod taus;
 pub mod units;
@@ -88,16 +88,18 @@ impl std::fmt::Display for Estimator {
     }
 }
 
+/// A name that is none of the [`Estimator`]s'.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown estimator '{0}': one of {names}", names = Estimator::ALL.map(Estimator::name).join(", "))]
+pub struct UnknownEstimator(pub String);
+
 impl std::str::FromStr for Estimator {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownEstimator;
+    fn from_str(s: &str) -> Result<Self, UnknownEstimator> {
         Estimator::ALL
             .into_iter()
             .find(|e| e.name().eq_ignore_ascii_case(s))
-            .ok_or_else(|| {
-                let names: Vec<_> = Estimator::ALL.iter().map(|e| e.name()).collect();
-                format!("unknown estimator '{s}': one of {}", names.join(", "))
-            })
+            .ok_or_else(|| UnknownEstimator(s.to_string()))
     }
 }
 
@@ -179,6 +181,9 @@ mod tests {
         for e in Estimator::ALL {
             assert_eq!(e.name().parse::<Estimator>(), Ok(e));
         }
-        assert!("avar".parse::<Estimator>().unwrap_err().contains("oadev"));
+        assert_eq!(
+            "avar".parse::<Estimator>().unwrap_err().to_string(),
+            "unknown estimator 'avar': one of adev, oadev, mdev, hdev, ohdev, tdev, totdev"
+        );
     }
 }

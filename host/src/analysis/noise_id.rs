@@ -10,6 +10,7 @@
 
 use super::Estimator;
 use super::allan::deviation;
+use super::numerics::solve3;
 
 /// Shortest decimated series for which the lag-1 autocorrelation is trusted (Riley &
 /// Greenhall recommend at least about 30 points).
@@ -146,32 +147,6 @@ fn detrend_quadratic(z: &mut [f64]) {
     for (i, v) in z.iter_mut().enumerate() {
         *v -= coef[0] + coef[1] * t(i) + coef[2] * t(i) * t(i);
     }
-}
-
-/// Solve a 3×3 system by Gaussian elimination with partial pivoting; None if singular.
-pub(crate) fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
-    for col in 0..3 {
-        let piv = (col..3).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if a[piv][col].abs() < 1e-300 {
-            return None;
-        }
-        a.swap(col, piv);
-        b.swap(col, piv);
-        for r in col + 1..3 {
-            let f = a[r][col] / a[col][col];
-            let pivot_row = a[col];
-            for (v, p) in a[r].iter_mut().zip(pivot_row).skip(col) {
-                *v -= f * p;
-            }
-            b[r] -= f * b[col];
-        }
-    }
-    let mut x = [0.0; 3];
-    for r in (0..3).rev() {
-        let s: f64 = (r + 1..3).map(|c| a[r][c] * x[c]).sum();
-        x[r] = (b[r] - s) / a[r][r];
-    }
-    Some(x)
 }
 
 /// SP 1065 §5.5.2: B1 = (sample variance of the n averages of frequency over m samples) /

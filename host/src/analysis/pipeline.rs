@@ -6,12 +6,14 @@
 //! search for the sensor's low-pass roll-off), so that a tone or a resonance does not become
 //! quantization noise, a bias instability, a rate ramp or a filter.
 
+use super::fit::psd::{PsdFitError, PsdNoiseTerms};
+use super::fit::{self, FitError};
 use super::lines::{self, Line, LineOptions};
 use super::low_pass::{self, LowPass};
-use super::psd::{self, BinnedPsd, Psd, WelchOptions, Window};
+use super::psd::{self, BinnedPsd, Psd, PsdError, WelchOptions, Window};
 use super::taus::TauGrid;
 use super::units::SensorKind;
-use super::{DataType, Deviation, Estimator, allan, ci, fit, phase_from_rate, psd_terms, taus};
+use super::{DataType, Deviation, Estimator, allan, ci, phase_from_rate, taus};
 use crate::record::{Channel, Quantity, Record};
 use protocol::mpu6050::SensorSettings;
 use rayon::prelude::*;
@@ -101,12 +103,12 @@ pub struct ChannelResult {
     pub fit_curve: DeviationResult,
     /// Spectral lines of the rate (empty when the search is off or the record too short).
     pub lines: Vec<Line>,
-    pub fit: Result<fit::NoiseFit, String>,
+    pub fit: Result<fit::NoiseFit, FitError>,
     pub readouts: fit::SlopeReadouts,
     /// The Welch PSD of the rate (one-sided), log-binned; `Err` says why there is none.
-    pub psd: Result<(Psd, BinnedPsd), String>,
+    pub psd: Result<(Psd, BinnedPsd), PsdError>,
     /// N, B and K fitted to the multi-resolution PSD; `Err` says why there are none.
-    pub psd_terms: Result<psd_terms::PsdNoiseTerms, String>,
+    pub psd_terms: Result<PsdNoiseTerms, PsdFitError>,
 }
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -277,12 +279,12 @@ fn analyze_channel(
     drop(phase);
     tick();
     let psd = spectrum(&rate, rate_hz, options);
-    let psd_options = psd_terms::PsdFitOptions {
+    let psd_options = fit::psd::PsdFitOptions {
         segment_len: options.psd_segment.unwrap_or(0),
         window: options.psd_window,
         confidence: options.confidence,
     };
-    let psd_terms = psd_terms::fit_psd(&rate, rate_hz, &psd_options).map_err(|e| e.to_string());
+    let psd_terms = fit::psd::fit_psd(&rate, rate_hz, &psd_options);
     tick();
     ChannelResult {
         name: channel.name.clone(),
@@ -391,18 +393,18 @@ fn fit_noise(
     n_phase: usize,
     low_pass: Option<LowPass>,
     options: &Options,
-) -> (Result<fit::NoiseFit, String>, fit::SlopeReadouts) {
+) -> (Result<fit::NoiseFit, FitError>, fit::SlopeReadouts) {
     let fit_options = fit::FitOptions {
         confidence: options.confidence,
         tau_min: options.fit_tau_min,
         low_pass,
         ..fit::FitOptions::default()
     };
-    let fitted = fit::fit_deviation(d, n_phase, &fit_options).map_err(|e| e.to_string());
+    let fitted = fit::fit_deviation(d, n_phase, &fit_options);
     (fitted, fit::slope_readouts(&d.tau, &d.dev))
 }
 
-fn spectrum(rate: &[f64], rate_hz: f64, options: &Options) -> Result<(Psd, BinnedPsd), String> {
+fn spectrum(rate: &[f64], rate_hz: f64, options: &Options) -> Result<(Psd, BinnedPsd), PsdError> {
     let welch = WelchOptions {
         segment_len: options
             .psd_segment
@@ -410,7 +412,7 @@ fn spectrum(rate: &[f64], rate_hz: f64, options: &Options) -> Result<(Psd, Binne
         window: options.psd_window,
         ..WelchOptions::default()
     };
-    let spectrum = psd::welch(rate, rate_hz, &welch).map_err(|e| e.to_string())?;
+    let spectrum = psd::welch(rate, rate_hz, &welch)?;
     let binned = psd::log_binned(&spectrum, options.psd_bins_per_decade);
     Ok((spectrum, binned))
 }

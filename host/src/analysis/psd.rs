@@ -107,9 +107,14 @@ impl std::fmt::Display for Window {
     }
 }
 
+/// A name that is none of the [`Window`]s' (nor an alias of one).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown window '{0}': one of {names}", names = Window::ALL.map(Window::name).join(", "))]
+pub struct UnknownWindow(pub String);
+
 impl std::str::FromStr for Window {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownWindow;
+    fn from_str(s: &str) -> Result<Self, UnknownWindow> {
         let wanted = match s.to_ascii_lowercase().as_str() {
             "hanning" => "hann",
             "boxcar" | "rect" | "none" => "rectangular",
@@ -120,14 +125,11 @@ impl std::str::FromStr for Window {
 }
 
 impl Window {
-    fn by_name(name: &str, original: &str) -> Result<Self, String> {
+    fn by_name(name: &str, original: &str) -> Result<Self, UnknownWindow> {
         Window::ALL
             .into_iter()
             .find(|w| w.name() == name)
-            .ok_or_else(|| {
-                let names: Vec<_> = Window::ALL.iter().map(|w| w.name()).collect();
-                format!("unknown window '{original}': one of {}", names.join(", "))
-            })
+            .ok_or_else(|| UnknownWindow(original.to_string()))
     }
 }
 
@@ -523,8 +525,11 @@ mod tests {
         }
         assert_eq!("Hanning".parse::<Window>(), Ok(Window::Hann));
         assert_eq!("boxcar".parse::<Window>(), Ok(Window::Rectangular));
-        let err = "kaiser".parse::<Window>().unwrap_err();
-        assert!(err.contains("kaiser") && err.contains("hann, hamming, blackman, rectangular"));
+        let err = "kaiser".parse::<Window>().unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "unknown window 'kaiser': one of hann, hamming, blackman, rectangular"
+        );
     }
 
     #[test]

@@ -19,22 +19,31 @@ pub enum TauGrid {
 
 const CHOICES: &str = "octave, decade, all, per-decade:K (K = 1..=1000 factors per decade)";
 
+/// Why a text is not a [`TauGrid`]; each holds the text.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TauGridError {
+    #[error("unknown tau grid '{0}': one of {CHOICES}")]
+    Unknown(String),
+    #[error(
+        "bad tau grid '{0}': K in per-decade:K must be an integer 1..=1000; choices: {CHOICES}"
+    )]
+    BadK(String),
+}
+
 impl FromStr for TauGrid {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        let bad = || format!("unknown tau grid '{s}': one of {CHOICES}");
+    type Err = TauGridError;
+    fn from_str(s: &str) -> Result<Self, TauGridError> {
         match s.to_ascii_lowercase().as_str() {
             "octave" => Ok(TauGrid::Octave),
             "decade" => Ok(TauGrid::Decade),
             "all" => Ok(TauGrid::All),
             other => {
-                let k = other.strip_prefix("per-decade:").ok_or_else(bad)?;
+                let k = other
+                    .strip_prefix("per-decade:")
+                    .ok_or_else(|| TauGridError::Unknown(s.to_string()))?;
                 match k.trim().parse::<u32>() {
                     Ok(k) if (1..=1000).contains(&k) => Ok(TauGrid::PerDecade(k)),
-                    _ => Err(format!(
-                        "bad tau grid '{s}': K in per-decade:K must be an integer 1..=1000; \
-                         choices: {CHOICES}"
-                    )),
+                    _ => Err(TauGridError::BadK(s.to_string())),
                 }
             }
         }
@@ -143,9 +152,13 @@ mod tests {
         }
         assert_eq!("OCTAVE".parse::<TauGrid>(), Ok(TauGrid::Octave));
         let e = "log".parse::<TauGrid>().unwrap_err();
-        assert!(e.contains("octave") && e.contains("per-decade:K"), "{e}");
+        assert_eq!(e, TauGridError::Unknown("log".into()));
+        assert_eq!(
+            e.to_string(),
+            "unknown tau grid 'log': one of octave, decade, all, per-decade:K (K = 1..=1000 factors per decade)"
+        );
         let e = "per-decade:0".parse::<TauGrid>().unwrap_err();
-        assert!(e.contains("1..=1000"), "{e}");
+        assert!(e.to_string().contains("1..=1000"), "{e}");
         assert!("per-decade:x".parse::<TauGrid>().is_err());
     }
 }

@@ -3,7 +3,7 @@
 //! inputs (six positions, a rate table).
 
 use super::{Correction, Mat3, Sensor, Vec3, identity};
-use crate::analysis::fit::householder_solve;
+use crate::analysis::numerics::householder_solve;
 use serde::Serialize;
 
 /// One axis from two opposite inputs of known magnitude m (the reading with the axis along

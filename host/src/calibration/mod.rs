@@ -109,7 +109,7 @@ impl Correction {
     /// f_true = K^-1 (f_meas - b - extra_bias); None if K is singular.
     pub fn correct(&self, measured: Vec3, extra_bias: Vec3) -> Option<Vec3> {
         let v = [0, 1, 2].map(|i| measured[i] - self.bias[i] - extra_bias[i]);
-        crate::analysis::noise_id::solve3(self.k(), v)
+        crate::analysis::numerics::solve3(self.k(), v)
     }
 }
 

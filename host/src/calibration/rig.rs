@@ -6,7 +6,7 @@
 
 use super::Sensor;
 use super::gravity::STANDARD;
-use super::still::{Motion, find_motion};
+use super::still::{Motion, TooShortToJudge, find_motion};
 use crate::capture::{CaptureError, StreamDecoder};
 use crate::link::board::{Board as BoardLink, BoardError};
 use crate::link::virtual_board::SharedSensor;
@@ -101,7 +101,7 @@ pub enum RigError {
     Silent { link: String },
     /// The stillness test could not judge what the board sent while watched.
     #[error("{0}")]
-    Watch(String),
+    Watch(TooShortToJudge),
     #[error(
         "the board did not keep still for {} s in {} tries",
         STILL_S,
@@ -110,7 +110,7 @@ pub enum RigError {
     NeverStill,
     /// The stillness test could not judge a capture (too short for its windows).
     #[error("{0}")]
-    TooShort(String),
+    TooShort(TooShortToJudge),
     #[error(
         "{instruction}: no still capture in the right orientation after {} attempts",
         ATTEMPTS

@@ -52,10 +52,38 @@ impl std::fmt::Display for Motion {
     }
 }
 
+/// A record too short for [`find_motion`] to judge: it needs three windows.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("{duration_s:.1} s is too short to judge stillness: at least {:.0} s", 3.0 * WINDOW_S)]
+pub struct TooShortToJudge {
+    pub duration_s: f64,
+}
+
+/// What the accelerometer shows instead of the asked orientation ([`check_orientation`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum OrientationError {
+    #[error(
+        "asked for {asked} up: the accelerometer reads {norm:.3} m/s^2, not g = {g:.5} m/s^2 within 10 % (not at rest, or not in m/s^2?)"
+    )]
+    NotG { asked: String, norm: f64, g: f64 },
+    #[error(
+        "asked for {asked} up, but {found} is up ({angle:.1} deg from the vertical; {asked} is {tilt:.1} deg{})",
+        if *.upside_down { ", upside down" } else { "" }
+    )]
+    Tilted {
+        asked: String,
+        found: String,
+        /// deg.
+        angle: f64,
+        tilt: f64,
+        upside_down: bool,
+    },
+}
+
 /// The largest motion on the channels of `sensors` relative to its threshold, or None if
 /// still. (On a rate table only the gyro should be steady: the accelerometer turns with
 /// the table.) Records shorter than three windows cannot be judged: an error.
-pub fn find_motion(record: &Record, sensors: &[Sensor]) -> Result<Option<Motion>, String> {
+pub fn find_motion(record: &Record, sensors: &[Sensor]) -> Result<Option<Motion>, TooShortToJudge> {
     let w = ((record.rate_hz * WINDOW_S).round() as usize).max(1);
     let mut worst: Option<(f64, Motion)> = None;
     for channel in &record.channels {
@@ -73,11 +101,9 @@ pub fn find_motion(record: &Record, sensors: &[Sensor]) -> Result<Option<Motion>
             .map(|c| c.iter().sum::<f64>() / w as f64)
             .collect();
         if means.len() < 3 {
-            return Err(format!(
-                "{:.1} s is too short to judge stillness: at least {:.0} s",
-                record.duration_s(),
-                3.0 * WINDOW_S
-            ));
+            return Err(TooShortToJudge {
+                duration_s: record.duration_s(),
+            });
         }
         let d: Vec<f64> = means.windows(2).map(|p| p[1] - p[0]).collect();
         let mut abs: Vec<f64> = d.iter().map(|x| x.abs()).collect();
@@ -121,23 +147,23 @@ pub fn check_orientation(
     axis: usize,
     negative: bool,
     g: f64,
-) -> Result<(), String> {
+) -> Result<(), OrientationError> {
     let norm = mean_accel.iter().map(|x| x * x).sum::<f64>().sqrt();
     let asked = super::fit::axis_label(axis, negative);
     if (norm / g - 1.0).abs() > 0.1 {
-        return Err(format!(
-            "asked for {asked} up: the accelerometer reads {norm:.3} m/s^2, not g = {g:.5} m/s^2 within 10 % (not at rest, or not in m/s^2?)"
-        ));
+        return Err(OrientationError::NotG { asked, norm, g });
     }
     let (found, down, angle) = gravity_axis(mean_accel);
     let sign_ok = (mean_accel[axis] < 0.0) == negative;
     let tilt = angle_to(mean_accel, axis);
     if !sign_ok || tilt > MAX_TILT_DEG {
-        return Err(format!(
-            "asked for {asked} up, but {} is up ({angle:.1} deg from the vertical; {asked} is {tilt:.1} deg{})",
-            super::fit::axis_label(found, down),
-            if sign_ok { "" } else { ", upside down" }
-        ));
+        return Err(OrientationError::Tilted {
+            asked,
+            found: super::fit::axis_label(found, down),
+            angle,
+            tilt,
+            upside_down: !sign_ok,
+        });
     }
     Ok(())
 }
@@ -215,10 +241,9 @@ mod tests {
             channels: vec![Channel::named("gx", vec![0.0; 150])],
             ..record(false)
         };
-        assert!(
-            find_motion(&short, &BOTH)
-                .unwrap_err()
-                .contains("too short")
+        assert_eq!(
+            find_motion(&short, &BOTH).unwrap_err().to_string(),
+            "1.5 s is too short to judge stillness: at least 3 s"
         );
     }
 
@@ -227,9 +252,13 @@ mod tests {
         let g = 9.80665;
         assert!(check_orientation([0.1, -0.2, 9.8], 2, false, g).is_ok());
         assert!(check_orientation([-9.7, 0.3, 0.5], 0, true, g).is_ok());
-        let err = check_orientation([0.0, 9.8, 0.2], 2, false, g).unwrap_err();
+        let err = check_orientation([0.0, 9.8, 0.2], 2, false, g)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("asked for +z up, but +y is up"), "{err}");
-        let err = check_orientation([0.0, 0.0, -9.8], 2, false, g).unwrap_err();
+        let err = check_orientation([0.0, 0.0, -9.8], 2, false, g)
+            .unwrap_err()
+            .to_string();
         assert!(
             err.contains("-z is up") && err.contains("upside down"),
             "{err}"
@@ -238,7 +267,7 @@ mod tests {
         let t = 25f64.to_radians();
         assert!(check_orientation([9.8 * t.sin(), 0.0, 9.8 * t.cos()], 2, false, g).is_err());
         let err = check_orientation([0.0, 0.0, 1.0], 2, false, g).unwrap_err();
-        assert!(err.contains("not g"), "{err}");
+        assert!(matches!(err, OrientationError::NotG { .. }), "{err}");
         assert_eq!(gravity_axis([0.2, -9.8, 0.1]).0, 1);
     }
 }

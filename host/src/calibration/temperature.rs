@@ -21,7 +21,7 @@
 //! temperature change times g.
 
 use super::{Sensor, Vec3};
-use crate::analysis::fit::householder_solve;
+use crate::analysis::numerics::householder_solve;
 use serde::{Deserialize, Serialize};
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 

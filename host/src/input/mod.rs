@@ -10,7 +10,7 @@ mod text;
 pub mod timing;
 mod units;
 
-pub use npy::write_f64 as write_npy;
+pub use npy::{NpyError, write_f64 as write_npy};
 pub use timing::Timing;
 pub use units::UnitConversion;
 
@@ -114,6 +114,11 @@ pub enum InputError {
     },
     #[error("{path}: {message}")]
     File { path: PathBuf, message: String },
+    #[error("{path}: {source}")]
+    Npy {
+        path: PathBuf,
+        source: npy::NpyError,
+    },
 }
 
 impl InputError {

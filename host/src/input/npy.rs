@@ -8,40 +8,70 @@ use std::path::Path;
 /// The bytes every `.npy` file starts with.
 pub(super) const MAGIC: &[u8] = b"\x93NUMPY";
 
+/// Why a `.npy` file cannot be read.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NpyError {
+    #[error("not a NumPy .npy file (bad magic)")]
+    BadMagic,
+    #[error("unsupported .npy format version {0}")]
+    Version(u8),
+    #[error("header truncated")]
+    HeaderTruncated,
+    #[error("header is not text")]
+    HeaderNotText,
+    #[error("header has no '{0}'")]
+    MissingKey(&'static str),
+    #[error("bad shape {0}")]
+    BadShape(String),
+    #[error("dtype '{0}' is not supported: use float64/32 or an integer type")]
+    Dtype(String),
+    #[error("shape {0:?}: only 1-D or 2-D (samples x channels) arrays")]
+    Dimensions(Vec<usize>),
+    #[error("shape too large")]
+    TooLarge,
+    #[error("data truncated: shape {shape:?} of {dtype} needs {need} bytes, the file has {have}")]
+    Truncated {
+        shape: Vec<usize>,
+        dtype: String,
+        need: usize,
+        have: usize,
+    },
+    #[error("the array is empty")]
+    Empty,
+    #[error("element [{row}, {col}] is {value}: the data must be finite")]
+    NotFinite { row: usize, col: usize, value: f64 },
+}
+
 pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<Table, InputError> {
-    let err = |m: String| InputError::file(path, m);
-    let (header, data) = split_header(bytes).map_err(err)?;
-    let descr = dict_value(header, "descr").ok_or_else(|| err("header has no 'descr'".into()))?;
-    let dtype = Dtype::parse(descr.trim_matches(['\'', '"'])).map_err(err)?;
-    let fortran = dict_value(header, "fortran_order")
-        .ok_or_else(|| err("header has no 'fortran_order'".into()))?
-        == "True";
-    let shape = parse_shape(
-        dict_value(header, "shape").ok_or_else(|| err("header has no 'shape'".into()))?,
-    )
-    .map_err(err)?;
+    read(bytes).map_err(|source| InputError::Npy {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+fn read(bytes: &[u8]) -> Result<Table, NpyError> {
+    let (header, data) = split_header(bytes)?;
+    let key = |name: &'static str| dict_value(header, name).ok_or(NpyError::MissingKey(name));
+    let dtype = Dtype::parse(key("descr")?.trim_matches(['\'', '"']))?;
+    let fortran = key("fortran_order")? == "True";
+    let shape = parse_shape(key("shape")?)?;
     let (rows, cols) = match shape[..] {
         [n] => (n, 1),
         [n, c] => (n, c),
-        _ => {
-            return Err(err(format!(
-                "shape {shape:?}: only 1-D or 2-D (samples x channels) arrays"
-            )));
-        }
+        _ => return Err(NpyError::Dimensions(shape)),
     };
-    let count = rows
-        .checked_mul(cols)
-        .ok_or_else(|| err("shape too large".into()))?;
+    let count = rows.checked_mul(cols).ok_or(NpyError::TooLarge)?;
     let need = count.saturating_mul(dtype.size);
     if data.len() < need {
-        return Err(err(format!(
-            "data truncated: shape {shape:?} of {} needs {need} bytes, the file has {}",
-            dtype.name,
-            data.len()
-        )));
+        return Err(NpyError::Truncated {
+            shape,
+            dtype: dtype.name,
+            need,
+            have: data.len(),
+        });
     }
     if count == 0 {
-        return Err(err("the array is empty".into()));
+        return Err(NpyError::Empty);
     }
     let values: Vec<f64> = data[..need]
         .chunks_exact(dtype.size)
@@ -53,10 +83,11 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<Table, InputError> {
         } else {
             (i / cols, i % cols)
         };
-        return Err(err(format!(
-            "element [{row}, {col}] is {}: the data must be finite",
-            values[i]
-        )));
+        return Err(NpyError::NotFinite {
+            row,
+            col,
+            value: values[i],
+        });
     }
     let channels = (0..cols)
         .map(|c| {
@@ -100,9 +131,9 @@ pub fn write_f64(path: &Path, values: &[f64]) -> std::io::Result<()> {
 }
 
 /// The header dictionary text and the data after it.
-fn split_header(bytes: &[u8]) -> Result<(&str, &[u8]), String> {
+fn split_header(bytes: &[u8]) -> Result<(&str, &[u8]), NpyError> {
     if !bytes.starts_with(MAGIC) || bytes.len() < 10 {
-        return Err("not a NumPy .npy file (bad magic)".into());
+        return Err(NpyError::BadMagic);
     }
     let (len, start): (usize, usize) = match bytes[6] {
         1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
@@ -110,13 +141,13 @@ fn split_header(bytes: &[u8]) -> Result<(&str, &[u8]), String> {
             u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
             12,
         ),
-        v => return Err(format!("unsupported .npy format version {v}")),
+        v => return Err(NpyError::Version(v)),
     };
     let end = start
         .checked_add(len)
         .filter(|&e| e <= bytes.len())
-        .ok_or("header truncated")?;
-    let header = std::str::from_utf8(&bytes[start..end]).map_err(|_| "header is not text")?;
+        .ok_or(NpyError::HeaderTruncated)?;
+    let header = std::str::from_utf8(&bytes[start..end]).map_err(|_| NpyError::HeaderNotText)?;
     Ok((header, &bytes[end..]))
 }
 
@@ -137,12 +168,12 @@ fn dict_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {
     Some(rest[..end].trim())
 }
 
-fn parse_shape(text: &str) -> Result<Vec<usize>, String> {
+fn parse_shape(text: &str) -> Result<Vec<usize>, NpyError> {
     text.trim_matches(['(', ')'])
         .split(',')
         .map(str::trim)
         .filter(|s| !s.is_empty())
-        .map(|s| s.parse().map_err(|_| format!("bad shape {text}")))
+        .map(|s| s.parse().map_err(|_| NpyError::BadShape(text.to_string())))
         .collect()
 }
 
@@ -155,9 +186,8 @@ struct Dtype {
 }
 
 impl Dtype {
-    fn parse(descr: &str) -> Result<Dtype, String> {
-        let unsupported =
-            || format!("dtype '{descr}' is not supported: use float64/32 or an integer type");
+    fn parse(descr: &str) -> Result<Dtype, NpyError> {
+        let unsupported = || NpyError::Dtype(descr.to_string());
         let mut chars = descr.chars();
         let order = chars.next().ok_or_else(unsupported)?;
         let kind = chars.next().ok_or_else(unsupported)?;

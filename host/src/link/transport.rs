@@ -47,17 +47,20 @@ pub enum Speed {
     Factor(f64),
 }
 
+/// A text that is neither `max` nor a positive factor.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("speed '{0}': 'max' or a positive factor (1 = real time, 60 = a minute per second)")]
+pub struct BadSpeed(pub String);
+
 impl std::str::FromStr for Speed {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Speed, String> {
+    type Err = BadSpeed;
+    fn from_str(s: &str) -> Result<Speed, BadSpeed> {
         if s.eq_ignore_ascii_case("max") {
             return Ok(Speed::Max);
         }
         match s.parse::<f64>() {
             Ok(f) if f.is_finite() && f > 0.0 => Ok(Speed::Factor(f)),
-            _ => Err(format!(
-                "speed '{s}': 'max' or a positive factor (1 = real time, 60 = a minute per second)"
-            )),
+            _ => Err(BadSpeed(s.to_string())),
         }
     }
 }

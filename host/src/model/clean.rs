@@ -21,7 +21,7 @@
 //! the temperature cycle stays confounded with the coupling to the temperature's rate of
 //! change (their columns are nearly collinear over the record), which no method separates.
 
-use crate::analysis::fit::householder_solve;
+use crate::analysis::numerics::householder_solve;
 use realfft::RealFftPlanner;
 
 /// The temperature channel as regressors: centred, and its time derivative.

@@ -519,7 +519,7 @@ fn solve(whitener: &Whitener, columns: &[Vec<f64>], y: &[f64]) -> Option<Solutio
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::fit::invert_spd;
+    use crate::analysis::numerics::invert_spd;
     use crate::model::evidence::scaled_chi_square_p;
     use crate::sim::noise::{AxisNoise, GaussMarkov};
     use rand::SeedableRng;

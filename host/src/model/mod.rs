@@ -457,7 +457,7 @@ pub fn run(
         .expect("one channel in, one result out");
     let fitted = result.fit.clone().map_err(|message| ModelError::Fit {
         channel: channel.name.clone(),
-        message,
+        message: message.to_string(),
     })?;
     // The record's own curve (lines included) on the fit's averaging factors.
     let tau0 = 1.0 / record.rate_hz;

@@ -2,7 +2,7 @@
 //! simulated realisation's, by the same code.
 //!
 //! **Fit.** AVAR(tau) = sum_c theta_c basis_c(tau), theta >= 0, by reweighted non-negative
-//! least squares (Lawson-Hanson, [`fit::nnls`]) approximating least squares in ln AVAR
+//! least squares (Lawson-Hanson, [`numerics::nnls`]) approximating least squares in ln AVAR
 //! ([`refit`]), each point scaled by `1 / s_i`, `s_i` the standard deviation of ln AVAR at tau_i over the
 //! simulated realisations of the current model. The simulated spread is used rather than
 //! an EDF formula because it is what the record is compared with: it holds the estimator's
@@ -14,7 +14,7 @@
 //! absolute value is no chi-square; the workflow only compares its change between nested
 //! models with the same change on simulated curves, which carry the same correlation.
 
-use crate::analysis::fit;
+use crate::analysis::{fit, numerics};
 use crate::sim::noise::{GaussMarkov, NoiseTerms, gauss_markov_avar};
 
 /// Smallest `s_i` used: the simulated spread at the shortest taus of long records can be
@@ -193,7 +193,7 @@ fn solve(
         );
         b.push(avar * w);
     }
-    let theta = fit::nnls_normalised(g, &b);
+    let theta = numerics::nnls_normalised(g, &b);
     let mut out = NoiseTerms::default();
     for (c, th) in columns.iter().zip(theta) {
         let amp = th.max(0.0).sqrt();

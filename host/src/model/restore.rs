@@ -31,7 +31,7 @@
 use super::clean::{Removal, Temperature};
 use super::evidence::allan_avar;
 use super::refit::Loss;
-use crate::analysis::fit;
+use crate::analysis::{fit, numerics};
 use crate::sim::noise::{AxisNoise, NoiseTerms};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -141,7 +141,7 @@ fn random_walk_loss(columns: &[Vec<f64>], tau0: f64, m: &[usize]) -> Vec<f64> {
     let s: Vec<Vec<f64>> = (0..p)
         .map(|j| (0..p).map(|k| dot(&x[j], &sx[k])).collect())
         .collect();
-    let Some(g) = fit::invert_spd(&gram) else {
+    let Some(g) = numerics::invert_spd(&gram) else {
         return vec![0.0; m.len()];
     };
     let prefix = |c: &[f64]| -> Vec<f64> {

@@ -43,7 +43,7 @@
 //! curve's misfit drop, which judges it ([`super::evidence`]).
 
 use crate::analysis::low_pass::LowPass;
-use crate::analysis::{fit, lines};
+use crate::analysis::{lines, numerics};
 use realfft::RealFftPlanner;
 use std::f64::consts::PI;
 
@@ -262,7 +262,7 @@ impl<'a> Banded<'a> {
                 .zip(&weight)
                 .map(|(&j, w)| self.mean[j] * w.sqrt())
                 .collect();
-            let next: Vec<f64> = fit::nnls_normalised(g, &b)
+            let next: Vec<f64> = numerics::nnls_normalised(g, &b)
                 .into_iter()
                 .map(|t| t.max(0.0))
                 .collect();

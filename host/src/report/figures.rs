@@ -5,8 +5,8 @@
 
 use super::plot::{Figure, Line, Panel};
 use crate::analysis::fit::NoiseFit;
+use crate::analysis::fit::psd::PsdReadout;
 use crate::analysis::pipeline::{ChannelResult, DeviationResult};
-use crate::analysis::psd_terms::PsdReadout;
 use crate::analysis::units::SensorKind;
 use std::f64::consts::PI;
 

@@ -109,7 +109,7 @@ fn terms_table(h: &mut String, r: &ChannelResult) {
     let fit = match &r.fit {
         Ok(fit) => fit,
         Err(e) => {
-            let _ = writeln!(h, "<p>No fit: {}</p>", escape(e));
+            let _ = writeln!(h, "<p>No fit: {}</p>", escape(&e.to_string()));
             return;
         }
     };

@@ -26,8 +26,18 @@ pub struct KalibrNumbers {
     pub rule: &'static str,
 }
 
+/// What the record lacks for Kalibr's numbers: channels of a sensor with a noise fit.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("Kalibr needs {sensor} channels with a noise fit; the record has {channels}")]
+pub struct KalibrError {
+    /// `gyroscope` or `accelerometer`.
+    pub sensor: &'static str,
+    /// The record's channels, comma-separated.
+    pub channels: String,
+}
+
 /// The four numbers, or an error naming what the record lacks.
-pub fn numbers(results: &[ChannelResult]) -> Result<KalibrNumbers, String> {
+pub fn numbers(results: &[ChannelResult]) -> Result<KalibrNumbers, KalibrError> {
     let mut upper_bounds = Vec::new();
     let (gn, gk) = sensor(results, SensorKind::Gyro, "gyroscope", &mut upper_bounds)?;
     let (an, ak) = sensor(
@@ -49,21 +59,21 @@ fn sensor(
     kind: SensorKind,
     label: &'static str,
     upper_bounds: &mut Vec<&'static str>,
-) -> Result<(f64, f64), String> {
+) -> Result<(f64, f64), KalibrError> {
     let fits: Vec<_> = results
         .iter()
         .filter(|r| r.kind == kind)
         .filter_map(|r| r.fit.as_ref().ok())
         .collect();
     if fits.is_empty() {
-        return Err(format!(
-            "Kalibr needs {label} channels with a noise fit; the record has {}",
-            results
+        return Err(KalibrError {
+            sensor: label,
+            channels: results
                 .iter()
                 .map(|r| r.name.as_str())
                 .collect::<Vec<_>>()
-                .join(", ")
-        ));
+                .join(", "),
+        });
     }
     let n = fits.iter().map(|f| f.n.value).fold(0.0, f64::max);
     let k = fits.iter().map(|f| f.k.value).fold(0.0, f64::max);
@@ -84,7 +94,7 @@ fn upper(t: &Term) -> f64 {
 }
 
 /// The YAML file Kalibr reads, with each number's definition as a comment.
-pub fn yaml(record: &Record, results: &[ChannelResult]) -> Result<String, String> {
+pub fn yaml(record: &Record, results: &[ChannelResult]) -> Result<String, KalibrError> {
     let numbers = numbers(results)?;
     let (k, noise) = (&numbers, &numbers.noise);
     let bound = |name: &str| {

@@ -96,12 +96,12 @@ pub fn write(path: &Path, figures: &[Figure]) -> Result<(), PlotError> {
     match ext.as_str() {
         "svg" => {
             let root = SVGBackend::new(path, size).into_drawing_area();
-            draw_figures(&root, figures).map_err(draw)?;
+            draw_figures(&root, figures).map_err(|e| draw(e.to_string()))?;
             root.present().map_err(|e| draw(e.to_string()))
         }
         "png" => {
             let root = BitMapBackend::new(path, size).into_drawing_area();
-            draw_figures(&root, figures).map_err(draw)?;
+            draw_figures(&root, figures).map_err(|e| draw(e.to_string()))?;
             root.present().map_err(|e| draw(e.to_string()))
         }
         _ => Err(PlotError::Format { path: name }),
@@ -116,9 +116,9 @@ pub fn svg_string(figure: &Figure) -> Result<String, PlotError> {
     let mut out = String::new();
     {
         let root = SVGBackend::with_string(&mut out, size).into_drawing_area();
-        draw_figures(&root, figures).map_err(|message| PlotError::Draw {
+        draw_figures(&root, figures).map_err(|e| PlotError::Draw {
             path: "report".into(),
-            message,
+            message: e.to_string(),
         })?;
         root.present().map_err(|e| PlotError::Draw {
             path: "report".into(),
@@ -139,16 +139,17 @@ fn image_size(figures: &[Figure]) -> Result<(u32, u32), PlotError> {
     ))
 }
 
+/// The drawing backend's error (the file could not be written, a glyph not drawn).
+type DrawError<DB> = DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>;
+
 fn draw_figures<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     figures: &[Figure],
-) -> Result<(), String> {
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
+) -> Result<(), DrawError<DB>> {
+    root.fill(&WHITE)?;
     let columns = figures.iter().map(|f| f.panels.len()).max().unwrap_or(1);
     for (row, figure) in root.split_evenly((figures.len(), 1)).iter().zip(figures) {
-        let body = row
-            .titled(&figure.title, ("sans-serif", 24))
-            .map_err(|e| e.to_string())?;
+        let body = row.titled(&figure.title, ("sans-serif", 24))?;
         for (area, panel) in body.split_evenly((1, columns)).iter().zip(&figure.panels) {
             draw_panel(area, panel)?;
         }
@@ -179,7 +180,7 @@ fn limits(points: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
 fn draw_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     panel: &Panel,
-) -> Result<(), String> {
+) -> Result<(), DrawError<DB>> {
     let xs = panel.lines.iter().flat_map(|l| l.x.iter().copied());
     let ys = panel.lines.iter().flat_map(|l| {
         l.y.iter()
@@ -189,14 +190,12 @@ fn draw_panel<DB: DrawingBackend>(
     let (Some((x0, x1)), Some((y0, y1))) = (limits(xs), limits(ys)) else {
         return Ok(()); // nothing positive to draw on log axes
     };
-    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     let mut chart = ChartBuilder::on(area)
         .caption(&panel.title, ("sans-serif", 18))
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(70)
-        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
-        .map_err(err)?;
+        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?;
     chart
         .configure_mesh()
         .x_desc(&panel.x_label)
@@ -206,8 +205,7 @@ fn draw_panel<DB: DrawingBackend>(
         .y_label_formatter(&|v| format!("{v:.1e}"))
         .label_style(("sans-serif", 13))
         .light_line_style(RGBColor(235, 235, 235))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     for line in &panel.lines {
         let color = PALETTE[line.color % PALETTE.len()];
         if let Some((lo, hi)) = &line.band {
@@ -219,9 +217,7 @@ fn draw_panel<DB: DrawingBackend>(
                 .filter(|(x, y)| **x > 0.0 && **y > 0.0 && y.is_finite())
                 .map(|(x, y)| (*x, *y))
                 .collect();
-            chart
-                .draw_series(std::iter::once(Polygon::new(outline, color.mix(0.18))))
-                .map_err(err)?;
+            chart.draw_series(std::iter::once(Polygon::new(outline, color.mix(0.18))))?;
         }
         let points: Vec<(f64, f64)> = line
             .x
@@ -235,8 +231,7 @@ fn draw_panel<DB: DrawingBackend>(
             chart.draw_series(DashedLineSeries::new(points, 6, 4, style))
         } else {
             chart.draw_series(LineSeries::new(points, style))
-        }
-        .map_err(err)?;
+        }?;
         if !line.label.is_empty() {
             series.label(&line.label).legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
@@ -249,8 +244,7 @@ fn draw_panel<DB: DrawingBackend>(
         .border_style(RGBColor(180, 180, 180))
         .label_font(("sans-serif", 12))
         .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     Ok(())
 }
 

@@ -270,7 +270,7 @@ fn terms_table(h: &mut String, settings: &[Setting], group: &SensorGroup) {
                         h,
                         "<td colspan=\"{}\">no fit: {}</td>",
                         2 * TERMS.len() + 1,
-                        escape(e)
+                        escape(&e.to_string())
                     );
                 }
             }
@@ -701,7 +701,7 @@ mod tests {
     fn with_page<T>(published: bool, check: impl FnOnce(&str) -> T) -> T {
         let (r200, r50) = (results(200.0, 7), results(50.0, 8));
         let mut r50_failed = r50.clone();
-        r50_failed[1].fit = Err("too short".into());
+        r50_failed[1].fit = Err(crate::analysis::fit::FitError::TooFewPoints(1));
         let setting = |rate_hz, bandwidth_hz, session_id, results| Setting {
             rate_hz,
             bandwidth_hz,
@@ -796,7 +796,11 @@ mod tests {
             assert!(html.contains("<th>N (deg/sqrt(h))</th>") && html.contains("<th>B (ug)</th>"));
             assert!(html.contains(">6000</td><td rowspan=\"2\">0</td>"));
             assert!(html.contains(">1500</td><td rowspan=\"2\">64</td>"));
-            assert_eq!(html.matches("no fit: too short").count(), 1);
+            assert_eq!(
+                html.matches("no fit: 1 points: the noise fit needs at least 2")
+                    .count(),
+                1
+            );
             assert!(html.contains("sweep&lt;1&gt;") && !html.contains("sweep<1>"));
             // Every axis's figure: one per sensor, one panel per axis, every setting on it.
             assert_eq!(html.matches("<svg").count(), 3);

@@ -3,10 +3,10 @@
 //! and the PSD read-outs side by side. Every column names its unit.
 
 use super::{NOISE_TERMS, sig, sig_interval, support_of, term_of};
+use crate::analysis::fit::psd::PsdReadout;
 use crate::analysis::fit::{NoiseFit, POOR_FIT_P};
 use crate::analysis::low_pass::LowPassSource;
 use crate::analysis::pipeline::{ChannelResult, Options};
-use crate::analysis::psd_terms::PsdReadout;
 use crate::analysis::units::{self, SensorKind};
 use crate::record::Record;
 use std::fmt::Write;

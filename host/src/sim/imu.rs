@@ -85,9 +85,14 @@ impl Default for GravityAxis {
     }
 }
 
+/// A text that names no accelerometer axis.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("'{0}' is not an axis: one of x, y, z, -x, -y, -z")]
+pub struct NotAnAxis(pub String);
+
 impl std::str::FromStr for GravityAxis {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = NotAnAxis;
+    fn from_str(s: &str) -> Result<Self, NotAnAxis> {
         let (negative, name) = match s.strip_prefix('-') {
             Some(rest) => (true, rest),
             None => (false, s.strip_prefix('+').unwrap_or(s)),
@@ -95,7 +100,7 @@ impl std::str::FromStr for GravityAxis {
         let axis = ["x", "y", "z"]
             .iter()
             .position(|a| a.eq_ignore_ascii_case(name))
-            .ok_or_else(|| format!("'{s}' is not an axis: one of x, y, z, -x, -y, -z"))?;
+            .ok_or_else(|| NotAnAxis(s.to_string()))?;
         Ok(GravityAxis { axis, negative })
     }
 }

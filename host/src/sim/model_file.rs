@@ -244,7 +244,7 @@ pub fn parse_file(text: &str, file: &Path) -> Result<ModelFile, ModelFileError> 
     let gravity = match &spec.accel.gravity_axis {
         Some(s) => s
             .parse::<GravityAxis>()
-            .map_err(|m| cx.error("accel", "gravity_axis", m))?,
+            .map_err(|m| cx.error("accel", "gravity_axis", m.to_string()))?,
         None => GravityAxis::default(),
     };
     let temperature = cx.temperature(&spec.temperature)?;

@@ -3,10 +3,10 @@
 //!
 //! | term | parameter | generated as | Allan variance |
 //! |---|---|---|---|
-//! | quantization | Q (u*s) | rate = (e[k+1] - e\[k\]) / tau0, e ~ N(0, Q^2) (white phase noise) | 3 Q^2 / tau^2 |
+//! | quantization | Q (u*s) | rate = `(e[k+1] - e[k]) / tau0`, e ~ N(0, Q^2) (white phase noise) | 3 Q^2 / tau^2 |
 //! | white rate | N (u/sqrt(Hz)) | N(0, N^2 / tau0) per sample | N^2 / tau |
 //! | bias instability | B (u) | bank of first-order processes (below) | (2 ln2 / pi) B^2 |
-//! | rate random walk | K (u*sqrt(Hz)) | b[k+1] = b\[k\] + K sqrt(tau0) w | K^2 tau / 3 |
+//! | rate random walk | K (u*sqrt(Hz)) | `b[k+1] = b[k] + K sqrt(tau0) w` | K^2 tau / 3 |
 //! | rate ramp | R (u/s) | R * t | R^2 tau^2 / 2 |
 //! | Gauss-Markov | sigma (u), tau_c (s) | AR(1), exact discretisation (below) | [`gauss_markov_avar`] |
 //! | sinusoid | A (u), f (Hz) | A sin(2 pi f t) | A^2 sin^4(pi f tau) / (pi f tau)^2 |

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Correlation between overlapping Allan variance estimates at octave-spaced taus.
 
-Justifies the correlation kernels of host/src/analysis/fit.rs (fit_allan_with): for each
+Justifies the correlation kernels of host/src/analysis/fit/allan.rs (fit_allan_with): for each
 pure noise type, 300 records of 2^16 samples, overlapping AVAR at m = 1, 2, 4, ...; prints
 the median correlation between estimates 1, 2 and 3 octaves apart (tau ratio 2, 4, 8).
 Run: python3 allan_correlation.py   (numpy; ~1 min)

@@ -9,6 +9,8 @@
 //! of its power). Least-squares precision at d (Rife & Boorstyn 1974): frequency sd
 //! `sqrt(3 / d) / (2 pi)` bins, amplitude relative sd `1 / sqrt(2 d)`.
 
+use super::background::background;
+use super::scan::{f_threshold, merge_runs};
 use super::*;
 use crate::analysis::{Estimator, allan, phase_from_rate};
 use crate::sim::dlpf::DlpfDesign;
@@ -17,6 +19,7 @@ use crate::sim::noise::{AxisNoise, GaussMarkov, NoiseTerms, Sinusoid};
 use crate::sim::noise::{gauss_markov_avar, sinusoid_avar};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
 fn log_uniform(rng: &mut impl Rng, lo: f64, hi: f64) -> f64 {
     (lo.ln() + rng.random::<f64>() * (hi / lo).ln()).exp()

@@ -47,7 +47,10 @@ fn parse_position(s: &str) -> Result<(GravityAxis, PathBuf), String> {
     let (axis, path) = s
         .split_once('=')
         .ok_or_else(|| format!("'{s}': expected AXIS=INPUT, e.g. +x=up_x.csv"))?;
-    Ok((axis.parse()?, PathBuf::from(path)))
+    Ok((
+        axis.parse::<GravityAxis>().map_err(|e| e.to_string())?,
+        PathBuf::from(path),
+    ))
 }
 
 /// The gravity the user gave, or WGS84 normal gravity, or standard gravity.
@@ -109,7 +112,7 @@ pub fn run(args: &AccelArgs, store: Option<&Path>) -> Result<()> {
                 let input = TrueInput::at_rest(GravityAxis { axis, negative }, g);
                 let check = |r: &Record| -> Result<(), String> {
                     let m = means(r, Sensor::Accel).map_err(|e| e.to_string())?;
-                    check_orientation(m, axis, negative, g)
+                    check_orientation(m, axis, negative, g).map_err(|e| e.to_string())
                 };
                 let instruction = format!("turn the board so that {label} points up");
                 let record = bench.measure(

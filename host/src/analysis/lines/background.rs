@@ -1,0 +1,142 @@
+//! The smooth background PSD under the lines: running medians of block medians, in ln-ln
+//! (module documentation of [`super`], step 2).
+
+use super::scan::DOF_GRID;
+use super::{BLOCKS_PER_DECADE, MEDIAN_HALF_WIDTH, MIN_BLOCK, SHAPE_ERROR};
+use std::f64::consts::LN_2;
+
+/// A smooth background PSD per bin, the relative variance of its estimate, and the degrees of
+/// freedom `nu = 2 / rel_var` of the scaled chi-square that stands for it, rounded down to
+/// the grid `2 DOF_GRID^bucket`.
+pub(super) struct Background {
+    pub(super) level: Vec<f64>,
+    pub(super) rel_var: Vec<f64>,
+    pub(super) bucket: Vec<i32>,
+}
+
+impl Background {
+    fn new(level: Vec<f64>, rel_var: Vec<f64>) -> Self {
+        let step = DOF_GRID.ln();
+        let bucket = rel_var
+            .iter()
+            .map(|v| ((1.0 / v).max(1.0).ln() / step).floor() as i32)
+            .collect();
+        Background {
+            level,
+            rel_var,
+            bucket,
+        }
+    }
+}
+
+/// The running-median background of `power` over bins 3..=k_hi, leaving out masked bins
+/// (module documentation, step 2); `median_variance` is the constant c of its relative
+/// variance `c / n_w`.
+pub(super) fn background(
+    power: &[f64],
+    mask: &[bool],
+    ln_bin: &[f64],
+    k_hi: usize,
+    widest: usize,
+    median_variance: f64,
+) -> Background {
+    // Blocks 1/40 decade wide, at least MIN_BLOCK bins and at most half the widest line:
+    // (ln centre bin, ln level, bins used).
+    let growth = 10f64.powf(1.0 / BLOCKS_PER_DECADE) - 1.0;
+    let most = (widest / 2).max(MIN_BLOCK);
+    let mut blocks: Vec<(f64, f64, usize)> = Vec::new();
+    // Bins 1 and 2 share power with the mean and slope the search removes first.
+    let mut start = 3;
+    let mut values = Vec::new();
+    while start <= k_hi {
+        let width = ((start as f64 * growth) as usize).clamp(MIN_BLOCK, most);
+        let end = (start + width).min(k_hi + 1);
+        values.clear();
+        values.extend((start..end).filter(|&k| !mask[k]).map(|k| power[k]));
+        if values.len() * 2 >= end - start && values.len() >= 3 {
+            // An odd count, so that the median is one order statistic.
+            let m = values.len() - (1 - values.len() % 2);
+            let (_, median, _) = values[..m].select_nth_unstable_by(m / 2, f64::total_cmp);
+            let level = *median / LN_2;
+            if level > 0.0 {
+                let centre = 0.5 * (start + end - 1) as f64;
+                blocks.push((centre.ln(), level.ln(), m));
+            }
+        }
+        start = end;
+    }
+    let smoothed: Vec<(f64, f64, f64)> = (0..blocks.len())
+        .map(|i| {
+            // Near the lowest frequencies the window is pushed up (few bins there; see
+            // window_level); near Nyquist it shrinks, staying centred (many bins there, and
+            // a low-pass filter can bend the spectrum sharply).
+            let last = blocks.len() - 1;
+            let h = MEDIAN_HALF_WIDTH.min(last - i);
+            let span = (2 * h + 1).min(blocks.len());
+            let first = i.saturating_sub(h).min(blocks.len() - span);
+            let window = &blocks[first..first + span];
+            let bins: usize = window.iter().map(|b| b.2).sum();
+            let (level, leverage) = window_level(window, i - first);
+            let rel_var = median_variance / bins as f64 * leverage + SHAPE_ERROR * SHAPE_ERROR;
+            (blocks[i].0, level, rel_var)
+        })
+        .collect();
+    let mut level = vec![f64::MIN_POSITIVE; power.len()];
+    let mut rel_var = vec![1.0; power.len()];
+    if smoothed.is_empty() {
+        return Background::new(level, rel_var);
+    }
+    let mut i = 0;
+    for (k, &x) in ln_bin.iter().enumerate().skip(1) {
+        while i + 1 < smoothed.len() && smoothed[i + 1].0 <= x {
+            i += 1;
+        }
+        let (ln_level, var) = if x <= smoothed[0].0 {
+            (smoothed[0].1, smoothed[0].2)
+        } else if i + 1 >= smoothed.len() {
+            (smoothed[i].1, smoothed[i].2)
+        } else {
+            let (a, b) = (smoothed[i], smoothed[i + 1]);
+            let w = (x - a.0) / (b.0 - a.0);
+            (a.1 + w * (b.1 - a.1), a.2 + w * (b.2 - a.2))
+        };
+        level[k] = ln_level.exp().max(f64::MIN_POSITIVE);
+        rel_var[k] = var;
+    }
+    Background::new(level, rel_var)
+}
+
+/// The background's ln level at block `at` of a window of blocks (ln centre, ln level), and
+/// the factor by which its variance exceeds that at the window's centre. A window centred on
+/// `at` gives its median (exact for any monotone trend). A window that the ends of the
+/// spectrum push off-centre gives the median of the levels moved along the window's
+/// Theil-Sen line in ln-ln (the median of pairwise slopes; Sen, "Estimates of the regression
+/// coefficient based on Kendall's tau", JASA 63, 1968), so that a power law is not read
+/// off-centre; its variance grows as for a line fitted by least squares, `1 + 3 x^2`, x the
+/// offset from the window's centre in half-widths.
+fn window_level(window: &[(f64, f64, usize)], at: usize) -> (f64, f64) {
+    let mid = window.len() / 2;
+    let mut levels: Vec<f64> = window.iter().map(|b| b.1).collect();
+    if at == mid || window.len() < 3 {
+        let half = levels.len() / 2;
+        let (_, median, _) = levels.select_nth_unstable_by(half, f64::total_cmp);
+        return (*median, 1.0);
+    }
+    let mut slopes = Vec::with_capacity(window.len() * (window.len() - 1) / 2);
+    for i in 0..window.len() {
+        for j in i + 1..window.len() {
+            slopes.push((window[j].1 - window[i].1) / (window[j].0 - window[i].0));
+        }
+    }
+    let half = slopes.len() / 2;
+    let (_, slope, _) = slopes.select_nth_unstable_by(half, f64::total_cmp);
+    let slope = *slope;
+    let x0 = window[at].0;
+    for (l, b) in levels.iter_mut().zip(window) {
+        *l -= slope * (b.0 - x0);
+    }
+    let half = levels.len() / 2;
+    let (_, median, _) = levels.select_nth_unstable_by(half, f64::total_cmp);
+    let offset = (at as f64 - mid as f64) / mid.max(1) as f64;
+    (*median, 1.0 + 3.0 * offset * offset)
+}

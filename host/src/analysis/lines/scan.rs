@@ -1,0 +1,526 @@
+//! The periodograms, the tests of single bins and runs of bins at every scale, and the
+//! measurement of the bands that pass (module documentation of [`super`], steps 1, 3 and 5).
+
+use super::background::{Background, background};
+use super::{
+    Found, HANN_MEDIAN_VARIANCE, Line, Measured, RECT_MEDIAN_VARIANCE, SHAPE_ERROR, Search,
+    TONE_LOBE, Tone,
+};
+use realfft::num_complex::Complex;
+use statrs::distribution::{Continuous, ContinuousCDF, FisherSnedecor};
+use std::collections::HashMap;
+use std::f64::consts::PI;
+
+/// The DFT of a record and its two periodograms (one-sided PSD, u^2/Hz, k = 0..=n/2).
+pub(super) struct Spectra {
+    pub(super) dft: Vec<Complex<f64>>,
+    /// Rectangular window: `2 |X_k|^2 / (f_s n)`.
+    pub(super) rect: Vec<f64>,
+    /// Periodic Hann window `w_t = (1 - cos(2 pi t / n)) / 2`, whose DFT is
+    /// `X_k / 2 - (X_{k-1} + X_{k+1}) / 4`: `2 |X^H_k|^2 / (f_s sum w^2)`, `sum w^2 = 3 n / 8`.
+    pub(super) hann: Vec<f64>,
+}
+
+/// A background for each periodogram.
+pub(super) struct Backgrounds {
+    pub(super) rect: Background,
+    pub(super) hann: Background,
+}
+
+/// Complex amplitude correlation of neighbouring Hann-window bins of a smooth spectrum
+/// (`-2/3` at lag 1, `1/6` at lag 2) makes the variance of a sum of their powers
+/// `1 + 2 (4/9 + 1/36)` times that of independent bins.
+const HANN_SUM_VARIANCE: f64 = 1.0 + 2.0 * (4.0 / 9.0 + 1.0 / 36.0);
+
+impl Search<'_> {
+    fn df(&self) -> f64 {
+        self.rate_hz / self.n as f64
+    }
+
+    /// The widest line searched, in bins.
+    pub(super) fn widest(&self) -> usize {
+        ((self.opts.max_width_hz / self.df()).floor() as usize).max(1)
+    }
+
+    pub(super) fn periodograms(&self, x: &[f64]) -> Spectra {
+        let mut input = x.to_vec();
+        let mut dft = self.fft.make_output_vec();
+        self.fft
+            .process(&mut input, &mut dft)
+            .expect("buffer lengths match the FFT plan");
+        let n = self.n as f64;
+        let rect_scale = 2.0 / (self.rate_hz * n);
+        let hann_scale = 2.0 / (self.rate_hz * 3.0 * n / 8.0);
+        let last = dft.len() - 1;
+        // X_{-1} = conj(X_1); past the end, X_{n/2 + 1} = conj(X_{n/2 - 1}) (even n) or
+        // conj(X_{(n-1)/2}) (odd n).
+        let at = |k: isize| -> Complex<f64> {
+            if k < 0 {
+                dft[(-k) as usize].conj()
+            } else if k as usize > last {
+                let mirror = if self.n.is_multiple_of(2) {
+                    2 * last - k as usize
+                } else {
+                    2 * last + 1 - k as usize
+                };
+                dft[mirror].conj()
+            } else {
+                dft[k as usize]
+            }
+        };
+        let hann = (0..=last as isize)
+            .map(|k| (0.5 * at(k) - 0.25 * (at(k - 1) + at(k + 1))).norm_sqr() * hann_scale)
+            .collect();
+        let rect = dft.iter().map(|c| c.norm_sqr() * rect_scale).collect();
+        Spectra { dft, rect, hann }
+    }
+
+    /// The backgrounds (two passes: the second leaves out what the first flagged) and the
+    /// bands that stand out of them.
+    pub(super) fn backgrounds_and_bands(
+        &self,
+        spectra: &Spectra,
+    ) -> (Backgrounds, Vec<(usize, usize)>) {
+        let mut mask = vec![false; spectra.rect.len()];
+        let widest = self.widest();
+        let estimate = |mask: &[bool]| Backgrounds {
+            rect: background(
+                &spectra.rect,
+                mask,
+                &self.ln_bin,
+                self.k_hi,
+                widest,
+                RECT_MEDIAN_VARIANCE,
+            ),
+            hann: background(
+                &spectra.hann,
+                mask,
+                &self.ln_bin,
+                self.k_hi,
+                widest,
+                HANN_MEDIAN_VARIANCE,
+            ),
+        };
+        let first = estimate(&mask);
+        let bands = self.bands(spectra, &first);
+        if bands.is_empty() {
+            return (first, bands);
+        }
+        for &(a, b) in &bands {
+            let (lo, hi) = self.widen(a, b, &[]);
+            mask[lo..=hi].iter_mut().for_each(|m| *m = true);
+        }
+        let second = estimate(&mask);
+        let bands = self.bands(spectra, &second);
+        (second, bands)
+    }
+
+    /// Bins of `[a, b]` widened by its own width (at least TONE_LOBE) on each side, within the
+    /// searched range and short of the neighbouring bands.
+    fn widen(&self, a: usize, b: usize, others: &[(usize, usize)]) -> (usize, usize) {
+        let extra = (b - a + 1).max(TONE_LOBE);
+        self.clip(a.saturating_sub(extra), b + extra, (a, b), others)
+    }
+
+    /// `[lo, hi]` within the searched range and short of the bands in `others` other than
+    /// `band` (halfway to each).
+    fn clip(
+        &self,
+        lo: usize,
+        hi: usize,
+        band: (usize, usize),
+        others: &[(usize, usize)],
+    ) -> (usize, usize) {
+        let (a, b) = band;
+        let mut lo = lo.max(self.k_lo);
+        let mut hi = hi.min(self.k_hi);
+        for &(c, d) in others {
+            if d < a {
+                lo = lo.max((d + a) / 2 + 1);
+            } else if c > b {
+                hi = hi.min((b + c) / 2);
+            }
+        }
+        (lo, hi.max(lo))
+    }
+
+    /// Runs of L bins whose mean ratio to the background passes the F-test (single bins on
+    /// the Hann periodogram, longer runs on the rectangular one). The false-alarm probability
+    /// is shared equally among the octaves of frequency searched and, within an octave, among
+    /// its tests. A line passes at many scales and positions: the passing runs are taken in
+    /// order of [`surprise`], each only if it overlaps none taken before (a matched filter:
+    /// the best run covers the line's significant part), and the runs taken are merged into
+    /// bands (inclusive bin ranges).
+    fn bands(&self, spectra: &Spectra, bg: &Backgrounds) -> Vec<(usize, usize)> {
+        let (k_lo, k_hi) = (self.k_lo, self.k_hi);
+        if k_hi < k_lo {
+            return Vec::new();
+        }
+        let mut cum = vec![0.0; k_hi - k_lo + 2];
+        for k in k_lo..=k_hi {
+            cum[k - k_lo + 1] = cum[k - k_lo] + spectra.rect[k] / bg.rect.level[k];
+        }
+        let widest = self.widest();
+        let scales: Vec<usize> = std::iter::successors(Some(1usize), |l| Some(l * 2))
+            .take_while(|&l| l <= widest)
+            .collect();
+        let allowed = |j: usize, l: usize| {
+            l == 1 || l as f64 <= self.opts.max_relative_width * (j as f64 + (l as f64 - 1.0) / 2.0)
+        };
+        let runs = |l: usize| {
+            let step = (l / 2).max(1);
+            (k_lo..)
+                .step_by(step)
+                .take_while(move |&j| j + l - 1 <= k_hi)
+                .filter(move |&j| allowed(j, l))
+        };
+        let octave = |j: usize, l: usize| (j + l / 2).ilog2() as usize;
+        let mut per_octave = vec![0usize; k_hi.ilog2() as usize + 1];
+        for &l in &scales {
+            for j in runs(l) {
+                per_octave[octave(j, l)] += 1;
+            }
+        }
+        let octaves = per_octave.iter().filter(|&&c| c > 0).count().max(1);
+        let mut thresholds = Thresholds::default();
+        // Passing tests as (surprise, first bin, length): ranked by how unlikely they are
+        // without a line, so that each line is located by the run that fits it best.
+        let mut passed: Vec<(f64, usize, usize)> = Vec::new();
+        for &l in &scales {
+            for j in runs(l) {
+                let o = octave(j, l);
+                let level = self.opts.false_alarm / (octaves * per_octave[o]) as f64;
+                let centre = j + l / 2;
+                let (mean, background) = if l == 1 {
+                    (spectra.hann[j] / bg.hann.level[j], &bg.hann)
+                } else {
+                    ((cum[j + l - k_lo] - cum[j - k_lo]) / l as f64, &bg.rect)
+                };
+                let v = background.rel_var[centre];
+                // Every threshold lies beyond two standard deviations (level < 1 %): most runs
+                // are settled without one.
+                if mean <= 1.0 + 2.0 * (1.0 / l as f64 + v).sqrt() {
+                    continue;
+                }
+                if mean > thresholds.get(l, background.bucket[centre], o, level) {
+                    passed.push((surprise(mean, l, v), j, l));
+                }
+            }
+        }
+        // The best run first; a run that overlaps one already taken adds nothing.
+        passed.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let mut marked = vec![false; k_hi - k_lo + 1];
+        for &(_, j, l) in &passed {
+            let run = &mut marked[j - k_lo..j - k_lo + l];
+            if !run.iter().any(|&m| m) {
+                run.iter_mut().for_each(|m| *m = true);
+            }
+        }
+        merge_runs(&marked, k_lo)
+    }
+
+    /// The excess of one band over the background, on the Hann periodogram (no leakage
+    /// beyond +-2 bins of a tone).
+    pub(super) fn measure(
+        &self,
+        power: &[f64],
+        background: &[f64],
+        band: (usize, usize),
+        others: &[(usize, usize)],
+    ) -> Measured {
+        let df = self.df();
+        let (lo, hi) = self.widen(band.0, band.1, others);
+        let first = Excess::of(power, background, lo, hi, df);
+        // Again on a window centred on the line, reaching two widths beyond its quartiles
+        // (a band found off-centre would bias the centre and width towards its own side).
+        let reach =
+            (((band.1 - band.0 + 1) as f64).max(2.0 * first.iqr).ceil() as usize).max(TONE_LOBE);
+        let centre = (first.centre.round().max(0.0) as usize).clamp(lo, hi);
+        let (lo, hi) = self.clip(centre.saturating_sub(reach), centre + reach, band, others);
+        let e = Excess::of(power, background, lo, hi, df);
+        let (width, fraction) = lorentzian_truncation(
+            e.iqr,
+            e.centre - (lo as f64 - 0.5),
+            hi as f64 + 0.5 - e.centre,
+        );
+        let near: f64 = (e.peak.saturating_sub(TONE_LOBE).max(lo)..=(e.peak + TONE_LOBE).min(hi))
+            .map(|k| (power[k] - background[k]) * df)
+            .sum();
+        let (lo, hi, peak, total, centre) = (lo, hi, e.peak, e.total, e.centre);
+        let (band_lo, band_hi) = band;
+        let sum_s: f64 = background[band_lo..=band_hi].iter().sum();
+        let sum_s2: f64 = background[band_lo..=band_hi].iter().map(|s| s * s).sum();
+        let sum_p: f64 = power[band_lo..=band_hi].iter().sum();
+        let spread = (HANN_SUM_VARIANCE * sum_s2 + (SHAPE_ERROR * sum_s).powi(2)).sqrt();
+        Measured {
+            lo,
+            hi,
+            peak,
+            power: total / fraction,
+            freq_hz: centre * df,
+            width_hz: width * df,
+            statistic: (sum_p - sum_s) / spread,
+            concentrated: total > 0.0 && near >= 0.5 * total,
+        }
+    }
+
+    /// Lines from the fitted tones and the last round's bands.
+    pub(super) fn assemble(
+        &self,
+        tones: &[Tone],
+        measured: &[Measured],
+        background: Vec<f64>,
+        work: Vec<f64>,
+    ) -> Found {
+        // Each band left after the tones belongs to the strongest tone inside it (its
+        // residual: the line's width), or else is a line of its own.
+        let mut used = vec![false; measured.len()];
+        let mut order: Vec<usize> = (0..tones.len()).collect();
+        order.sort_by(|&a, &b| tones[b].power().total_cmp(&tones[a].power()));
+        let mut lines: Vec<Line> = Vec::with_capacity(tones.len() + measured.len());
+        for &i in &order {
+            let t = &tones[i];
+            let rest = measured
+                .iter()
+                .zip(&used)
+                .position(|(m, u)| !*u && m.lo <= t.bin + TONE_LOBE && t.bin <= m.hi + TONE_LOBE);
+            let tone_hz = t.omega * self.rate_hz / (2.0 * PI);
+            let (extra, width, rest_hz) = match rest {
+                Some(i) => {
+                    used[i] = true;
+                    let m = &measured[i];
+                    (m.power, m.width_hz, m.freq_hz)
+                }
+                None => (0.0, 0.0, tone_hz),
+            };
+            let power = t.power() + extra;
+            lines.push(Line {
+                // Power-weighted: the tone's frequency when it holds the line's power, the
+                // rest's centre when the tone was only a peak of a wider line.
+                freq_hz: (t.power() * tone_hz + extra * rest_hz) / power,
+                amplitude: (2.0 * power).sqrt(),
+                width_hz: width,
+                power,
+                statistic: t.statistic,
+            });
+        }
+        lines.extend(
+            measured
+                .iter()
+                .zip(&used)
+                .filter(|(_, u)| !**u)
+                .map(|(m, _)| Line {
+                    freq_hz: m.freq_hz,
+                    amplitude: (2.0 * m.power).sqrt(),
+                    width_hz: m.width_hz,
+                    power: m.power,
+                    statistic: m.statistic,
+                }),
+        );
+        lines.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+        Found {
+            lines,
+            bands: measured.iter().map(|m| (m.lo, m.hi)).collect(),
+            background,
+            work,
+        }
+    }
+}
+
+/// The excess of a periodogram over its background in bins `lo..=hi`: total power (u^2), the
+/// bin of its largest value, and its median and interquartile range in bins (bin k covers
+/// `[k - 1/2, k + 1/2)`).
+struct Excess {
+    total: f64,
+    peak: usize,
+    centre: f64,
+    iqr: f64,
+}
+
+impl Excess {
+    fn of(power: &[f64], background: &[f64], lo: usize, hi: usize, df: f64) -> Excess {
+        let excess: Vec<f64> = (lo..=hi).map(|k| (power[k] - background[k]) * df).collect();
+        let total: f64 = excess.iter().sum();
+        let peak = lo
+            + excess
+                .iter()
+                .enumerate()
+                .max_by(|a, b| a.1.total_cmp(b.1))
+                .map_or(0, |(i, _)| i);
+        let quantile = |q: f64| -> f64 {
+            let target = q * total;
+            let mut acc = 0.0;
+            for (i, &e) in excess.iter().enumerate() {
+                if e > 0.0 && acc + e >= target {
+                    return (lo + i) as f64 - 0.5 + (target - acc) / e;
+                }
+                acc += e;
+            }
+            hi as f64 + 0.5
+        };
+        Excess {
+            total,
+            peak,
+            centre: quantile(0.5),
+            iqr: (quantile(0.75) - quantile(0.25)).max(0.0),
+        }
+    }
+}
+
+/// About `-ln P(mean > r)` without a line, for the mean ratio r of L bins to a background of
+/// relative variance v: for one bin, exactly `(nu / 2) ln(1 + 2 r / nu)` (F(2, nu) with
+/// `nu = 2 / v`); for L bins, the Chernoff exponent of a mean of L exponentials,
+/// `L (r - 1 - ln r)`, combined with the background's `(r - 1)^2 / (2 v)` as variances add
+/// (both are `(r - 1)^2 / (2 sd^2)` for small excess). Only ranks runs against each other.
+fn surprise(r: f64, l: usize, v: f64) -> f64 {
+    if r <= 1.0 {
+        return 0.0;
+    }
+    if l == 1 {
+        let nu = 2.0 / v;
+        return nu / 2.0 * (1.0 + 2.0 * r / nu).ln();
+    }
+    let sampling = l as f64 * (r - 1.0 - r.ln());
+    let background = (r - 1.0).powi(2) / (2.0 * v);
+    1.0 / (1.0 / sampling + 1.0 / background)
+}
+
+/// Width and contained fraction of a Lorentzian (Cauchy) line of which only `[-a, b]` bins
+/// around its centre were measured, from the interquartile range `iqr` (bins) of the measured
+/// part. With half-width g, `A = atan(a/g)`, `B = atan(b/g)`, the truncated quantiles are
+/// `x_q = g tan(q (A + B) - A)`; g is solved from `x_0.75 - x_0.25 = iqr` (bisection; the
+/// IQR grows with g) and the fraction is `(A + B) / pi`. Returns (full width 2g, fraction);
+/// an IQR under 1.5 bins is a line the bins do not resolve: (iqr, 1).
+fn lorentzian_truncation(iqr: f64, a: f64, b: f64) -> (f64, f64) {
+    if iqr < 1.5 || a <= 0.0 || b <= 0.0 {
+        return (iqr, 1.0);
+    }
+    let model = |g: f64| {
+        let (aa, bb) = ((a / g).atan(), (b / g).atan());
+        let x = |q: f64| g * (q * (aa + bb) - aa).tan();
+        (x(0.75) - x(0.25), (aa + bb) / PI)
+    };
+    let (mut lo, mut hi) = (1e-3, 1e3 * (a + b));
+    if model(hi).0 <= iqr {
+        // Flatter than any Lorentzian within the band: not that shape; no correction.
+        return (iqr, 1.0);
+    }
+    for _ in 0..100 {
+        let mid = (lo * hi).sqrt();
+        if model(mid).0 < iqr {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (2.0 * hi, model(hi).1)
+}
+
+/// Marked bins (index 0 is bin `first`) as inclusive bin ranges; runs that touch or lie
+/// within a quarter of the longer run (at least 2 bins) of each other are one band (a line's
+/// wing that dipped below the threshold for a few bins).
+pub(super) fn merge_runs(marked: &[bool], first: usize) -> Vec<(usize, usize)> {
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    let mut i = 0;
+    while i < marked.len() {
+        if !marked[i] {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < marked.len() && marked[i] {
+            i += 1;
+        }
+        let run = (first + start, first + i - 1);
+        match runs.last_mut() {
+            Some(last) => {
+                let gap = run.0 - last.1 - 1;
+                let longer = (last.1 - last.0 + 1).max(run.1 - run.0 + 1);
+                if gap <= (longer / 4).max(2) {
+                    last.1 = run.1;
+                } else {
+                    runs.push(run);
+                }
+            }
+            None => runs.push(run),
+        }
+    }
+    runs
+}
+
+/// F-test thresholds on the mean ratio of L bins to the background, by L, by the background's
+/// degrees of freedom (as a [`Background::bucket`]) and by octave (each has its own level),
+/// computed when first needed.
+#[derive(Default)]
+struct Thresholds {
+    cache: HashMap<(usize, i32, usize), f64>,
+    /// The last key asked for and its threshold (neighbouring tests share them).
+    last: Option<((usize, i32, usize), f64)>,
+}
+
+/// Ratio of the grid on which the background's degrees of freedom are rounded down (which
+/// errs on the cautious side).
+pub(super) const DOF_GRID: f64 = 1.25;
+
+impl Thresholds {
+    fn get(&mut self, l: usize, bucket: i32, octave: usize, level: f64) -> f64 {
+        let key = (l, bucket, octave);
+        if let Some((k, t)) = self.last
+            && k == key
+        {
+            return t;
+        }
+        let t = *self.cache.entry(key).or_insert_with(|| {
+            let nu = 2.0 * DOF_GRID.powi(bucket);
+            f_threshold(2.0 * l as f64, nu, level)
+        });
+        self.last = Some((key, t));
+        t
+    }
+}
+
+/// The x with `P(F(d1, d2) > x) = p`. For `d1 = 2` in closed form, `(d2/2)(p^(-2/d2) - 1)`;
+/// otherwise Newton's method on `ln P(F > x)` in `ln x` (its derivative is `-x pdf / sf`),
+/// kept inside a bracket by bisection, on statrs' survival function.
+pub(super) fn f_threshold(d1: f64, d2: f64, p: f64) -> f64 {
+    if d1 == 2.0 {
+        return d2 / 2.0 * (p.powf(-2.0 / d2) - 1.0);
+    }
+    let Ok(f) = FisherSnedecor::new(d1, d2) else {
+        return f64::INFINITY;
+    };
+    let target = p.ln();
+    let excess = |u: f64| f.sf(u.exp()).ln() - target;
+    // Bracket in u = ln x: excess(lo) > 0 > excess(hi).
+    let (mut lo, mut hi) = (0.0f64, 0.25f64);
+    while excess(hi) > 0.0 {
+        lo = hi;
+        hi *= 2.0;
+        if hi > 60.0 {
+            return hi.exp();
+        }
+    }
+    let mut u = 0.5 * (lo + hi);
+    for _ in 0..60 {
+        let x = u.exp();
+        let sf = f.sf(x);
+        let e = sf.ln() - target;
+        if e > 0.0 {
+            lo = u;
+        } else {
+            hi = u;
+        }
+        let slope = -x * f.pdf(x) / sf;
+        let newton = u - e / slope;
+        let next = if slope < 0.0 && newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+        if (next - u).abs() < 1e-9 || hi - lo < 1e-9 {
+            return next.exp();
+        }
+        u = next;
+    }
+    u.exp()
+}

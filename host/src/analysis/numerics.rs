@@ -1,0 +1,284 @@
+//! General dense numerics of the fits: non-negative least squares, least squares by
+//! Householder QR, the inverse of a small symmetric positive definite matrix, matrix
+//! products and small linear systems. The Allan and PSD noise fits, the calibration fits and
+//! the model workflow share them.
+
+/// Dense product of two row-major matrices.
+pub fn mat_mul(a: &[Vec<f64>], b: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let cols = b.first().map_or(0, Vec::len);
+    a.iter()
+        .map(|row| {
+            let mut out = vec![0.0; cols];
+            for (x, brow) in row.iter().zip(b) {
+                for (o, y) in out.iter_mut().zip(brow) {
+                    *o += x * y;
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// [`nnls`] on `g` with every column scaled to unit norm first (bases that span many decades
+/// would otherwise be ill-conditioned), the solution mapped back to the original columns.
+pub fn nnls_normalised(mut g: Vec<Vec<f64>>, b: &[f64]) -> Vec<f64> {
+    let p = g.first().map_or(0, Vec::len);
+    let norms: Vec<f64> = (0..p)
+        .map(|j| {
+            g.iter()
+                .map(|r| r[j] * r[j])
+                .sum::<f64>()
+                .sqrt()
+                .max(f64::MIN_POSITIVE)
+        })
+        .collect();
+    for row in &mut g {
+        row.iter_mut().zip(&norms).for_each(|(v, n)| *v /= n);
+    }
+    nnls(&g, b).iter().zip(&norms).map(|(t, n)| t / n).collect()
+}
+
+/// Lawson–Hanson non-negative least squares, min ||G x - b|| subject to x >= 0 (Lawson &
+/// Hanson, "Solving Least Squares Problems", 1974, ch. 23). `g` is row-major with p columns.
+pub fn nnls(g: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
+    let p = g.first().map_or(0, Vec::len);
+    let mut x = vec![0.0; p];
+    let mut passive = vec![false; p];
+    let bnorm = b.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let tol = 1e-12 * bnorm.max(f64::MIN_POSITIVE);
+    for _ in 0..(3 * p + 3) {
+        let w = gradient(g, b, &x);
+        let candidate = (0..p)
+            .filter(|&j| !passive[j] && w[j] > tol)
+            .max_by(|&i, &j| w[i].total_cmp(&w[j]));
+        let Some(t) = candidate else { break };
+        passive[t] = true;
+        for _ in 0..(3 * p + 3) {
+            let cols: Vec<usize> = (0..p).filter(|&j| passive[j]).collect();
+            let z = lstsq_columns(g, b, &cols, p);
+            if cols.iter().all(|&j| z[j] > 0.0) {
+                x = z;
+                break;
+            }
+            // Step from x towards z until the first passive variable hits zero.
+            let alpha = cols
+                .iter()
+                .filter(|&&j| z[j] <= 0.0)
+                .map(|&j| x[j] / (x[j] - z[j]))
+                .fold(f64::INFINITY, f64::min);
+            for j in 0..p {
+                x[j] += alpha * (z[j] - x[j]);
+                if passive[j] && x[j] <= tol {
+                    x[j] = 0.0;
+                    passive[j] = false;
+                }
+            }
+        }
+    }
+    x
+}
+
+/// `G^T (b - G x)`, the negative gradient of the half squared residual.
+fn gradient(g: &[Vec<f64>], b: &[f64], x: &[f64]) -> Vec<f64> {
+    let mut w = vec![0.0; x.len()];
+    for (row, bi) in g.iter().zip(b) {
+        let r = bi - row.iter().zip(x).map(|(a, v)| a * v).sum::<f64>();
+        for (wj, a) in w.iter_mut().zip(row) {
+            *wj += a * r;
+        }
+    }
+    w
+}
+
+/// Unconstrained least squares on the columns `cols` of `g` (Householder QR); the result has
+/// length `p` with zeros outside `cols`.
+fn lstsq_columns(g: &[Vec<f64>], b: &[f64], cols: &[usize], p: usize) -> Vec<f64> {
+    let mut a: Vec<Vec<f64>> = g
+        .iter()
+        .map(|r| cols.iter().map(|&j| r[j]).collect())
+        .collect();
+    let mut rhs = b.to_vec();
+    let sol = householder_solve(&mut a, &mut rhs);
+    let mut x = vec![0.0; p];
+    for (c, &j) in cols.iter().enumerate() {
+        x[j] = sol[c];
+    }
+    x
+}
+
+/// Least-squares solution of `a x = rhs` by Householder QR (a is m x k, m >= k, row-major;
+/// both are overwritten). Columns that are numerically dependent get 0.
+// Dense small-matrix algebra reads best with explicit indices.
+#[allow(clippy::needless_range_loop)]
+pub fn householder_solve(a: &mut [Vec<f64>], rhs: &mut [f64]) -> Vec<f64> {
+    let m = a.len();
+    let k = a.first().map_or(0, Vec::len);
+    for c in 0..k.min(m) {
+        let norm = (c..m).map(|i| a[i][c] * a[i][c]).sum::<f64>().sqrt();
+        if norm == 0.0 {
+            continue;
+        }
+        let alpha = if a[c][c] > 0.0 { -norm } else { norm };
+        let mut v: Vec<f64> = (c..m).map(|i| a[i][c]).collect();
+        v[0] -= alpha;
+        let vnorm2: f64 = v.iter().map(|x| x * x).sum();
+        if vnorm2 == 0.0 {
+            continue;
+        }
+        for col in c..k {
+            let s: f64 = (c..m).map(|i| v[i - c] * a[i][col]).sum::<f64>() * 2.0 / vnorm2;
+            (c..m).for_each(|i| a[i][col] -= s * v[i - c]);
+        }
+        let s: f64 = (c..m).map(|i| v[i - c] * rhs[i]).sum::<f64>() * 2.0 / vnorm2;
+        (c..m).for_each(|i| rhs[i] -= s * v[i - c]);
+    }
+    let mut x = vec![0.0; k];
+    for c in (0..k.min(m)).rev() {
+        let s: f64 = ((c + 1)..k).map(|j| a[c][j] * x[j]).sum();
+        x[c] = if a[c][c].abs() > 1e-13 {
+            (rhs[c] - s) / a[c][c]
+        } else {
+            0.0
+        };
+    }
+    x
+}
+
+/// Inverse of a small symmetric positive definite matrix by Cholesky; None when singular.
+// Dense small-matrix algebra reads best with explicit indices.
+#[allow(clippy::needless_range_loop)]
+pub fn invert_spd(h: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    let k = h.len();
+    let mut l = vec![vec![0.0; k]; k];
+    for i in 0..k {
+        for j in 0..=i {
+            let s: f64 = h[i][j] - (0..j).map(|p| l[i][p] * l[j][p]).sum::<f64>();
+            if i == j {
+                if s <= 1e-12 * h[i][i].max(f64::MIN_POSITIVE) {
+                    return None;
+                }
+                l[i][i] = s.sqrt();
+            } else {
+                l[i][j] = s / l[j][j];
+            }
+        }
+    }
+    // Solve L L^T X = I column by column.
+    let mut inv = vec![vec![0.0; k]; k];
+    for col in 0..k {
+        let mut y = vec![0.0; k];
+        for i in 0..k {
+            let e = if i == col { 1.0 } else { 0.0 };
+            y[i] = (e - (0..i).map(|p| l[i][p] * y[p]).sum::<f64>()) / l[i][i];
+        }
+        for i in (0..k).rev() {
+            let s: f64 = ((i + 1)..k).map(|p| l[p][i] * inv[p][col]).sum();
+            inv[i][col] = (y[i] - s) / l[i][i];
+        }
+    }
+    Some(inv)
+}
+
+/// Inverse of a small matrix by Gauss-Jordan elimination with partial pivoting; `None` when
+/// it is (numerically) singular.
+pub fn inverse(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    let k = m.len();
+    let mut a: Vec<Vec<f64>> = m
+        .iter()
+        .enumerate()
+        .map(|(i, row)| {
+            let mut r = row.clone();
+            r.extend((0..k).map(|j| if i == j { 1.0 } else { 0.0 }));
+            r
+        })
+        .collect();
+    for c in 0..k {
+        let p = (c..k).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if a[p][c].abs() < 1e-12 {
+            return None;
+        }
+        a.swap(c, p);
+        let pivot = a[c][c];
+        a[c].iter_mut().for_each(|v| *v /= pivot);
+        let pivot_row = a[c].clone();
+        for (i, row) in a.iter_mut().enumerate() {
+            if i != c {
+                let f = row[c];
+                row.iter_mut()
+                    .zip(&pivot_row)
+                    .for_each(|(v, p)| *v -= f * p);
+            }
+        }
+    }
+    Some(a.into_iter().map(|r| r[k..].to_vec()).collect())
+}
+
+/// Solve a 3×3 system by Gaussian elimination with partial pivoting; None if singular.
+pub fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
+    for col in 0..3 {
+        let piv = (col..3).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if a[piv][col].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(col, piv);
+        b.swap(col, piv);
+        for r in col + 1..3 {
+            let f = a[r][col] / a[col][col];
+            let pivot_row = a[col];
+            for (v, p) in a[r].iter_mut().zip(pivot_row).skip(col) {
+                *v -= f * p;
+            }
+            b[r] -= f * b[col];
+        }
+    }
+    let mut x = [0.0; 3];
+    for r in (0..3).rev() {
+        let s: f64 = (r + 1..3).map(|c| a[r][c] * x[c]).sum();
+        x[r] = (b[r] - s) / a[r][r];
+    }
+    Some(x)
+}
+
+/// Gaussian elimination with partial pivoting; `None` if singular.
+pub fn solve4(mut g: [[f64; 4]; 4], mut h: [f64; 4]) -> Option<[f64; 4]> {
+    let scale = g.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    for col in 0..4 {
+        let pivot = (col..4).max_by(|&a, &b| g[a][col].abs().total_cmp(&g[b][col].abs()))?;
+        if g[pivot][col].abs() <= 1e-12 * scale {
+            return None;
+        }
+        g.swap(col, pivot);
+        h.swap(col, pivot);
+        let (done, rest) = g.split_at_mut(col + 1);
+        let pivot_row = &done[col];
+        for (offset, row) in rest.iter_mut().enumerate() {
+            let f = row[col] / pivot_row[col];
+            for (r, p) in row.iter_mut().zip(pivot_row).skip(col) {
+                *r -= f * p;
+            }
+            h[col + 1 + offset] -= f * h[col];
+        }
+    }
+    let mut x = [0.0; 4];
+    for row in (0..4).rev() {
+        let tail: f64 = (row + 1..4).map(|j| g[row][j] * x[j]).sum();
+        x[row] = (h[row] - tail) / g[row][row];
+    }
+    Some(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nnls_matches_a_hand_solved_case() {
+        // min ||x - (1, -1)|| with x >= 0 in an identity design: x = (1, 0).
+        let g = vec![vec![1.0, 0.0], vec![0.0, 1.0]];
+        assert_eq!(nnls(&g, &[1.0, -1.0]), vec![1.0, 0.0]);
+        // Overdetermined, interior solution = ordinary least squares (x = 2, y = 1).
+        let g = vec![vec![1.0, 1.0], vec![1.0, -1.0], vec![2.0, 0.0]];
+        let x = nnls(&g, &[3.0, 1.0, 4.0]);
+        assert!((x[0] - 2.0).abs() < 1e-12 && (x[1] - 1.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,456 @@
+//! A simulated MPU-6050 on an I2C bus, at register level, behind `embedded_hal::i2c::I2c`
+//! (1.0), so that the firmware's portable driver runs against it unchanged.
+//!
+//! What is modelled (register numbers from RM-MPU-6000A rev. 4.2, [`protocol::mpu6050::reg`]):
+//! - WHO_AM_I (0x75) reads 0x68; the chip powers up asleep (PWR_MGMT_1 = 0x40) and makes no
+//!   samples until bit 6 (SLEEP) is cleared; bit 7 (DEVICE_RESET) restores every register to
+//!   its reset value (asleep, FIFO empty) and clears itself.
+//! - SMPLRT_DIV, CONFIG, GYRO_CONFIG, ACCEL_CONFIG set the signal chain ([`super::imu`]); a
+//!   change while awake restarts sampling with the new settings (the noise processes restart).
+//! - Samples come at the output rate of the sensor's own oscillator, against the clock the
+//!   caller drives (the board's: [`SimMpu6050::advance`], [`SimMpu6050::set_time_us`]).
+//!   With an ideal oscillator sample k of a run (k = 1, 2, ...) is at `start + k / f_s`;
+//!   with [`SensorClock`] the oscillator runs at `1 + (ppm + drift * t_hours) * 1e-6` of
+//!   nominal, and sample k is where the integral of that rate from `start` reaches `k / f_s`
+//!   (solved in closed form per sample, so no error accumulates over a night).
+//!   Each updates the data registers ACCEL_XOUT_H..GYRO_ZOUT_L (big-endian i16), sets
+//!   INT_STATUS bit 0 (DATA_RDY) if INT_ENABLE bit 0 is set, and, if USER_CTRL bit 6
+//!   (FIFO_EN) is set, appends the channels enabled in FIFO_EN (0x23: bit 3 accel xyz 6 bytes,
+//!   bit 7 temperature 2, bits 6/5/4 gyro x/y/z 2 each) in the datasheet's order accel, temp,
+//!   gyro x, y, z.
+//! - The FIFO holds 1024 bytes; when a sample does not fit, the oldest bytes are dropped
+//!   (byte-wise: the head may then be mid-sample, as on the chip), the new ones written, and
+//!   INT_STATUS bit 4 (FIFO_OFLOW) set if INT_ENABLE bit 4 is set. USER_CTRL bit 2
+//!   (FIFO_RESET) empties the FIFO and clears itself.
+//! - INT_STATUS clears when read. Status bits latch only for sources enabled in INT_ENABLE
+//!   (the register map: a bit sets "when an interrupt has been generated"); a driver that
+//!   polls must enable them.
+//! - FIFO_COUNT_H/L (0x72-0x73) is the byte count, big-endian. Reading FIFO_R_W (0x74) pops a
+//!   byte (an empty FIFO repeats the last byte read); writing it pushes one.
+//! - The register pointer is the first byte of a write; reads and further written bytes
+//!   auto-increment it, except at FIFO_R_W, which stays. Writes to read-only registers
+//!   (data, INT_STATUS, FIFO_COUNT, WHO_AM_I) are ignored.
+//! - Faults ([`Faults`]): NACK of the address or of written data (counted transactions),
+//!   bus errors, a wrong WHO_AM_I (a clone chip), a stuck FIFO count, the sample clock's
+//!   offset and linear drift ([`SensorClock`]), I2C outages (time windows in which every
+//!   transaction is NACKed at the address while sampling and the FIFO go on, so the FIFO
+//!   overflows as on the chip), and device resets at listed times (registers back to their
+//!   power-on values, asleep, FIFO empty). Times are the caller's clock, us.
+//!
+//! Not modelled: the DMP, the auxiliary I2C master, self-test, interrupt pin configuration,
+//! FIFO_EN's SLV bits, clock source selection, low-power cycle mode.
+
+mod bus;
+mod faults;
+#[cfg(test)]
+mod tests;
+
+pub use bus::SimI2cError;
+pub use faults::{Faults, Outage, SensorClock};
+
+use super::imu::{Imu, ImuModel, RawSample, TrueInput};
+use protocol::mpu6050::reg::bits::{
+    ACCEL_FIFO_EN, DATA_RDY, DEVICE_RESET, FIFO_OFLOW, FIFO_RESET, SIG_COND_RESET, SLEEP,
+    TEMP_FIFO_EN, USER_FIFO_EN, XG_FIFO_EN, YG_FIFO_EN, ZG_FIFO_EN,
+};
+use protocol::mpu6050::{
+    DEFAULT_ADDRESS, FIFO_SIZE, RegisterValues, SensorSettings, WHO_AM_I_VALUE, chip_or_mpu6050,
+    reg,
+};
+use std::collections::VecDeque;
+use std::time::Duration;
+
+#[derive(Debug, Clone)]
+pub struct SimMpu6050 {
+    address: u8,
+    regs: [u8; 128],
+    pointer: u8,
+    fifo: VecDeque<u8>,
+    fifo_last_read: u8,
+    model: ImuModel,
+    seed: u64,
+    /// Run length the noise processes are built for (their flicker band), s.
+    duration_hint_s: f64,
+    /// Sampling state while awake.
+    run: Option<Run>,
+    runs_started: u64,
+    samples_made: u64,
+    time_us: u64,
+    faults: Faults,
+    resets: u32,
+    /// The scripted input ([`Imu::set_input`]), kept across runs.
+    input: Option<TrueInput>,
+    /// Byte-level bus state: the next written byte is a register pointer.
+    expect_pointer: bool,
+    /// Byte-level bus state: a byte was written since the last (non-repeated) start.
+    written_since_start: bool,
+    /// What the device did, when asked to keep a journal ([`SimMpu6050::keep_journal`]).
+    journal: Option<Vec<JournalEntry>>,
+}
+
+/// An event in the device's journal: the truth a test compares a capture with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JournalEntry {
+    /// The FIFO was emptied (USER_CTRL bit 2, or a device reset) at this time, us.
+    FifoReset { time_us: u64 },
+    /// A sample was made at this time, us; `in_fifo` if it was appended to the FIFO.
+    Sample {
+        time_us: u64,
+        raw: RawSample,
+        in_fifo: bool,
+    },
+}
+
+#[derive(Debug, Clone)]
+struct Run {
+    imu: Imu,
+    /// The oscillator's phase at which the run's sample 0 would be (its start), us, under
+    /// `clock`.
+    phase_origin_us: f64,
+    clock: SensorClock,
+    samples: u64,
+}
+
+impl Run {
+    /// Board time of the next sample, us (fractional): where the oscillator's phase reaches
+    /// the origin plus (k + 1) nominal sample periods. Each sample's time is computed from
+    /// the origin, so rounding does not accumulate.
+    fn next_us(&self) -> f64 {
+        let phase =
+            self.phase_origin_us + (self.samples + 1) as f64 * 1e6 / self.imu.output_rate_hz();
+        self.clock.time_at_phase_us(phase)
+    }
+
+    /// Continue under `clock` from board time `t_us` with the same progress towards the
+    /// next sample.
+    fn rebase(&mut self, clock: SensorClock, t_us: f64) {
+        let elapsed = self.clock.phase_us(t_us) - self.phase_origin_us;
+        self.phase_origin_us = clock.phase_us(t_us) - elapsed;
+        self.clock = clock;
+    }
+}
+
+impl SimMpu6050 {
+    /// A device at address 0x68 simulating `model`, seeded by `seed`, at time 0, in its reset
+    /// state (asleep).
+    pub fn new(model: ImuModel, seed: u64) -> Self {
+        let mut dev = SimMpu6050 {
+            address: DEFAULT_ADDRESS,
+            regs: [0; 128],
+            pointer: 0,
+            fifo: VecDeque::with_capacity(FIFO_SIZE),
+            fifo_last_read: 0,
+            model,
+            seed,
+            duration_hint_s: 3600.0,
+            run: None,
+            runs_started: 0,
+            samples_made: 0,
+            time_us: 0,
+            faults: Faults::default(),
+            resets: 0,
+            expect_pointer: true,
+            written_since_start: false,
+            journal: None,
+            input: None,
+        };
+        dev.device_reset();
+        dev.resets = 0;
+        dev
+    }
+
+    /// The same at another 7-bit address (0x69 with AD0 high).
+    pub fn with_address(mut self, address: u8) -> Self {
+        self.address = address;
+        self
+    }
+
+    /// Build noise processes for runs of about `seconds` (default one hour).
+    pub fn with_duration_hint(mut self, seconds: f64) -> Self {
+        self.duration_hint_s = seconds;
+        self
+    }
+
+    /// Turn and rotate the sensor (scripted procedures such as calibration): what it senses
+    /// from now on, in this run and the next ones; `None` puts it back at rest.
+    pub fn set_input(&mut self, input: Option<TrueInput>) {
+        self.input = input;
+        if let Some(run) = &mut self.run {
+            run.imu.set_input(input);
+        }
+    }
+
+    pub fn faults(&self) -> &Faults {
+        &self.faults
+    }
+
+    pub fn faults_mut(&mut self) -> &mut Faults {
+        &mut self.faults
+    }
+
+    /// A device reset when the clock passes `t_us` (see [`Faults::resets_at_us`]).
+    pub fn schedule_reset(&mut self, t_us: u64) {
+        self.faults.resets_at_us.push(t_us);
+        self.faults.resets_at_us.sort_unstable();
+    }
+
+    /// Samples made so far, all runs together (whether or not they reached the FIFO).
+    pub fn samples_made(&self) -> u64 {
+        self.samples_made
+    }
+
+    /// Start keeping a journal of FIFO resets and samples made (see [`JournalEntry`]).
+    pub fn keep_journal(&mut self) {
+        self.journal.get_or_insert_with(Vec::new);
+    }
+
+    /// The journal's entries since the last call (empty if no journal is kept).
+    pub fn take_journal(&mut self) -> Vec<JournalEntry> {
+        self.journal
+            .as_mut()
+            .map(std::mem::take)
+            .unwrap_or_default()
+    }
+
+    fn note(&mut self, entry: JournalEntry) {
+        if let Some(journal) = &mut self.journal {
+            journal.push(entry);
+        }
+    }
+
+    /// The current time, us.
+    pub fn time_us(&self) -> u64 {
+        self.time_us
+    }
+
+    /// Device resets so far (commanded or injected), after construction.
+    pub fn resets(&self) -> u32 {
+        self.resets
+    }
+
+    /// Bytes in the FIFO (the truth, whatever the faults).
+    pub fn fifo_len(&self) -> usize {
+        self.fifo.len()
+    }
+
+    /// A register's stored value, without side effects (for tests and inspection).
+    pub fn peek(&self, register: u8) -> u8 {
+        self.regs[usize::from(register & 0x7F)]
+    }
+
+    /// The settings the registers hold.
+    pub fn settings(&self) -> SensorSettings {
+        SensorSettings::from_registers(RegisterValues {
+            smplrt_div: self.regs[usize::from(reg::SMPLRT_DIV)],
+            config: self.regs[usize::from(reg::CONFIG)],
+            gyro_config: self.regs[usize::from(reg::GYRO_CONFIG)],
+            accel_config: self.regs[usize::from(reg::ACCEL_CONFIG)],
+        })
+    }
+
+    /// Advance the clock by `dt`, producing the samples due.
+    pub fn advance(&mut self, dt: Duration) {
+        let dt = u64::try_from(dt.as_micros()).unwrap_or(u64::MAX);
+        self.set_time_us(self.time_us.saturating_add(dt));
+    }
+
+    /// Move the clock to `t_us` (a time in the past is ignored), producing the samples due
+    /// and the injected resets on the way.
+    pub fn set_time_us(&mut self, t_us: u64) {
+        if t_us <= self.time_us {
+            return;
+        }
+        let clock = self.faults.clock;
+        if let Some(run) = self.run.as_mut().filter(|run| run.clock != clock) {
+            run.rebase(clock, self.time_us as f64);
+        }
+        self.faults.resets_at_us.sort_unstable();
+        loop {
+            let reset = self
+                .faults
+                .resets_at_us
+                .first()
+                .copied()
+                .filter(|&r| r <= t_us);
+            let sample = self
+                .run
+                .as_ref()
+                .map(Run::next_us)
+                .filter(|&s| s <= t_us as f64);
+            match (sample, reset) {
+                (Some(s), r) if r.is_none_or(|r| s < r as f64) => {
+                    self.time_us = self.time_us.max(s as u64);
+                    self.sample();
+                }
+                (_, Some(r)) => {
+                    self.time_us = self.time_us.max(r);
+                    self.faults.resets_at_us.remove(0);
+                    self.device_reset();
+                }
+                _ => break,
+            }
+        }
+        self.time_us = t_us;
+    }
+
+    fn device_reset(&mut self) {
+        self.regs = [0; 128];
+        self.regs[usize::from(reg::PWR_MGMT_1)] = SLEEP;
+        self.regs[usize::from(reg::WHO_AM_I)] = WHO_AM_I_VALUE;
+        self.clear_fifo();
+        self.fifo_last_read = 0;
+        self.pointer = 0;
+        self.run = None;
+        self.resets += 1;
+    }
+
+    fn awake(&self) -> bool {
+        self.regs[usize::from(reg::PWR_MGMT_1)] & SLEEP == 0
+    }
+
+    /// (Re)start sampling with the current settings, or stop when asleep.
+    fn restart(&mut self) {
+        self.run = if self.awake() {
+            self.runs_started += 1;
+            let seed = self
+                .seed
+                .wrapping_add(self.runs_started.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+            let chip = chip_or_mpu6050(self.faults.who_am_i.unwrap_or(WHO_AM_I_VALUE));
+            let mut imu =
+                Imu::new(&self.model, self.settings(), seed, self.duration_hint_s).with_chip(chip);
+            imu.set_input(self.input);
+            let clock = self.faults.clock;
+            Some(Run {
+                imu,
+                phase_origin_us: clock.phase_us(self.time_us as f64),
+                clock,
+                samples: 0,
+            })
+        } else {
+            None
+        };
+    }
+
+    /// One output sample: data registers, DATA_RDY, FIFO.
+    fn sample(&mut self) {
+        let Some(run) = &mut self.run else { return };
+        let raw = run.imu.next_raw();
+        run.samples += 1;
+        self.samples_made += 1;
+        let bytes = RawSample::to_fifo_bytes(&raw);
+        self.regs[usize::from(reg::ACCEL_XOUT_H)..][..14].copy_from_slice(&bytes);
+        let enable = self.regs[usize::from(reg::INT_ENABLE)];
+        self.regs[usize::from(reg::INT_STATUS)] |= enable & DATA_RDY;
+        let in_fifo = self.regs[usize::from(reg::USER_CTRL)] & USER_FIFO_EN != 0;
+        let time_us = self.time_us;
+        self.note(JournalEntry::Sample {
+            time_us,
+            raw,
+            in_fifo,
+        });
+        if in_fifo {
+            let en = self.regs[usize::from(reg::FIFO_EN)];
+            let channels = [
+                (ACCEL_FIFO_EN, 0..6),
+                (TEMP_FIFO_EN, 6..8),
+                (XG_FIFO_EN, 8..10),
+                (YG_FIFO_EN, 10..12),
+                (ZG_FIFO_EN, 12..14),
+            ];
+            for (bit, range) in channels {
+                if en & bit != 0 {
+                    for &b in &bytes[range] {
+                        self.push_fifo(b);
+                    }
+                }
+            }
+        }
+    }
+
+    fn clear_fifo(&mut self) {
+        self.fifo.clear();
+        let time_us = self.time_us;
+        self.note(JournalEntry::FifoReset { time_us });
+    }
+
+    /// Append one byte, dropping the oldest when full (and flagging the overflow).
+    fn push_fifo(&mut self, byte: u8) {
+        if self.fifo.len() >= FIFO_SIZE {
+            self.fifo.pop_front();
+            let enable = self.regs[usize::from(reg::INT_ENABLE)];
+            self.regs[usize::from(reg::INT_STATUS)] |= enable & FIFO_OFLOW;
+        }
+        self.fifo.push_back(byte);
+    }
+
+    fn read_register(&mut self, r: u8) -> u8 {
+        let count = || {
+            self.faults
+                .stuck_fifo_count
+                .unwrap_or(self.fifo.len() as u16)
+        };
+        match r {
+            reg::INT_STATUS => std::mem::take(&mut self.regs[usize::from(r)]),
+            reg::FIFO_COUNT_H => count().to_be_bytes()[0],
+            FIFO_COUNT_L => count().to_be_bytes()[1],
+            reg::FIFO_R_W => {
+                if let Some(b) = self.fifo.pop_front() {
+                    self.fifo_last_read = b;
+                }
+                self.fifo_last_read
+            }
+            reg::WHO_AM_I => self.faults.who_am_i.unwrap_or(WHO_AM_I_VALUE),
+            _ => self.regs[usize::from(r & 0x7F)],
+        }
+    }
+
+    fn write_register(&mut self, r: u8, value: u8) {
+        let i = usize::from(r & 0x7F);
+        match r {
+            reg::PWR_MGMT_1 if value & DEVICE_RESET != 0 => self.device_reset(),
+            reg::PWR_MGMT_1 => {
+                let was_awake = self.awake();
+                self.regs[i] = value;
+                if was_awake != self.awake() {
+                    self.restart();
+                }
+            }
+            reg::SMPLRT_DIV | reg::CONFIG | reg::GYRO_CONFIG | reg::ACCEL_CONFIG => {
+                let before = self.settings();
+                self.regs[i] = value;
+                if self.run.is_some() && self.settings() != before {
+                    self.restart();
+                }
+            }
+            reg::USER_CTRL => {
+                if value & FIFO_RESET != 0 {
+                    self.clear_fifo();
+                }
+                self.regs[i] = value & !(FIFO_RESET | SIG_COND_RESET);
+            }
+            reg::FIFO_R_W => self.push_fifo(value),
+            reg::INT_STATUS | reg::FIFO_COUNT_H | FIFO_COUNT_L | reg::WHO_AM_I => {}
+            r if (reg::ACCEL_XOUT_H..reg::ACCEL_XOUT_H + 14).contains(&r) => {}
+            _ => self.regs[i] = value,
+        }
+    }
+
+    fn step_pointer(&mut self) {
+        if self.pointer != reg::FIFO_R_W {
+            self.pointer = (self.pointer + 1) & 0x7F;
+        }
+    }
+
+    /// Consume one count of a fault, if set.
+    fn take(count: &mut u32) -> bool {
+        if *count == 0 {
+            return false;
+        }
+        if *count != u32::MAX {
+            *count -= 1;
+        }
+        true
+    }
+}
+
+const FIFO_COUNT_L: u8 = reg::FIFO_COUNT_H + 1;
