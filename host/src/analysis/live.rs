@@ -12,7 +12,7 @@
 
 use super::fit::{self, FitError, FitOptions, NoiseFit};
 use super::low_pass::LowPass;
-use super::precision::{self, Status, StopRule};
+use super::precision::{self, Horizon, Status, StopRule};
 use super::streaming::{Config, Curve, Streaming, StreamingError, snap_factors};
 use super::taus::{self, TauGrid};
 use super::{Estimator, allan};
@@ -29,6 +29,8 @@ pub struct Live {
     channels: Vec<Streaming>,
     /// Each channel's sensor low-pass filter, which its fit models (as `analyze` does).
     low_pass: Vec<Option<LowPass>>,
+    /// The longest record expected, s: how far the stop rule's lengths are looked for.
+    longest_s: f64,
 }
 
 /// One channel's state in a [`Snapshot`].
@@ -49,8 +51,8 @@ pub struct ChannelSnapshot {
     pub b: Option<fit::Term>,
     pub k: Option<fit::Term>,
     /// Each target of the stop rule: the precision reached, and the record length (s) at
-    /// which it is expected to be met (`None`: not within [`precision::MAX_EXTENSION`]
-    /// times the present length, or the term is not detected).
+    /// which it is expected to be met (`None`: not within the longest record expected, or
+    /// the term is not detected, or the model does not describe the curve).
     pub targets: Vec<TargetSnapshot>,
 }
 
@@ -114,6 +116,7 @@ impl Live {
             names: names.iter().map(|s| s.to_string()).collect(),
             tau0,
             low_pass: vec![None; channels.len()],
+            longest_s,
             channels,
         })
     }
@@ -192,9 +195,12 @@ impl Live {
                     needed_s: precision::duration_for(
                         f,
                         status.target,
-                        GRID,
-                        self.tau0,
-                        elapsed_s,
+                        Horizon {
+                            grid: GRID,
+                            tau0: self.tau0,
+                            now_s: elapsed_s,
+                            limit_s: self.longest_s,
+                        },
                         options,
                     ),
                 })
@@ -244,7 +250,7 @@ mod tests {
     fn live_fit_matches_the_pipeline() {
         let rate_hz = 50.0;
         let y = test_noise(90_000, rate_hz, 5e-5, 7);
-        let mut live = Live::new(&["gx"], 1.0 / rate_hz, 7200.0).unwrap();
+        let mut live = Live::new(&["gx"], 1.0 / rate_hz, 86400.0).unwrap();
         y.iter().for_each(|&v| live.push(&[v]));
         let rule: StopRule = "N:0.1%,K:10%".parse().unwrap();
         let snap = live.snapshot(Some(&rule), &["gx"], &FitOptions::default());

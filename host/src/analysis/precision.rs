@@ -234,21 +234,31 @@ pub fn expected_half_width(
         .map_or(f64::INFINITY, |f| relative_half_width(&f, term))
 }
 
-/// Longest record [`duration_for`] looks at, in multiples of the present one.
-pub const MAX_EXTENSION: f64 = 4096.0;
+/// Where [`duration_for`] looks: rate samples every `tau0` s on the Allan ladder `grid`,
+/// from a record of `now_s` up to `limit_s`.
+#[derive(Debug, Clone, Copy)]
+pub struct Horizon {
+    pub grid: taus::TauGrid,
+    pub tau0: f64,
+    pub now_s: f64,
+    pub limit_s: f64,
+}
 
-/// The record length (s) at which `target` would be met if the noise is `model`, for rate
-/// samples every `tau0` on the Allan ladder `grid`; at least `now_s`. `None` when it would
-/// take more than [`MAX_EXTENSION`] times `now_s`, the model lacks the term, or the model
-/// does not describe the curve it was fitted to.
+/// The record length (s) at which `target` would be met if the noise is `model`; at least
+/// `now_s`, to 1 %. `None` when it would take longer than `limit_s`, the model lacks the
+/// term, or the model does not describe the curve it was fitted to.
 pub fn duration_for(
     model: &NoiseFit,
     target: Target,
-    grid: taus::TauGrid,
-    tau0: f64,
-    now_s: f64,
+    horizon: Horizon,
     options: &FitOptions,
 ) -> Option<f64> {
+    let Horizon {
+        grid,
+        tau0,
+        now_s,
+        limit_s,
+    } = horizon;
     if target.term.of(model).value <= 0.0 || now_s.is_nan() || now_s <= 0.0 {
         return None;
     }
@@ -265,14 +275,15 @@ pub fn duration_for(
         return Some(now_s);
     }
     let (mut lo, mut hi) = (now_s, 2.0 * now_s);
-    while !meets(hi) {
-        if hi > MAX_EXTENSION * now_s {
+    while !meets(hi.min(limit_s)) {
+        if hi >= limit_s {
             return None;
         }
         (lo, hi) = (hi, 2.0 * hi);
     }
-    // Ten halvings of a factor-of-two bracket: within 0.07 % of the length.
-    for _ in 0..10 {
+    hi = hi.min(limit_s);
+    // Seven halvings of at most a factor-of-two bracket: within 0.6 % of the length.
+    for _ in 0..7 {
         let mid = (lo * hi).sqrt();
         if meets(mid) { hi = mid } else { lo = mid }
     }
@@ -347,7 +358,13 @@ mod tests {
         };
         let grid = TauGrid::PerDecade(10);
         let options = FitOptions::default();
-        let t = duration_for(&short, target, grid, tau0, now, &options).unwrap();
+        let horizon = Horizon {
+            grid,
+            tau0,
+            now_s: now,
+            limit_s: 100.0 * now,
+        };
+        let t = duration_for(&short, target, horizon, &options).unwrap();
         assert!((t / now - 4.0).abs() < 0.4, "{t} s for half of {reached}");
         let n = (t / tau0) as usize;
         let mean: f64 = (0..4)
@@ -385,7 +402,22 @@ mod tests {
             fraction: reached / 2.0,
         };
         let grid = TauGrid::PerDecade(10);
-        let t = duration_for(&short, target, grid, tau0, now, &FitOptions::default()).unwrap();
+        let horizon = Horizon {
+            grid,
+            tau0,
+            now_s: now,
+            limit_s: 100.0 * now,
+        };
+        let t = duration_for(&short, target, horizon, &FitOptions::default()).unwrap();
+        // Not within a length shorter than the one needed.
+        let short_horizon = Horizon {
+            limit_s: 0.9 * t,
+            ..horizon
+        };
+        assert_eq!(
+            duration_for(&short, target, short_horizon, &FitOptions::default()),
+            None
+        );
         let n = (t * rate_hz) as usize;
         let widths: Vec<f64> = (0..8)
             .map(|s| {
@@ -413,7 +445,13 @@ mod tests {
         assert!(s[0].reached.is_infinite() && !s[0].met);
         let target = rule.targets[0];
         let grid = TauGrid::PerDecade(10);
-        let d = duration_for(&f, target, grid, 0.01, 200.0, &FitOptions::default());
+        let horizon = Horizon {
+            grid,
+            tau0: 0.01,
+            now_s: 200.0,
+            limit_s: 1e6,
+        };
+        let d = duration_for(&f, target, horizon, &FitOptions::default());
         assert_eq!(d, None);
         let easy: StopRule = "N:50%".parse().unwrap();
         assert!(easy.met([&f]));

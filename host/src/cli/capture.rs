@@ -1,5 +1,6 @@
 //! `imunoise capture`: record a session from a board's byte stream into the store, with a
-//! live count of samples and losses; Ctrl-C ends it cleanly.
+//! live count of samples and losses and a live view of the noise ([`super::live_view`]);
+//! Ctrl-C ends it cleanly, and `--until` ends it once the noise terms are known well enough.
 //!
 //! The source is a [`Link`]; `open_link` is the one place a source plugs in: a serial port
 //! (`--port /dev/ttyACM0`), the virtual board (`--port sim`: the firmware's own code on the
@@ -7,14 +8,17 @@
 //! (protocol version), configured and started; the file then holds its `Info`, the acks and
 //! every sample batch, exactly as they arrived.
 
+use crate::cli::live_view::{LiveView, Mode};
 use crate::cli::settings::{accel_range, gyro_range};
 use crate::cli::simulate::parse_duration;
 use crate::cli::stored::open_store;
 use anyhow::{Context, Result, anyhow, bail};
+use imunoise::analysis::precision::StopRule;
 use imunoise::link::board::{Board, BoardError};
 use imunoise::link::replay::{ReplayLink, Speed};
 use imunoise::link::setup::streamable;
 use imunoise::link::{self, Link, Opened, PortSpec, start_board};
+use imunoise::recorder::live::LiveOptions;
 use imunoise::recorder::{self, Ending, Progress, RecordOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use protocol::SensorSettings;
@@ -65,6 +69,34 @@ pub struct CaptureArgs {
     /// Stop after this much data: 2h, 30m, 90s (default: until the source ends or Ctrl-C)
     #[arg(long)]
     pub duration: Option<String>,
+    /// Stop once each named term's interval half-width on every gyro axis is within this
+    /// fraction of its value, as `analyze` computes it: N:1%,B:20%,K:30% (--duration stays
+    /// the cap)
+    #[arg(long, value_name = "RULE")]
+    pub until: Option<StopRule>,
+    /// Confidence of the intervals the stop rule and the live view use (as analyze's)
+    #[arg(long, default_value_t = 0.683)]
+    pub confidence: f64,
+    /// Live view as JSON lines on stdout (one object per update, and one at the end)
+    #[arg(long)]
+    pub json_progress: bool,
+}
+
+/// The live view's options: the rule, its confidence, and the Allan ladder's end (the cap,
+/// or a week).
+pub fn live_options(
+    until: Option<&StopRule>,
+    confidence: f64,
+    duration_s: Option<f64>,
+) -> Result<LiveOptions> {
+    if !(confidence > 0.0 && confidence < 1.0) {
+        bail!("--confidence {confidence}: between 0 and 1 (e.g. 0.683, 0.95)");
+    }
+    Ok(LiveOptions {
+        rule: until.cloned(),
+        confidence,
+        longest_s: duration_s.unwrap_or(7.0 * 86400.0),
+    })
 }
 
 /// The virtual board's options (`--port sim`), shared by `capture` and `sweep`.
@@ -150,6 +182,7 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         .map(parse_duration)
         .transpose()
         .map_err(|e| anyhow!("--duration: {e}"))?;
+    let live = live_options(args.until.as_ref(), args.confidence, duration_s)?;
     let settings = match (args.rate, args.bandwidth) {
         (Some(rate), Some(bandwidth)) => Some(board_settings(
             rate,
@@ -180,12 +213,17 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         duration_s,
         keep_samples: false,
         watch,
-        live: None,
+        live: Some(live),
     };
-    let bar = progress_bar();
+    let mode = Mode::choose(args.json_progress);
+    let (mut view, bar) = LiveView::new(mode, &progress_bar());
     let outcome = recorder::record(link.as_mut(), &store, &options, &stop, &mut |p| {
-        show(&bar, p)
+        show(&bar, p);
+        if let Some(s) = &p.live {
+            view.show(s);
+        }
     });
+    view.finish();
     bar.finish_and_clear();
     if args.port.is_some() {
         stop_board(link.as_mut());
@@ -195,7 +233,18 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         .get(outcome.session_id)?
         .ok_or_else(|| anyhow!("session {} vanished from the catalog", outcome.session_id))?;
     let c = &outcome.counts;
-    println!(
+    if mode == Mode::Json {
+        let end = serde_json::json!({
+            "event": "end",
+            "session": session.id,
+            "name": session.name,
+            "state": session.state.as_str(),
+            "end_reason": session.end_reason,
+            "counts": c,
+        });
+        println!("{end}");
+    }
+    let summary = format!(
         "session {} '{}' {}: {} samples received, {} lost in {} gap(s), {} restart(s), {} damaged frame(s); {} bytes in {}",
         session.id,
         session.name,
@@ -208,6 +257,12 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         c.bytes,
         session.file.display()
     );
+    // With JSON lines on stdout, the human summary goes to stderr.
+    if mode == Mode::Json {
+        eprintln!("{summary}");
+    } else {
+        println!("{summary}");
+    }
     let board_errors = outcome.capture.as_ref().map_or(0, |c| c.board_errors.len());
     let recoveries = outcome.capture.as_ref().map_or(0, |c| c.recoveries.len());
     if board_errors > 0 {

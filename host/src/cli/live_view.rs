@@ -112,10 +112,9 @@ impl LiveView {
 fn header(s: &Snapshot) -> String {
     let rule = match s.needed_s() {
         _ if s.rule_met() => "; the stop rule is met, confirming".to_string(),
-        Some(t) if has_rule(s) => format!(
-            "; the stop rule needs about {} in all",
-            duration_text(t)
-        ),
+        Some(t) if has_rule(s) => {
+            format!("; the stop rule needs about {} in all", duration_text(t))
+        }
         None if has_rule(s) => "; the stop rule: some target not reachable yet".to_string(),
         _ => String::new(),
     };
@@ -141,7 +140,11 @@ fn axis_line(c: &ChannelSnapshot) -> String {
         .targets
         .iter()
         .map(|t| {
-            let target = format!("{}:{}%", t.status.target.term, 100.0 * t.status.target.fraction);
+            let target = format!(
+                "{}:{}%",
+                t.status.target.term,
+                100.0 * t.status.target.fraction
+            );
             match (t.status.met, t.needed_s) {
                 (true, _) => format!("{target} met"),
                 (false, Some(n)) => format!("{target} at {}", duration_text(n)),
@@ -181,7 +184,9 @@ fn sparkline(adev: &[f64]) -> String {
     }
     let (lo, hi) = logs
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
     let width = logs.len().min(24);
     (0..width)
         .map(|i| {

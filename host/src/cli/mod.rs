@@ -10,6 +10,7 @@ mod demo;
 mod export;
 mod import;
 mod info;
+mod live_view;
 mod model;
 mod output;
 mod ports;

@@ -31,6 +31,9 @@ const WALL_EVERY: Duration = Duration::from_secs(3);
 /// the rule needs.
 const SAMPLE_GROWTH: f64 = 0.02;
 const SAMPLE_EVERY_S: f64 = 10.0;
+/// After `analyze`'s pipeline disagreed with a snapshot, the next confirmation waits until
+/// the record has grown by this fraction: the pipeline reads the whole session file.
+const CONFIRM_GROWTH: f64 = 0.1;
 
 /// What to watch.
 #[derive(Debug, Clone)]
@@ -111,6 +114,8 @@ pub(super) struct Watcher {
     run: usize,
     next_sample_s: f64,
     last_wall: Instant,
+    /// No confirmation before this much sample time (see [`CONFIRM_GROWTH`]).
+    next_confirm_s: f64,
 }
 
 impl Watcher {
@@ -126,6 +131,7 @@ impl Watcher {
             run: 0,
             next_sample_s: SAMPLE_EVERY_S,
             last_wall: Instant::now(),
+            next_confirm_s: 0.0,
         }
     }
 
@@ -178,11 +184,12 @@ impl Watcher {
     /// last gap-free run in the session file at `path` (flushed), with the options `analyze`
     /// uses for a stored session (the board's own filter, 10 factors per decade, spectral
     /// lines removed), and the verdict if it agrees.
-    pub(super) fn confirm(&self, snapshot: &Snapshot, path: &Path) -> Option<RuleMet> {
+    pub(super) fn confirm(&mut self, snapshot: &Snapshot, path: &Path) -> Option<RuleMet> {
         let rule = self.options.rule.as_ref()?;
-        if !snapshot.rule_met() {
+        if !snapshot.rule_met() || snapshot.elapsed_s < self.next_confirm_s {
             return None;
         }
+        self.next_confirm_s = snapshot.elapsed_s * (1.0 + CONFIRM_GROWTH);
         let capture = Capture::decode(&std::fs::read(path).ok()?).ok()?;
         let run = capture.runs.last()?;
         let settings = run.settings.unwrap_or(capture.info.settings);

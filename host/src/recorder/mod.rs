@@ -209,7 +209,7 @@ fn run(
         let new_recoveries = decoder.recoveries()[recoveries_shown..].to_vec();
         recoveries_shown += new_recoveries.len();
         let snapshot = watcher.as_mut().and_then(|w| w.after_feed(decoder));
-        let met = match (&watcher, &snapshot) {
+        let met = match (watcher.as_mut(), &snapshot) {
             (Some(w), Some(s)) if s.rule_met() => {
                 if let Err(source) = writer.flush() {
                     return Err(fail(writer, decoder, source));
