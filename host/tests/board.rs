@@ -26,6 +26,57 @@ fn capture_from_the_virtual_board_is_complete_and_analysable() {
     assert!((n / 1.5e-4 - 1.0).abs() < 0.05, "N = {n}");
 }
 
+/// `capture --until`: the stop rule ends a capture capped at an hour after a minute or two
+/// of data; the live view's JSON lines on stdout show N's precision improving, the last line
+/// names the session and its reason, and `analyze` of the session shows N on every gyro axis
+/// within the 2 % asked for.
+#[test]
+fn a_stop_rule_ends_the_capture_with_the_precision_asked_for() {
+    let store = TempStore::new();
+    let out = store.ok(&[
+        "capture",
+        "--port",
+        "sim",
+        "--rate",
+        "100",
+        "--bandwidth",
+        "42",
+        "--duration",
+        "1h",
+        "--speed",
+        "max",
+        "--until",
+        "N:2%",
+        "--json-progress",
+        "--name",
+        "until",
+    ]);
+    let lines: Vec<Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l}: {e}")))
+        .collect();
+    let (end, live) = lines.split_last().unwrap();
+    assert_eq!(end["event"], "end");
+    assert_eq!(end["name"], "until");
+    let reason = end["end_reason"].as_str().unwrap();
+    assert!(reason.starts_with("stop rule N:2% met (gx N "), "{reason}");
+    assert!(!live.is_empty() && live.iter().all(|l| l["event"] == "live"));
+    let reached = |l: &Value| l["channels"][0]["targets"][0]["reached"].as_f64().unwrap();
+    assert!(reached(&live[0]) > reached(live.last().unwrap()));
+    let samples = end["counts"]["samples_received"].as_u64().unwrap();
+    assert!(samples < 100 * 600, "{samples} samples");
+    let doc = json(&store.ok(&["analyze", "until", "--json", "-"]));
+    for c in doc["channels"].as_array().unwrap().iter().take(3) {
+        let n = &c["noise"]["N"];
+        let (v, lo, hi) = (
+            n["value"].as_f64().unwrap(),
+            n["lo"].as_f64().unwrap(),
+            n["hi"].as_f64().unwrap(),
+        );
+        assert!((hi - lo) / (2.0 * v) <= 0.02, "{}: {n}", c["name"]);
+    }
+}
+
 /// 8 kHz is a rate the sensor makes but the firmware does not stream: refused before the
 /// board is asked (the firmware's own refusal: `tests/tests/firmware_sim.rs`).
 #[test]

@@ -151,7 +151,7 @@ fn paper_experiment(duration: &str, store: &Store) -> Result<()> {
         model: None,
         seed: 1,
     };
-    let rows = run_sweep(store, &spec, &settings, seconds, "demo")?;
+    let rows = run_sweep(store, &spec, &settings, (seconds, None), "demo")?;
     print!("{}", sweep::table(&rows));
     let reports = store.dir().join("reports");
     std::fs::create_dir_all(&reports).with_context(|| format!("creating {}", reports.display()))?;

@@ -4,16 +4,21 @@
 //! request.
 
 use crate::cli::analyze::check_plot;
-use crate::cli::capture::{VirtualBoardArgs, open_port, show, stop_failed, stop_on_ctrl_c};
+use crate::cli::capture::{
+    VirtualBoardArgs, live_options, open_port, show, stop_failed, stop_on_ctrl_c,
+};
+use crate::cli::live_view::{LiveView, Mode};
 use crate::cli::output;
 use crate::cli::progress;
 use crate::cli::simulate::parse_duration;
 use crate::cli::stored::open_store;
 use anyhow::{Context, Result, anyhow};
+use imunoise::analysis::precision::StopRule;
 use imunoise::experiment::sweep::{self, Event, Plan, SweepRow, figures, html, table};
 use imunoise::link::PortSpec;
 use imunoise::link::replay::Speed;
 use imunoise::link::setup::streamable;
+use imunoise::recorder::live::LiveOptions;
 use imunoise::report::plot;
 use imunoise::store::Store;
 use indicatif::ProgressBar;
@@ -45,6 +50,13 @@ pub struct SweepArgs {
     /// Write an HTML report (the table and the figures) to PATH
     #[arg(long, value_name = "PATH")]
     pub report: Option<PathBuf>,
+    /// Stop each setting's capture once the rule is met on every gyro axis, as with
+    /// `capture --until`: N:1%,B:20% (--duration stays the cap per setting)
+    #[arg(long, value_name = "RULE")]
+    pub until: Option<StopRule>,
+    /// Confidence of the intervals the stop rule and the live view use
+    #[arg(long, default_value_t = 0.683)]
+    pub confidence: f64,
 }
 
 /// "200:256,200:42" to settings, each checked against the settings model.
@@ -71,6 +83,7 @@ pub fn parse_settings(text: &str) -> Result<Vec<SensorSettings>> {
 pub fn run(args: &SweepArgs, store: Option<&Path>) -> Result<()> {
     let settings = parse_settings(&args.settings)?;
     let seconds = parse_duration(&args.duration).map_err(|e| anyhow!("--duration: {e}"))?;
+    let live = live_options(args.until.as_ref(), args.confidence, Some(seconds))?;
     if let Some(path) = &args.plot {
         check_plot(path)?;
     }
@@ -84,7 +97,13 @@ pub fn run(args: &SweepArgs, store: Option<&Path>) -> Result<()> {
         model: args.virtual_board.model.as_deref(),
         seed: args.virtual_board.seed,
     };
-    let rows = run_sweep(&store, &spec, &settings, seconds, &args.prefix)?;
+    let rows = run_sweep(
+        &store,
+        &spec,
+        &settings,
+        (seconds, Some(live)),
+        &args.prefix,
+    )?;
     print!("{}", table(&rows));
     if let Some(path) = &args.plot {
         plot::write(path, &figures(&rows))?;
@@ -99,12 +118,13 @@ pub fn run(args: &SweepArgs, store: Option<&Path>) -> Result<()> {
 }
 
 /// Capture, store and analyse each setting in turn on one board (the sweep's settings,
-/// data per setting and session-name prefix), showing each capture's progress.
+/// data per setting with the live view and stop rule, and session-name prefix), showing
+/// each capture's progress.
 pub fn run_sweep(
     store: &Store,
     spec: &PortSpec,
     settings: &[SensorSettings],
-    seconds: f64,
+    (seconds, live): (f64, Option<LiveOptions>),
     prefix: &str,
 ) -> Result<Vec<SweepRow>> {
     let mut link = open_port(spec)?.link;
@@ -115,8 +135,9 @@ pub fn run_sweep(
         seconds,
         prefix,
         command: &command,
+        live,
     };
-    let mut bar: Option<ProgressBar> = None;
+    let mut bar: Option<(ProgressBar, LiveView)> = None;
     let rows = sweep::sweep(
         store,
         link.as_mut(),
@@ -132,14 +153,22 @@ pub fn run_sweep(
                 "setting {}/{count}: {settings} for {seconds} s ({link})",
                 index + 1
             ),
-            Event::Capturing { samples } => bar = Some(progress::bar(samples, "capturing")),
+            Event::Capturing { samples } => {
+                let (view, shown) =
+                    LiveView::new(Mode::choose(false), &progress::bar(samples, "capturing"));
+                bar = Some((shown, view));
+            }
             Event::Progress(p) => {
-                if let Some(bar) = &bar {
+                if let Some((bar, view)) = bar.as_mut() {
                     show(bar, p);
+                    if let Some(s) = &p.live {
+                        view.show(s);
+                    }
                 }
             }
             Event::Captured => {
-                if let Some(bar) = bar.take() {
+                if let Some((bar, view)) = bar.take() {
+                    view.finish();
                     bar.finish_and_clear();
                 }
             }

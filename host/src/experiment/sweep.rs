@@ -11,6 +11,7 @@ use crate::analysis::units::{self, rad_to_deg};
 use crate::capture::CaptureError;
 use crate::link::board::{Board, BoardError};
 use crate::link::{Link, start_board};
+use crate::recorder::live::LiveOptions;
 use crate::recorder::{self, Ending, Progress, RecordError, RecordOptions};
 use crate::report::plot::{Figure, PlotError};
 use crate::report::sweep_page::{self, GyroNoise, Published, Setting, SweepPage};
@@ -32,7 +33,7 @@ pub struct SweepRow {
 }
 
 /// What a sweep captures.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Plan<'a> {
     /// The settings, in the order they are captured.
     pub settings: &'a [SensorSettings],
@@ -42,6 +43,8 @@ pub struct Plan<'a> {
     pub prefix: &'a str,
     /// The command that asked for the sweep, kept with each stored analysis.
     pub command: &'a [String],
+    /// Each capture's live view and stop rule (`seconds` is then the cap per setting).
+    pub live: Option<LiveOptions>,
 }
 
 /// What happens during a sweep, for a caller to show.
@@ -137,7 +140,7 @@ pub fn sweep(
             duration_s: Some(plan.seconds),
             keep_samples: true,
             watch: Some(*s),
-            live: None,
+            live: plan.live.clone(),
         };
         on(Event::Capturing {
             samples: (plan.seconds * s.output_rate_hz()) as u64,
@@ -374,6 +377,7 @@ mod tests {
             seconds: 1.0,
             prefix: "t",
             command: &[],
+            live: None,
         };
         let mut events = 0;
         let e = sweep(
