@@ -105,13 +105,13 @@ fn an_unstreamable_setting_is_refused_naming_the_firmwares_limit() {
 
 /// The settings study's finding on the virtual board: a 256 Hz bandwidth at 50 Hz output
 /// inflates the gyro's white noise about 3.5 times relative to 200 Hz with 42 Hz (the folding
-/// prediction is 3.535 / 1.006). The N compared are those of the analyses the sweep stored
-/// with its sessions (JSON); its HTML report has the sweep's tables and figures.
+/// prediction is 3.535 / 1.006). The N compared are those of `sweep --json`, which are the
+/// analyses stored with the sessions; its HTML report has the sweep's tables and figures.
 #[test]
 fn the_sweep_reproduces_the_settings_studys_finding() {
     let store = TempStore::new();
     let report = store.file("board-sweep.html");
-    store.ok(&[
+    let out = store.ok(&[
         "sweep",
         "--port",
         "sim",
@@ -123,7 +123,9 @@ fn the_sweep_reproduces_the_settings_studys_finding() {
         "max",
         "--report",
         report.to_str().unwrap(),
+        "--json",
     ]);
+    let doc = json(&out);
     let html = std::fs::read_to_string(&report).unwrap();
     // Sessions, gyro, accelerometer and temperature terms, folding, the unit readings and the
     // study's Table 2; a figure per sensor.
@@ -132,17 +134,23 @@ fn the_sweep_reproduces_the_settings_studys_finding() {
     assert!(html.contains("<td>0.01197</td>") && html.contains("Unit assumed: deg/sqrt(s)"));
     let list = json(&store.ok(&["sessions", "--json"]));
     assert_eq!(list.as_array().unwrap().len(), 2);
-    // gx's white-noise term N in the analysis the sweep stored with a session.
+    // gx's white-noise term N per setting, and the same analysis stored with the session.
     let n_of = |session: &str| -> f64 {
+        let rows = doc["settings"].as_array().unwrap();
+        let row = rows.iter().find(|r| r["session_name"] == session).unwrap();
+        let gx_n = |analysis: &Value| -> Value {
+            let channels = analysis["channels"].as_array().unwrap();
+            let gx = channels.iter().find(|c| c["name"] == "gx").unwrap();
+            gx["noise"]["N"].clone()
+        };
+        let n = gx_n(&row["analysis"]);
         let shown = json(&store.ok(&["show", session, "--json"]));
-        let analyses = shown["analyses"].as_array().unwrap();
-        assert_eq!(analyses.len(), 1, "{session}: {shown}");
-        let channels = analyses[0]["document"]["channels"].as_array().unwrap();
-        let gx = channels.iter().find(|c| c["name"] == "gx").unwrap();
-        let n: &Value = &gx["noise"]["N"];
+        assert_eq!(gx_n(&shown["analyses"][0]["document"]), n);
         assert_eq!(n["unit"], "rad/s/sqrt(Hz)");
         n["value"].as_f64().unwrap()
     };
+    assert_eq!(doc["settings"][1]["rate_hz"], 50.0);
+    assert_eq!(doc["settings"][1]["gyro_bandwidth_hz"], 256.0);
     let ratio = n_of("sweep-50hz-256hz") / n_of("sweep-200hz-42hz");
     assert!(
         (ratio / (3.535 / 1.006) - 1.0).abs() < 0.05,

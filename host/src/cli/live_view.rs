@@ -242,7 +242,7 @@ mod tests {
 
     #[test]
     fn sparklines_follow_the_curve() {
-        assert_eq!(sparkline(&[1.0, 0.1, 0.01, 0.1]), "█▄▁▄");
+        assert_eq!(sparkline(&[1.0, 0.1, 0.01, 0.1]), "█▅▁▅");
         assert_eq!(sparkline(&[]), "");
         assert_eq!(sparkline(&[2.0, 2.0]), "▁▁");
         assert_eq!(sparkline(&vec![1.0; 50]).chars().count(), 24);

@@ -57,6 +57,10 @@ pub struct SweepArgs {
     /// Confidence of the intervals the stop rule and the live view use
     #[arg(long, default_value_t = 0.683)]
     pub confidence: f64,
+    /// Print the sweep as JSON (each setting, its session and its analysis document, as
+    /// `analyze --json` gives it) instead of the tables; notes go to stderr
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// "200:256,200:42" to settings, each checked against the settings model.
@@ -104,15 +108,26 @@ pub fn run(args: &SweepArgs, store: Option<&Path>) -> Result<()> {
         (seconds, Some(live)),
         &args.prefix,
     )?;
-    print!("{}", table(&rows));
+    if args.json {
+        println!("{:#}", sweep::document(&rows));
+    } else {
+        print!("{}", table(&rows));
+    }
+    let note = |line: String| {
+        if args.json {
+            eprintln!("{line}");
+        } else {
+            println!("{line}");
+        }
+    };
     if let Some(path) = &args.plot {
         plot::write(path, &figures(&rows))?;
-        println!("wrote figure: {}", path.display());
+        note(format!("wrote figure: {}", path.display()));
     }
     if let Some(path) = &args.report {
         std::fs::write(path, html(&rows, "imunoise sweep")?)
             .with_context(|| format!("writing {}", path.display()))?;
-        println!("wrote HTML report: {}", path.display());
+        note(format!("wrote HTML report: {}", path.display()));
     }
     Ok(())
 }

@@ -30,6 +30,45 @@ pub struct SweepRow {
     pub session_name: String,
     pub lost: u64,
     pub results: Vec<ChannelResult>,
+    /// The analysis as `analyze --json` gives it (and as stored with the session).
+    pub document: serde_json::Value,
+}
+
+/// One row of [`document`].
+#[derive(serde::Serialize)]
+struct RowDocument<'a> {
+    /// The setting as `settings` shows it, and its output rate (Hz) and gyro bandwidth (Hz,
+    /// absent when the DLPF is off).
+    settings: String,
+    rate_hz: f64,
+    gyro_bandwidth_hz: Option<f64>,
+    session_id: i64,
+    session_name: &'a str,
+    samples_lost: u64,
+    analysis: &'a serde_json::Value,
+}
+
+/// The sweep as JSON (`sweep --json`): `{"settings": [row, ...]}`, each row a setting, its
+/// session and its analysis document.
+pub fn document(rows: &[SweepRow]) -> serde_json::Value {
+    let rows: Vec<RowDocument> = rows
+        .iter()
+        .map(|r| RowDocument {
+            settings: r.settings.to_string(),
+            rate_hz: r.settings.output_rate_hz(),
+            gyro_bandwidth_hz: DlpfDesign::for_setting(r.settings.dlpf, Sensor::Gyro).bandwidth_hz,
+            session_id: r.session_id,
+            session_name: &r.session_name,
+            samples_lost: r.lost,
+            analysis: &r.document,
+        })
+        .collect();
+    serde_json::to_value(SweepDocument { settings: rows }).unwrap_or_default()
+}
+
+#[derive(serde::Serialize)]
+struct SweepDocument<'a> {
+    settings: Vec<RowDocument<'a>>,
 }
 
 /// What a sweep captures.
@@ -189,6 +228,7 @@ pub fn sweep(
             session_name: session.name.clone(),
             lost: outcome.counts.samples_lost,
             results,
+            document,
         });
     }
     Ok(rows)
@@ -407,6 +447,7 @@ mod tests {
                 session_name: String::new(),
                 lost: 0,
                 results: Vec::new(),
+                document: serde_json::Value::Null,
             })
             .collect();
         let table = paper_comparison(&rows);
@@ -485,6 +526,7 @@ mod tests {
                     session_name: String::new(),
                     lost: 0,
                     results: pipeline::analyze(&record, &options, &|| {}).unwrap(),
+                    document: serde_json::Value::Null,
                 }
             })
             .collect();
