@@ -76,16 +76,17 @@ pub struct Snapshot {
 impl Snapshot {
     /// Whether every target is met on every channel with targets.
     pub fn rule_met(&self) -> bool {
-        let mut any = false;
-        for c in &self.channels {
-            for t in &c.targets {
-                any = true;
-                if !t.status.met {
-                    return false;
-                }
-            }
-        }
-        any
+        self.has_rule()
+            && self
+                .channels
+                .iter()
+                .flat_map(|c| &c.targets)
+                .all(|t| t.status.met)
+    }
+
+    /// Whether some channel has stop-rule targets.
+    pub fn has_rule(&self) -> bool {
+        self.channels.iter().any(|c| !c.targets.is_empty())
     }
 
     /// The longest of the channels' expected lengths for the rule (s); `None` if some target

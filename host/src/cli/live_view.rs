@@ -108,25 +108,28 @@ impl LiveView {
     }
 }
 
-/// `live, 12.5 min of data, 68 % intervals (the stop rule: N:1%)`.
+/// `live: 12.5 min of data, 68 % intervals; the stop rule needs about 42.0 min in all ...`.
 fn header(s: &Snapshot) -> String {
-    let rule = match s.needed_s() {
-        _ if s.rule_met() => "; the stop rule is met, confirming".to_string(),
-        Some(t) if has_rule(s) => {
-            format!("; the stop rule needs about {} in all", duration_text(t))
-        }
-        None if has_rule(s) => "; the stop rule: some target not reachable yet".to_string(),
-        _ => String::new(),
-    };
     format!(
-        "live: {} of data, {:.0} % intervals{rule}   Allan deviation over tau, then N, B, K (+- half-width)",
+        "live: {} of data, {:.0} % intervals{}   Allan deviation over tau, then N, B, K (+- half-width)",
         duration_text(s.elapsed_s),
-        100.0 * s.confidence
+        100.0 * s.confidence,
+        rule_text(s)
     )
 }
 
-fn has_rule(s: &Snapshot) -> bool {
-    s.channels.iter().any(|c| !c.targets.is_empty())
+/// The stop rule's state, to follow a line (empty without a rule).
+fn rule_text(s: &Snapshot) -> String {
+    if !s.has_rule() {
+        String::new()
+    } else if s.rule_met() {
+        "; the stop rule is met, confirming".to_string()
+    } else {
+        match s.needed_s() {
+            Some(t) => format!("; the stop rule needs about {} in all", duration_text(t)),
+            None => "; the stop rule: some target not reachable yet".to_string(),
+        }
+    }
 }
 
 /// `gx ▁▂▃▄▅ N 1.03e-4 +-0.8 % B 4.1e-6 +-35 % K -  [N:1% in 4.2 min]`.
@@ -219,20 +222,11 @@ fn summary(s: &Snapshot) -> String {
         .iter()
         .map(|c| format!("{} N {}", c.name, term_text(c.n)))
         .collect();
-    let rule = if !has_rule(s) {
-        String::new()
-    } else if s.rule_met() {
-        "; stop rule met, confirming".to_string()
-    } else {
-        match s.needed_s() {
-            Some(t) => format!("; stop rule needs about {} in all", duration_text(t)),
-            None => "; stop rule: some target not reachable yet".to_string(),
-        }
-    };
     format!(
-        "live {}: {}{rule}",
+        "live {}: {}{}",
         duration_text(s.elapsed_s),
-        axes.join(", ")
+        axes.join(", "),
+        rule_text(s)
     )
 }
 

@@ -144,7 +144,7 @@ impl Watcher {
             self.live = Live::new(&AXES, tau0, self.options.longest_s).ok();
             if let Some(live) = self.live.as_mut() {
                 // The board's DLPF, as `analyze` models it for a stored session.
-                for (i, sensor) in [Sensor::Gyro, Sensor::Gyro, Sensor::Gyro]
+                for (i, sensor) in [Sensor::Gyro; 3]
                     .into_iter()
                     .chain([Sensor::Accel; 3])
                     .enumerate()
@@ -180,15 +180,20 @@ impl Watcher {
         Some(live.snapshot(self.options.rule.as_ref(), &RULE_AXES, &self.fit))
     }
 
-    /// When `snapshot` says the rule is met: `analyze`'s pipeline on the gyro axes of the
+    /// Whether `snapshot` meets the rule and a confirmation is due (see [`CONFIRM_GROWTH`]):
+    /// the caller then flushes the session file for [`Watcher::confirm`].
+    pub(super) fn wants_confirmation(&self, snapshot: &Snapshot) -> bool {
+        self.options.rule.is_some()
+            && snapshot.rule_met()
+            && snapshot.elapsed_s >= self.next_confirm_s
+    }
+
+    /// After [`Watcher::wants_confirmation`]: `analyze`'s pipeline on the gyro axes of the
     /// last gap-free run in the session file at `path` (flushed), with the options `analyze`
     /// uses for a stored session (the board's own filter, 10 factors per decade, spectral
     /// lines removed), and the verdict if it agrees.
     pub(super) fn confirm(&mut self, snapshot: &Snapshot, path: &Path) -> Option<RuleMet> {
         let rule = self.options.rule.as_ref()?;
-        if !snapshot.rule_met() || snapshot.elapsed_s < self.next_confirm_s {
-            return None;
-        }
         self.next_confirm_s = snapshot.elapsed_s * (1.0 + CONFIRM_GROWTH);
         let capture = Capture::decode(&std::fs::read(path).ok()?).ok()?;
         let run = capture.runs.last()?;

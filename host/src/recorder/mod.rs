@@ -210,7 +210,7 @@ fn run(
         recoveries_shown += new_recoveries.len();
         let snapshot = watcher.as_mut().and_then(|w| w.after_feed(decoder));
         let met = match (watcher.as_mut(), &snapshot) {
-            (Some(w), Some(s)) if s.rule_met() => {
+            (Some(w), Some(s)) if w.wants_confirmation(s) => {
                 if let Err(source) = writer.flush() {
                     return Err(fail(writer, decoder, source));
                 }
@@ -218,7 +218,7 @@ fn run(
             }
             _ => None,
         };
-        progress(&Progress {
+        let mut report = Progress {
             elapsed: started.elapsed(),
             counts,
             samples_expected: expected,
@@ -227,10 +227,11 @@ fn run(
             new_board_errors,
             new_recoveries,
             catalog_warning: catalog_warning.take(),
-            live: snapshot.clone(),
-        });
-        if snapshot.is_some() {
-            last_snapshot = snapshot;
+            live: snapshot,
+        };
+        progress(&report);
+        if report.live.is_some() {
+            last_snapshot = report.live.take();
         }
         if let Some(met) = met {
             break Ending::RuleMet(met);
