@@ -298,6 +298,10 @@ pub struct Evidence {
     pub sim_mean: f64,
     pub sim_sd: f64,
     pub sim_max: f64,
+    /// Simulated values the p-value rests on: the round's realisations (or bootstrap
+    /// draws), several times as many when the verdict was unsure on those (see
+    /// `super::simulate`).
+    pub simulations: usize,
     pub p_value: f64,
     pub z: f64,
     /// The p-value a candidate must be below to be named in its round:
@@ -348,6 +352,7 @@ impl Evidence {
             sim_mean: mean,
             sim_sd: var.sqrt(),
             sim_max: max,
+            simulations: simulated.len(),
             p_value,
             z,
             p_needed,

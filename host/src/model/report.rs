@@ -3,7 +3,7 @@
 //! with its evidence: every candidate's statistic, the simulated spread and z.
 
 use super::evidence::Evidence;
-use super::{Comparison, FAMILY_ALPHA, Model, Outcome, Step};
+use super::{Comparison, FAMILY_ALPHA, Model, Outcome, REFINE, Step, UNSURE_ABOVE, UNSURE_BELOW};
 use crate::analysis::low_pass::LowPassSource;
 use crate::record::Quantity;
 use crate::report::html::{STYLE, escape};
@@ -123,7 +123,7 @@ pub fn document(o: &Outcome) -> Value {
         "samples": o.n,
         "realisations": o.realisations,
         "temperature_channel": o.temperature,
-        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms"),
+        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations)"),
         "gap_definition": "gap = RMS over the measured oadev taus of z, z = (ln ADEV_measured - mean ln ADEV_simulated) / std ln ADEV_simulated; |z| > 2 marks a disagreeing tau",
         "measured": {"tau": o.measured.tau, "adev": o.measured.dev},
         "baseline": model_keys(&o.baseline),
@@ -143,7 +143,8 @@ pub fn document(o: &Outcome) -> Value {
 }
 
 /// The evidence of one round as aligned rows: candidate, view, measured statistic, the
-/// simulated mean +- sd and maximum, z, and the verdict.
+/// simulated mean +- sd and maximum, how many simulations they come from, p, z, and the
+/// verdict.
 fn evidence_rows(evidence: &[Evidence], named: Option<&Step>, u: &str) -> String {
     let rows: Vec<Vec<String>> = evidence
         .iter()
@@ -160,6 +161,7 @@ fn evidence_rows(evidence: &[Evidence], named: Option<&Step>, u: &str) -> String
                 sig(e.statistic, 4),
                 format!("{} +- {}", sig(e.sim_mean, 3), sig(e.sim_sd, 3)),
                 sig(e.sim_max, 3),
+                e.simulations.to_string(),
                 format!("{:.2e}", e.p_value),
                 format!("{:.2}", e.z),
                 verdict.to_string(),
@@ -173,6 +175,7 @@ fn evidence_rows(evidence: &[Evidence], named: Option<&Step>, u: &str) -> String
             "statistic",
             "simulated mean +- sd",
             "sim max",
+            "sims",
             "p",
             "z",
             "verdict",
@@ -258,7 +261,7 @@ pub fn table(o: &Outcome) -> String {
     disagreeing(&mut s, &o.initial);
     let _ = writeln!(
         s,
-        "rule: name a candidate whose p-value against the simulations is below {FAMILY_ALPHA} / (candidates) and whose statistic exceeds every simulated one (lines, ramp, temperature first)"
+        "rule: name a candidate whose p-value against the simulations is below {FAMILY_ALPHA} / (candidates) and whose statistic exceeds every simulated one (lines, ramp, temperature first); a verdict near that line is simulated again {REFINE} times as often"
     );
     for (i, st) in o.steps.iter().enumerate() {
         let _ = writeln!(
@@ -335,7 +338,7 @@ fn panel(o: &Outcome, title: String, c: &Comparison) -> Panel {
 fn evidence_html(page: &mut String, evidence: &[Evidence], named: Option<&Step>, u: &str) {
     page.push_str(
         "<table><tr><th>candidate</th><th>view</th><th>statistic</th><th>simulated mean</th>\
-         <th>simulated sd</th><th>simulated max</th><th>p</th><th>z</th><th>verdict</th></tr>\n",
+         <th>simulated sd</th><th>simulated max</th><th>simulations</th><th>p</th><th>z</th><th>verdict</th></tr>\n",
     );
     for e in evidence {
         let verdict = match (named, e.passes) {
@@ -345,7 +348,7 @@ fn evidence_html(page: &mut String, evidence: &[Evidence], named: Option<&Step>,
         };
         let _ = writeln!(
             page,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.2e}</td><td>{:.2}</td><td>{verdict}</td></tr>",
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.2e}</td><td>{:.2}</td><td>{verdict}</td></tr>",
             escape(
                 &e.effect
                     .map_or_else(|| format!("{}: none found", e.candidate), |x| x.describe(u))
@@ -355,6 +358,7 @@ fn evidence_html(page: &mut String, evidence: &[Evidence], named: Option<&Step>,
             sig(e.sim_mean, 3),
             sig(e.sim_sd, 3),
             sig(e.sim_max, 3),
+            e.simulations,
             e.p_value,
             e.z
         );
@@ -382,7 +386,7 @@ pub fn html(o: &Outcome) -> Result<String, plot::PlotError> {
     );
     let _ = writeln!(
         page,
-        "<p>{} samples at {} Hz ({} s); {} simulated realisations per model. A candidate is named when the p-value of its statistic against the simulations of the current model is below {FAMILY_ALPHA} / (candidates in the round) and the statistic exceeds every simulated one; lines, ramp and temperature are judged before stochastic terms.</p>",
+        "<p>{} samples at {} Hz ({} s); {} simulated realisations per model. A candidate is named when the p-value of its statistic against the simulations of the current model is below {FAMILY_ALPHA} / (candidates in the round) and the statistic exceeds every simulated one; lines, ramp and temperature are judged before stochastic terms. A verdict near that line is judged again on {REFINE} times as many simulations.</p>",
         o.n,
         sig(o.rate_hz, 6),
         sig(o.n as f64 / o.rate_hz, 4),

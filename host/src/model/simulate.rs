@@ -6,8 +6,9 @@ use super::candidates::{open_noise, probes};
 use super::clean::Removal;
 use super::evidence::{self, Context, Evidence, Probe};
 use super::{
-    Band, Comparison, Data, Effect, GAUSS_MARKOV_MIN_SAMPLES, Line, Model, REGRESSION_DRAWS, Range,
-    Z_DISAGREE, gls, refit, regression, spectrum,
+    Band, Comparison, Data, Effect, GAUSS_MARKOV_MIN_SAMPLES, Line, Model, REFINE,
+    REGRESSION_DRAWS, Range, UNSURE_ABOVE, UNSURE_BELOW, Z_DISAGREE, gls, refit, regression,
+    spectrum,
 };
 use crate::analysis::Deviation;
 use crate::analysis::low_pass::LowPass;
@@ -132,15 +133,19 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
         .filter(|p| !matches!(p, Probe::Ramp | Probe::Temperature | Probe::SlowLine))
         .collect();
     let measured = evidence::statistics(data.rate, &on_sims, &ctx, true);
-    let sims: Vec<Vec<f64>> = (0..r)
-        .into_par_iter()
-        .map(|i| {
-            evidence::statistics(&realise(&model.terms, i), &on_sims, &ctx, false)
-                .into_iter()
-                .map(|(v, _)| v)
-                .collect()
-        })
-        .collect();
+    // The statistics of `of` on realisations `seeds` of the model.
+    let on_realisations = |seeds: std::ops::Range<usize>, of: &[Probe]| -> Vec<Vec<f64>> {
+        seeds
+            .into_par_iter()
+            .map(|i| {
+                evidence::statistics(&realise(&model.terms, i), of, &ctx, false)
+                    .into_iter()
+                    .map(|(v, _)| v)
+                    .collect()
+            })
+            .collect()
+    };
+    let sims = on_realisations(0..r, &on_sims);
     // The alternative's noise model has every IEEE-952 random term free: a baseline that put
     // K at 0 (a short record, an absorbed effect) must not make the test's noise too small.
     let columns = evidence::with_random_walks(&refit::columns_of(&stochastic));
@@ -162,12 +167,16 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
         _ => None,
     };
     let open = open_noise(data, &regressors_out, slow_hz, &ctx, &columns);
-    let slow_sims: Vec<f64> = (0..r)
-        .into_par_iter()
-        .map(|i| {
-            evidence::statistics(&realise(&open, i), &[Probe::SlowLine], &open_ctx, false)[0].0
-        })
-        .collect();
+    // The slow line's statistic on realisations `seeds` of the open noise model.
+    let slow_on = |seeds: std::ops::Range<usize>| -> Vec<f64> {
+        seeds
+            .into_par_iter()
+            .map(|i| {
+                evidence::statistics(&realise(&open, i), &[Probe::SlowLine], &open_ctx, false)[0].0
+            })
+            .collect()
+    };
+    let slow_sims = slow_on(0..r);
     let gls = gls::Estimator::new(&open, data.rate_hz, data.rate.len());
     let setup = regression::Setup {
         view: &ctx,
@@ -176,31 +185,80 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
         seed: data.settings.seed,
         candidates: probes.len(),
     };
-    let evidence = probes
-        .iter()
-        .map(|p| match on_sims.iter().position(|q| q == p) {
-            Some(j) => {
-                let simulated: Vec<f64> = sims.iter().map(|s| s[j]).collect();
-                Evidence::new(p.name(), p.view(), measured[j], &simulated, probes.len())
-            }
+    // A candidate's evidence from its simulated values (`on_sims` probes and the slow line)
+    // or its own bootstrap of `draws` series (the regressors).
+    let judge =
+        |p: Probe, simulated: &[f64], draws: usize| match on_sims.iter().position(|q| *q == p) {
+            Some(j) => Evidence::new(p.name(), p.view(), measured[j], simulated, probes.len()),
             // A maximum over bins: its tail is Gumbel, not a scaled chi-square.
-            None if *p == Probe::SlowLine => Evidence::with_p(
+            None if p == Probe::SlowLine => Evidence::with_p(
                 p.name(),
                 p.view(),
                 slow,
-                &slow_sims,
-                spectrum::gumbel_p_value(slow.0, &slow_sims),
+                simulated,
+                spectrum::gumbel_p_value(slow.0, simulated),
                 probes.len(),
             ),
-            None => regression::test(*p, data.rate, &setup),
-        })
+            None => regression::test(p, data.rate, &regression::Setup { draws, ..setup }),
+        };
+    let simulated_of = |p: Probe| -> Vec<f64> {
+        match on_sims.iter().position(|q| *q == p) {
+            Some(j) => sims.iter().map(|s| s[j]).collect(),
+            None if p == Probe::SlowLine => slow_sims.clone(),
+            None => Vec::new(),
+        }
+    };
+    let mut evidence: Vec<Evidence> = probes
+        .iter()
+        .map(|&p| judge(p, &simulated_of(p), REGRESSION_DRAWS))
         .collect();
+    // Verdicts that rest on the tail of a few simulations are simulated again, REFINE times
+    // as often (the same seeds first, so the first simulations are kept).
+    let unsure: Vec<usize> = (0..probes.len())
+        .filter(|&j| unsure(&evidence[j]))
+        .collect();
+    if !unsure.is_empty() {
+        let more = r..REFINE * r;
+        let again: Vec<Probe> = unsure
+            .iter()
+            .map(|&j| probes[j])
+            .filter(|p| on_sims.contains(p))
+            .collect();
+        let extra = if again.is_empty() {
+            Vec::new()
+        } else {
+            on_realisations(more.clone(), &again)
+        };
+        let slow_extra = if unsure.iter().any(|&j| probes[j] == Probe::SlowLine) {
+            slow_on(more)
+        } else {
+            Vec::new()
+        };
+        for j in unsure {
+            let p = probes[j];
+            let mut simulated = simulated_of(p);
+            match again.iter().position(|q| *q == p) {
+                Some(k) => simulated.extend(extra.iter().map(|e| e[k])),
+                None => simulated.extend(&slow_extra),
+            }
+            evidence[j] = judge(p, &simulated, REFINE * REGRESSION_DRAWS);
+        }
+    }
     Round {
         comparison,
         sd_ln,
         probes,
         evidence,
     }
+}
+
+/// Whether a candidate's verdict rests on the tail of too few simulations (see
+/// [`UNSURE_BELOW`]).
+fn unsure(e: &Evidence) -> bool {
+    e.effect.is_some()
+        && e.statistic > e.sim_max
+        && e.p_value < UNSURE_ABOVE * e.p_needed
+        && e.p_value > e.p_needed / UNSURE_BELOW
 }
 
 /// The measured curve against the realisations' ln ADEV.
@@ -269,7 +327,56 @@ pub(super) fn ranges(tau: &[f64], z: &[f64]) -> Vec<Range> {
 
 #[cfg(test)]
 mod tests {
-    use super::ranges;
+    use super::super::evidence::{Evidence, View};
+    use super::super::{Effect, REGRESSION_DRAWS};
+    use super::{ranges, unsure};
+
+    /// Evidence for a ramp whose statistic `statistic` is judged against `simulated` values.
+    fn ramp(statistic: f64, simulated: &[f64]) -> Evidence {
+        let effect = Some(Effect::RateRamp { slope: 1e-9 });
+        Evidence::new(
+            "rate_ramp",
+            View::RegressionOnTime,
+            (statistic, effect),
+            simulated,
+            8,
+        )
+    }
+
+    #[test]
+    fn only_verdicts_near_the_line_are_unsure() {
+        // Bootstrap-sized draws of a chi-square with one degree of freedom: mean 1, sd 1.4.
+        let draws: Vec<f64> = (0..REGRESSION_DRAWS)
+            .map(|i| {
+                let u = (i as f64 + 0.5) / REGRESSION_DRAWS as f64;
+                let z = statrs::distribution::ContinuousCDF::inverse_cdf(
+                    &statrs::distribution::Normal::standard(),
+                    0.5 + u / 2.0,
+                );
+                z * z
+            })
+            .collect();
+        let max = draws.iter().copied().fold(0.0, f64::max);
+        // p_needed = 0.05 / 8 = 6.25e-3. A statistic of 9 gives p near 3e-3: passes, unsure.
+        let near = ramp(9.0, &draws);
+        assert!(near.passes && near.statistic > max, "{near:?}");
+        assert!(unsure(&near), "{near:?}");
+        // Far beyond every draw: certain.
+        let far = ramp(200.0, &draws);
+        assert!(
+            far.passes && far.p_value < far.p_needed / 1e6 && !unsure(&far),
+            "{far:?}"
+        );
+        // Not above every draw: the rule cannot name it whatever more draws say.
+        let inside = ramp(max * 0.99, &draws);
+        assert!(!inside.passes && !unsure(&inside), "{inside:?}");
+        // Above every draw, p between the threshold and three times it: unsure.
+        let above = ramp(7.0, &draws);
+        assert!(
+            !above.passes && above.p_value < 3.0 * above.p_needed && unsure(&above),
+            "{above:?}"
+        );
+    }
 
     #[test]
     fn ranges_group_runs() {
