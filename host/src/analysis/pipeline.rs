@@ -288,7 +288,9 @@ fn analyze_channel(
         window: options.psd_window,
         confidence: options.confidence,
     };
-    let psd_terms = fit::psd::fit_psd(&rate, rate_hz, &psd_options);
+    // The spectrum is the PSD fit's finest level: the same Welch estimate.
+    let welch = psd.as_ref().ok().map(|(p, _)| p);
+    let psd_terms = fit::psd::fit_psd_with(&rate, rate_hz, &psd_options, welch);
     tick();
     ChannelResult {
         name: channel.name.clone(),

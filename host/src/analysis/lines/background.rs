@@ -3,6 +3,7 @@
 
 use super::scan::DOF_GRID;
 use super::{BLOCKS_PER_DECADE, MEDIAN_HALF_WIDTH, MIN_BLOCK, SHAPE_ERROR};
+use std::cell::Cell;
 use std::f64::consts::LN_2;
 
 /// A smooth background PSD per bin, the relative variance of its estimate, and the degrees of
@@ -12,6 +13,9 @@ use std::f64::consts::LN_2;
 pub(super) struct Background {
     /// (ln centre bin, ln level, relative variance) per block, in increasing frequency.
     blocks: Vec<(f64, f64, f64)>,
+    /// The block found last: bins are mostly read in order, so the next one is usually
+    /// found there without a search.
+    hint: Cell<usize>,
 }
 
 impl Background {
@@ -28,6 +32,11 @@ impl Background {
         self.at(k).map_or(1.0, |(_, var)| var)
     }
 
+    /// The least relative variance at any bin (interpolation stays between blocks' values).
+    pub(super) fn least_rel_var(&self) -> f64 {
+        self.blocks.iter().map(|b| b.2).fold(1.0, f64::min)
+    }
+
     /// The degrees of freedom at bin k on the grid `2 DOF_GRID^bucket`.
     pub(super) fn bucket(&self, k: usize) -> i32 {
         ((1.0 / self.rel_var(k)).max(1.0).ln() / DOF_GRID.ln()).floor() as i32
@@ -40,7 +49,14 @@ impl Background {
             return None;
         }
         let x = (k as f64).ln();
-        let i = smoothed.partition_point(|b| b.0 <= x).saturating_sub(1);
+        // The last block whose centre is at or below x (the first when none is).
+        let hint = self.hint.get();
+        let i = if hint + 1 < smoothed.len() && smoothed[hint].0 <= x && x < smoothed[hint + 1].0 {
+            hint
+        } else {
+            smoothed.partition_point(|b| b.0 <= x).saturating_sub(1)
+        };
+        self.hint.set(i);
         Some(if x <= smoothed[0].0 {
             (smoothed[0].1, smoothed[0].2)
         } else if i + 1 >= smoothed.len() {
@@ -104,7 +120,10 @@ pub(super) fn background(
             (blocks[i].0, level, rel_var)
         })
         .collect();
-    Background { blocks: smoothed }
+    Background {
+        blocks: smoothed,
+        hint: Cell::new(0),
+    }
 }
 
 /// The background's ln level at block `at` of a window of blocks (ln centre, ln level), and

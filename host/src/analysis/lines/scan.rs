@@ -203,6 +203,7 @@ impl Search<'_> {
         }
         let octaves = per_octave.iter().filter(|&&c| c > 0).count().max(1);
         let mut thresholds = Thresholds::default();
+        let least_rel_var = [bg.hann.least_rel_var(), bg.rect.least_rel_var()];
         // Passing tests as (surprise, first bin, length): ranked by how unlikely they are
         // without a line, so that each line is located by the run that fits it best.
         let mut passed: Vec<(f64, usize, usize)> = Vec::new();
@@ -216,9 +217,13 @@ impl Search<'_> {
                 } else {
                     ((cum[j + l - k_lo] - cum[j - k_lo]) / l as f64, &bg.rect)
                 };
-                let v = background.rel_var(centre);
                 // Every threshold lies beyond two standard deviations (level < 1 %): most runs
-                // are settled without one.
+                // are settled without one, and most of those by the least variance alone.
+                let least = least_rel_var[usize::from(l > 1)];
+                if mean <= 1.0 + 2.0 * (1.0 / l as f64 + least).sqrt() {
+                    continue;
+                }
+                let v = background.rel_var(centre);
                 if mean <= 1.0 + 2.0 * (1.0 / l as f64 + v).sqrt() {
                     continue;
                 }
