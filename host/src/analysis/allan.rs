@@ -158,7 +158,7 @@ fn overlapping_sums(x: &[f64], ms: &[usize], order: Order) -> Vec<f64> {
         return Vec::new();
     };
     let count = |m: usize| x.len() - order.span() * m;
-    blocks(count(m_min), TILE)
+    let tiles: Vec<Vec<f64>> = blocks(count(m_min), TILE)
         .map(|(start, len)| {
             ms.iter()
                 .map(|&m| {
@@ -171,13 +171,13 @@ fn overlapping_sums(x: &[f64], ms: &[usize], order: Order) -> Vec<f64> {
                 })
                 .collect::<Vec<f64>>()
         })
-        .reduce(
-            || vec![0.0; ms.len()],
-            |mut a, b| {
-                a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
-                a
-            },
-        )
+        .collect();
+    // Added in tile order, so the result does not depend on how the tiles were scheduled.
+    let mut sums = vec![0.0; ms.len()];
+    for tile in tiles {
+        sums.iter_mut().zip(tile).for_each(|(a, b)| *a += b);
+    }
+    sums
 }
 
 /// Sum of `term(i)²` for i in 0..count, with eight independent accumulators so the loop
@@ -247,9 +247,7 @@ fn sum_sq(x: &[f64], m: usize, order: Order, stride: usize) -> f64 {
     let span = order.span() * m;
     let count = (x.len() - 1 - span) / stride + 1;
     if stride == 1 {
-        return blocks(count, BLOCK)
-            .map(|(s, c)| sum_sq_run(x, m, order, s, c))
-            .sum();
+        return sum_blocks(count, BLOCK, |(s, c)| sum_sq_run(x, m, order, s, c));
     }
     // Non-overlapping: few terms (N/m); a strided gather is as good as it gets.
     let d = |i: usize| match order {
@@ -257,6 +255,13 @@ fn sum_sq(x: &[f64], m: usize, order: Order, stride: usize) -> f64 {
         Order::Third => x[i + 3 * m] - 3.0 * (x[i + 2 * m] - x[i + m]) - x[i],
     };
     sum_squares(count, |k| d(k * stride))
+}
+
+/// `f` summed over (start, len) blocks covering 0..count, the blocks computed in parallel
+/// and added in order (the same result however they were scheduled).
+fn sum_blocks(count: usize, block: usize, f: impl Fn((usize, usize)) -> f64 + Sync + Send) -> f64 {
+    let parts: Vec<f64> = blocks(count, block).map(f).collect();
+    parts.iter().sum()
 }
 
 /// Parallel iterator over (start, len) blocks covering 0..count.
@@ -276,37 +281,35 @@ fn sum_sq_moving(x: &[f64], m: usize) -> f64 {
     let count = x.len() + 1 - 3 * m;
     let d2 = |i: usize| x[i + 2 * m] - 2.0 * x[i + m] + x[i];
     let window = |j: usize| (j..j + m).map(d2).sum::<f64>();
-    blocks(count, BLOCK.max(64 * m))
-        .map(|(start, len)| {
-            let lanes = 8usize.min(len);
-            let per = len / lanes;
-            let mut w: Vec<f64> = (0..lanes).map(|l| window(start + l * per)).collect();
-            let mut acc = vec![0.0f64; lanes];
-            for k in 0..per {
-                let step = k + 1 < per;
-                for l in 0..lanes {
-                    acc[l] += w[l] * w[l];
-                    if step {
-                        let j = start + l * per + k;
-                        w[l] += d2(j + m) - d2(j);
-                    }
+    sum_blocks(count, BLOCK.max(64 * m), |(start, len)| {
+        let lanes = 8usize.min(len);
+        let per = len / lanes;
+        let mut w: Vec<f64> = (0..lanes).map(|l| window(start + l * per)).collect();
+        let mut acc = vec![0.0f64; lanes];
+        for k in 0..per {
+            let step = k + 1 < per;
+            for l in 0..lanes {
+                acc[l] += w[l] * w[l];
+                if step {
+                    let j = start + l * per + k;
+                    w[l] += d2(j + m) - d2(j);
                 }
             }
-            // The remainder (len not a multiple of lanes) gets a window of its own.
-            let rest = start + lanes * per..start + len;
-            let mut tail = 0.0;
-            if !rest.is_empty() {
-                let mut wr = window(rest.start);
-                for j in rest.clone() {
-                    tail += wr * wr;
-                    if j + 1 < rest.end {
-                        wr += d2(j + m) - d2(j);
-                    }
+        }
+        // The remainder (len not a multiple of lanes) gets a window of its own.
+        let rest = start + lanes * per..start + len;
+        let mut tail = 0.0;
+        if !rest.is_empty() {
+            let mut wr = window(rest.start);
+            for j in rest.clone() {
+                tail += wr * wr;
+                if j + 1 < rest.end {
+                    wr += d2(j + m) - d2(j);
                 }
             }
-            acc.iter().sum::<f64>() + tail
-        })
-        .sum()
+        }
+        acc.iter().sum::<f64>() + tail
+    })
 }
 
 /// Total-variance sum on the reflected extension of x (SP 1065 §5.2.11): with 0-based
@@ -332,9 +335,9 @@ fn sum_sq_reflected(x: &[f64], m: usize) -> f64 {
     };
     // max_factor guarantees m ≤ (N-1)/2, so the interior m..=N-1-m is non-empty.
     let interior_count = n - 2 * m;
-    let interior: f64 = blocks(interior_count, BLOCK)
-        .map(|(s, c)| sum_sq_run(x, m, Order::Second, s, c))
-        .sum();
+    let interior = sum_blocks(interior_count, BLOCK, |(s, c)| {
+        sum_sq_run(x, m, Order::Second, s, c)
+    });
     let left = sum_squares(m - 1, |k| edge(k + 1));
     let right = sum_squares(m - 1, |k| edge(n - m + k));
     interior + left + right

@@ -213,51 +213,55 @@ fn analyze_channel(
     tick: &(dyn Fn() + Sync),
 ) -> ChannelResult {
     let tau0 = 1.0 / rate_hz;
-    // Phase for the Allan family; rate for the PSD.
-    let (phase, rate): (Vec<f64>, Cow<[f64]>) = match options.data_type {
-        DataType::Rate => (
-            phase_from_rate(&channel.values, tau0),
-            Cow::Borrowed(&channel.values[..]),
+    // The rate for the line search and the PSD. Each step below holds at most one
+    // record-sized buffer of its own beside the record, and frees it before the next.
+    let rate: Cow<[f64]> = match options.data_type {
+        DataType::Rate => Cow::Borrowed(&channel.values[..]),
+        DataType::Phase => Cow::Owned(
+            channel
+                .values
+                .windows(2)
+                .map(|w| (w[1] - w[0]) / tau0)
+                .collect(),
         ),
-        DataType::Phase => (
-            channel.values.clone(),
-            Cow::Owned(
-                channel
-                    .values
-                    .windows(2)
-                    .map(|w| (w[1] - w[0]) / tau0)
-                    .collect(),
-            ),
-        ),
+    };
+    // Spectral lines leave the record before the fit's curve and the roll-off search.
+    let searched = options
+        .lines
+        .and_then(|opts| lines::clean(&rate, rate_hz, &opts).ok());
+    let low_pass = channel_low_pass(channel.quantity, &rate, searched.as_ref(), rate_hz, options);
+    let (lines, line_free) = match searched {
+        Some(c) if !c.lines.is_empty() => (c.lines, Some(c.rate)),
+        _ => (Vec::new(), None),
+    };
+    // The fit's curve from the record without its lines, on the same taus.
+    let clean_deviation = line_free.map(|r| {
+        let clean = phase_from_rate(&r, tau0);
+        drop(r);
+        let factors = taus::factors(
+            options.taus,
+            allan::max_factor(Estimator::Oadev, clean.len()),
+        );
+        allan::deviation(Estimator::Oadev, &clean, tau0, &factors)
+    });
+    // Phase for the Allan family.
+    let phase: Cow<[f64]> = match options.data_type {
+        DataType::Rate => Cow::Owned(phase_from_rate(&channel.values, tau0)),
+        DataType::Phase => Cow::Borrowed(&channel.values[..]),
     };
     let curve = |est: Estimator| {
         let factors = taus::factors(options.taus, allan::max_factor(est, phase.len()));
         allan::deviation(est, &phase, tau0, &factors)
     };
     let curves: Vec<Deviation> = options.estimators.par_iter().map(|&e| curve(e)).collect();
-    // Spectral lines leave the record before the fit's curve and the roll-off search.
-    let searched = options
-        .lines
-        .and_then(|opts| lines::remove(&rate, rate_hz, &opts).ok());
-    let low_pass = channel_low_pass(channel.quantity, &rate, searched.as_ref(), rate_hz, options);
-    let removed = searched.filter(|r| !r.lines.is_empty());
-    let fit_deviation = match &removed {
-        // The fit's curve from the record without its lines, on the same taus.
-        Some(r) => {
-            let clean = phase_from_rate(&r.rate, tau0);
-            let factors = taus::factors(
-                options.taus,
-                allan::max_factor(Estimator::Oadev, clean.len()),
-            );
-            allan::deviation(Estimator::Oadev, &clean, tau0, &factors)
-        }
+    let fit_deviation = match clean_deviation {
+        Some(d) => d,
         None => curves
             .iter()
             .find(|d| d.estimator == Estimator::Oadev)
             .cloned()
             .unwrap_or_else(|| curve(Estimator::Oadev)),
     };
-    let lines = removed.map(|r| r.lines).unwrap_or_default();
     let (fit, readouts) = fit_noise(&fit_deviation, phase.len(), low_pass, options);
     // The intervals take the noise type from the fit where it has one (ci::intervals_with_model).
     let with_intervals = |deviation: Deviation| {
@@ -284,7 +288,9 @@ fn analyze_channel(
         window: options.psd_window,
         confidence: options.confidence,
     };
-    let psd_terms = fit::psd::fit_psd(&rate, rate_hz, &psd_options);
+    // The spectrum is the PSD fit's finest level: the same Welch estimate.
+    let welch = psd.as_ref().ok().map(|(p, _)| p);
+    let psd_terms = fit::psd::fit_psd_with(&rate, rate_hz, &psd_options, welch);
     tick();
     ChannelResult {
         name: channel.name.clone(),
@@ -320,7 +326,7 @@ pub fn sensor_kind(quantity: Quantity) -> SensorKind {
 fn channel_low_pass(
     quantity: Quantity,
     rate: &[f64],
-    searched: Option<&lines::Removed>,
+    searched: Option<&lines::Cleaned>,
     rate_hz: f64,
     options: &Options,
 ) -> Option<LowPass> {
@@ -333,7 +339,7 @@ fn channel_low_pass(
         LowPassChoice::Detect => {
             let own = match searched {
                 Some(_) => None,
-                None => lines::remove(rate, rate_hz, &LineOptions::default()).ok(),
+                None => lines::clean(rate, rate_hz, &LineOptions::default()).ok(),
             };
             let (series, found): (&[f64], &[Line]) = match searched.or(own.as_ref()) {
                 Some(removed) => (&removed.rate, &removed.lines),
@@ -457,7 +463,7 @@ mod tests {
                 let options = Options::default();
                 let searched = options
                     .lines
-                    .and_then(|opts| lines::remove(&y, rate_hz, &opts).ok());
+                    .and_then(|opts| lines::clean(&y, rate_hz, &opts).ok());
                 let found = channel_low_pass(
                     Quantity::AngularRate,
                     &y,

@@ -21,6 +21,7 @@
 use rayon::prelude::*;
 use realfft::RealFftPlanner;
 use serde::Serialize;
+use std::borrow::Cow;
 use std::f64::consts::PI;
 
 /// Errors from [`welch`]; each names the input at fault.
@@ -193,8 +194,22 @@ pub struct Psd {
 /// Welch's one-sided PSD of `y` sampled at `rate_hz` (see the module documentation for the
 /// exact definition; it equals scipy's `welch` with `scaling='density'`).
 pub fn welch(y: &[f64], rate_hz: f64, opts: &WelchOptions) -> Result<Psd, PsdError> {
+    welch_with(y, rate_hz, opts, None)
+}
+
+/// [`welch`], with the window's coefficients when the caller has them for the segment length
+/// (a caller computing several spectra with one window computes it once).
+pub fn welch_with(
+    y: &[f64],
+    rate_hz: f64,
+    opts: &WelchOptions,
+    window: Option<&[f64]>,
+) -> Result<Psd, PsdError> {
     let plan = SegmentPlan::new(y, rate_hz, opts)?;
-    let window = opts.window.coefficients(plan.len);
+    let window: Cow<[f64]> = match window {
+        Some(w) if w.len() == plan.len => Cow::Borrowed(w),
+        _ => Cow::Owned(opts.window.coefficients(plan.len)),
+    };
     let sum_w2: f64 = window.iter().map(|w| w * w).sum();
     let sums = plan.sum_periodograms(y, &window, opts.detrend_mean);
     let scale = 1.0 / (rate_hz * sum_w2 * plan.count as f64);

@@ -1,9 +1,12 @@
 //! `imunoise bench`: our engine against the reference tool on the same generated data.
 //!
-//! 1. Overlapping Allan deviation of 10^7 white-noise rate samples at ~100 log-spaced taus:
-//!    imunoise (in process, best of three) and allantools (`scripts/bench_allantools.py`,
-//!    run with `python3`), their wall times and ratio, and the largest relative difference of
-//!    the deviations; plus imunoise's peak memory over the input's size (Linux).
+//! 1. Overlapping Allan deviation of 10^7 white-noise rate samples at 100 Hz, at the taus of
+//!    `analyze --taus per-decade:14`: allantools' `oadev` (`scripts/bench_allantools.py`, run
+//!    with `python3`) against imunoise's engine (in process, best of three) and against a whole
+//!    `imunoise analyze` of the same data as a `.npy` file (a child process, best of three:
+//!    reading, line search, Allan curve with intervals, fit, PSD and its fit, output), their
+//!    ratios, and the largest relative difference of the deviations; the engine's peak memory
+//!    and the whole analysis's peak resident memory (Linux), each over the input's size.
 //! 2. A full `analyze` (six channels, oadev with CIs, PSD, fit) of an 8-hour 200 Hz record.
 //! 3. The simulator's cost per noise term: an hour of six axes at 1 kHz.
 //! 4. Decoding a large capture file (target: at least 100 MB/s).
@@ -37,9 +40,9 @@ pub struct BenchArgs {
     /// Samples for the Allan deviation comparison
     #[arg(long, default_value_t = 10_000_000)]
     pub samples: usize,
-    /// Number of log-spaced taus
-    #[arg(long, default_value_t = 100)]
-    pub taus: usize,
+    /// Tau grid of the Allan comparison (as `analyze --taus`)
+    #[arg(long, default_value = "per-decade:14")]
+    pub taus: TauGrid,
     /// Hours of 200 Hz six-axis data for the full-analysis benchmark
     #[arg(long, default_value_t = 8.0)]
     pub hours: f64,
@@ -58,53 +61,152 @@ pub struct BenchArgs {
 }
 
 pub fn run(args: &BenchArgs) -> Result<()> {
-    if args.samples < 100 || args.taus == 0 {
-        bail!("--samples at least 100 and --taus at least 1");
+    if args.samples < 100 {
+        bail!("--samples at least 100");
     }
     println!(
         "imunoise bench ({} threads)\n",
         rayon::current_num_threads()
     );
-    let y = white(args.samples, 1);
-    let factors = log_factors(allan::max_factor(Estimator::Oadev, y.len() + 1), args.taus);
-    println!(
-        "1. Overlapping Allan deviation, {} white-noise samples, {} taus",
-        y.len(),
-        factors.len()
-    );
-    let ours = time_oadev(&y, &factors);
-    println!("   imunoise:   {:>8.3} s (best of 3)", ours.seconds);
-    match peak_over_input(&y, &factors) {
-        Some(ratio) => {
-            println!("   imunoise peak memory: {ratio:.2} x the input, the input included (VmHWM)")
-        }
-        None => println!("   imunoise peak memory: not measurable on this OS"),
-    }
-    if args.no_reference {
-        println!("   allantools: skipped (--no-reference)");
-    } else {
-        match reference(&args.python, &y, &factors) {
-            Ok((seconds, devs, version)) => {
-                let max_rel = ours
-                    .devs
-                    .iter()
-                    .zip(&devs)
-                    .map(|(a, b)| ((a - b) / b).abs())
-                    .fold(0.0, f64::max);
-                println!("   allantools: {seconds:>8.3} s (version {version})");
-                println!(
-                    "   ratio:      {:>8.1} x faster; largest relative difference {max_rel:.1e}",
-                    seconds / ours.seconds
-                );
-            }
-            Err(e) => println!("   allantools: not run ({e:#})"),
-        }
-    }
+    let dir = std::env::temp_dir().join(format!("imunoise-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let compared = allan_comparison(args, &dir);
+    let _ = std::fs::remove_dir_all(&dir);
+    compared?;
     full_analysis(args.hours)?;
     simulator_terms();
     decode_throughput(args.capture_mb);
     model_workflow()?;
     streaming(args.stream_hours)
+}
+
+/// The rate of section 1's record, Hz.
+const COMPARISON_RATE_HZ: f64 = 100.0;
+
+/// Section 1: allantools' oadev against the engine and against a whole `analyze`, on one
+/// record written to `dir`.
+fn allan_comparison(args: &BenchArgs, dir: &Path) -> Result<()> {
+    let y = white(args.samples, 1);
+    let factors = taus::factors(args.taus, allan::max_factor(Estimator::Oadev, y.len() + 1));
+    println!(
+        "1. Overlapping Allan deviation, {} white-noise samples at {COMPARISON_RATE_HZ} Hz, {} taus ({})",
+        y.len(),
+        factors.len(),
+        args.taus
+    );
+    let data = dir.join("y.npy");
+    input::write_npy(&data, &y)?;
+    let input_bytes = std::fs::metadata(&data)?.len() as f64;
+    let ours = time_oadev(&y, &factors);
+    println!("   engine:         {:>8.3} s (best of 3)", ours.seconds);
+    match peak_over_input(&y, &factors) {
+        Some(ratio) => {
+            println!("   engine peak memory: {ratio:.2} x the input, the input included (VmHWM)")
+        }
+        None => println!("   engine peak memory: not measurable on this OS"),
+    }
+    drop(y);
+    // Before any other child process: the peak resident memory of the children so far is
+    // then the analysis's.
+    let whole = time_analyze(&data, args.taus, dir)?;
+    println!(
+        "   whole analyze:  {:>8.3} s (best of 3; `imunoise analyze y.npy --rate {COMPARISON_RATE_HZ} --estimator oadev --taus {}`)",
+        whole.seconds, args.taus
+    );
+    let rss_ratio = children_peak_rss().map(|bytes| bytes / input_bytes);
+    match rss_ratio {
+        Some(r) => println!(
+            "   whole analyze peak memory: {r:.2} x the input ({:.0} MB .npy), resident (getrusage)",
+            input_bytes / 1e6
+        ),
+        None => println!("   whole analyze peak memory: not measurable on this OS"),
+    }
+    let agree = |name: &str, devs: &[f64], reference: &[f64]| {
+        let max_rel = devs
+            .iter()
+            .zip(reference)
+            .map(|(a, b)| ((a - b) / b).abs())
+            .fold(0.0, f64::max);
+        println!("   {name} against allantools: largest relative difference {max_rel:.1e}");
+    };
+    if args.no_reference {
+        println!("   allantools: skipped (--no-reference)");
+        return Ok(());
+    }
+    match run_reference(&args.python, dir, &data, &factors) {
+        Ok((seconds, devs, version)) => {
+            println!("   allantools:     {seconds:>8.3} s (version {version})");
+            agree("engine", &ours.devs, &devs);
+            agree("analyze", &whole.devs, &devs);
+            println!("   ratios:");
+            println!(
+                "     whole analyze vs allantools oadev: {:>6.1} x faster (target 10)",
+                seconds / whole.seconds
+            );
+            println!(
+                "     engine vs allantools oadev:        {:>6.1} x faster (target 25)",
+                seconds / ours.seconds
+            );
+            if let Some(r) = rss_ratio {
+                println!("     whole analyze peak RSS / input:    {r:>6.2} (target 1.5)");
+            }
+        }
+        Err(e) => println!("   allantools: not run ({e:#})"),
+    }
+    Ok(())
+}
+
+/// Best of three runs of this executable's `analyze` on `data`, with its oadev curve.
+fn time_analyze(data: &Path, grid: TauGrid, dir: &Path) -> Result<Timed> {
+    let exe = std::env::current_exe().context("finding the imunoise executable")?;
+    let json = dir.join("analysis.json");
+    let mut best = f64::INFINITY;
+    for _ in 0..3 {
+        let start = Instant::now();
+        let out = Command::new(&exe)
+            .arg("--store")
+            .arg(dir.join("store"))
+            .arg("analyze")
+            .arg(data)
+            .args(["--rate", &COMPARISON_RATE_HZ.to_string()])
+            .args(["--estimator", "oadev", "--taus", &grid.to_string()])
+            .arg("--json")
+            .arg(&json)
+            .stdout(std::process::Stdio::null())
+            .output()
+            .context("running imunoise analyze")?;
+        let seconds = start.elapsed().as_secs_f64();
+        if !out.status.success() {
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            bail!("imunoise analyze failed: {}", stderr.trim());
+        }
+        best = best.min(seconds);
+    }
+    let document: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
+    let devs = document["channels"][0]["deviations"]["oadev"]["dev"]
+        .as_array()
+        .context("no oadev curve in the analysis")?
+        .iter()
+        .filter_map(|v| v.as_f64())
+        .collect();
+    Ok(Timed {
+        seconds: best,
+        devs,
+    })
+}
+
+/// The largest peak resident memory of the child processes waited for so far, bytes.
+#[cfg(target_os = "linux")]
+fn children_peak_rss() -> Option<f64> {
+    use nix::sys::resource::{UsageWho, getrusage};
+    // Linux reports ru_maxrss in KiB.
+    let usage = getrusage(UsageWho::RUSAGE_CHILDREN).ok()?;
+    Some(usage.max_rss() as f64 * 1024.0)
+}
+
+#[cfg(not(target_os = "linux"))]
+fn children_peak_rss() -> Option<f64> {
+    None
 }
 
 /// Six axes of `hours` at 1 kHz, generated and fed in 64 Ki-sample batches (never held
@@ -332,8 +434,9 @@ fn time_oadev(y: &[f64], factors: &[usize]) -> Timed {
     for _ in 0..3 {
         let input = y.to_vec();
         let start = Instant::now();
-        let phase = into_phase(input, 1.0);
-        let d = allan::deviation(Estimator::Oadev, &phase, 1.0, factors);
+        let tau0 = 1.0 / COMPARISON_RATE_HZ;
+        let phase = into_phase(input, tau0);
+        let d = allan::deviation(Estimator::Oadev, &phase, tau0, factors);
         best = best.min(start.elapsed().as_secs_f64());
         devs = d.dev;
     }
@@ -365,50 +468,28 @@ fn peak_over_input(y: &[f64], factors: &[usize]) -> Option<f64> {
     Some((peak - baseline - input_bytes) / input_bytes)
 }
 
-/// `count` log-spaced averaging factors from 1 to `max_m`, deduplicated.
-fn log_factors(max_m: usize, count: usize) -> Vec<usize> {
-    let top = (max_m.max(1) as f64).log10();
-    let mut f: Vec<usize> = (0..count)
-        .map(|i| {
-            10f64
-                .powf(top * i as f64 / (count.max(2) - 1) as f64)
-                .round() as usize
-        })
-        .map(|m| m.clamp(1, max_m.max(1)))
-        .collect();
-    f.dedup();
-    f
-}
-
 fn white(n: usize, seed: u64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     (0..n).map(|_| StandardNormal.sample(&mut rng)).collect()
 }
 
-fn reference(python: &str, y: &[f64], factors: &[usize]) -> Result<(f64, Vec<f64>, String)> {
-    let dir = std::env::temp_dir().join(format!("imunoise-bench-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
-    let result = run_reference(python, &dir, y, factors);
-    let _ = std::fs::remove_dir_all(&dir);
-    result
-}
-
+/// allantools' oadev of the rate samples in `data` at `factors` (`scripts/bench_allantools.py`):
+/// its seconds, deviations and version.
 fn run_reference(
     python: &str,
     dir: &Path,
-    y: &[f64],
+    data: &Path,
     factors: &[usize],
 ) -> Result<(f64, Vec<f64>, String)> {
     let script = dir.join("bench_allantools.py");
     std::fs::write(&script, REFERENCE_SCRIPT)?;
-    input::write_npy(&dir.join("y.npy"), y)?;
     let list: String = factors.iter().map(|m| format!("{m}\n")).collect();
     std::fs::write(dir.join("factors.txt"), list)?;
     let out = Command::new(python)
         .arg(&script)
-        .arg(dir.join("y.npy"))
+        .arg(data)
         .arg(dir.join("factors.txt"))
-        .arg("1.0")
+        .arg(COMPARISON_RATE_HZ.to_string())
         .arg(dir.join("out.json"))
         .output()
         .with_context(|| format!("running {python}"))?;

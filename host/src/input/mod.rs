@@ -18,7 +18,7 @@ use crate::capture::{self, Capture};
 use crate::record::{Channel, Quantity, Record};
 use protocol::mpu6050::SensorSettings;
 use serde::Serialize;
-use std::io::Read;
+use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
 /// How to turn a file into a record.
@@ -164,11 +164,33 @@ const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 /// (the board's framed bytes, recognised by its leading frame delimiter), a NumPy array (its
 /// magic bytes, or a name ending `.npy`), anything else as a text table.
 pub fn load(path: &Path, options: &LoadOptions) -> Result<Loaded, InputError> {
-    let mut bytes = std::fs::read(path).map_err(|source| InputError::Io {
+    let io = |source| InputError::Io {
         path: path.to_owned(),
         source,
-    })?;
+    };
+    let mut file = std::fs::File::open(path).map_err(io)?;
     let mut report = ReadReport::default();
+    let mut magic = [0u8; 6];
+    let is_raw_npy = match file.read_exact(&mut magic) {
+        Ok(()) => magic == npy::MAGIC,
+        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => false,
+        Err(e) => return Err(io(e)),
+    };
+    file.seek(SeekFrom::Start(0)).map_err(io)?;
+    if is_raw_npy {
+        // An uncompressed array is read straight into its channels.
+        let len = file.metadata().map_err(io)?.len();
+        let table = npy::parse_reader(path, std::io::BufReader::new(file), len)?;
+        let record = build_record(path, table, options, &mut report)?;
+        return Ok(Loaded {
+            record,
+            notes: Vec::new(),
+            settings: None,
+            report,
+        });
+    }
+    let mut bytes = Vec::new();
+    file.read_to_end(&mut bytes).map_err(io)?;
     if bytes.starts_with(&GZIP_MAGIC) {
         bytes = gunzip(path, &bytes)?;
         report.compression = Some("gzip");

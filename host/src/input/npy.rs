@@ -3,6 +3,7 @@
 //! either byte order. Channels are named `c0`, `c1`, ... unless `--names` says otherwise.
 
 use super::{InputError, Table};
+use std::io::Read;
 use std::path::Path;
 
 /// The bytes every `.npy` file starts with.
@@ -43,61 +44,110 @@ pub enum NpyError {
 }
 
 pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<Table, InputError> {
-    read(bytes).map_err(|source| InputError::Npy {
-        path: path.to_owned(),
-        source,
+    parse_reader(path, bytes, bytes.len() as u64)
+}
+
+/// [`parse`] from a reader holding `len` bytes (a file read as it is): each value goes
+/// straight into its channel, so reading costs no buffer beside the channels.
+pub(super) fn parse_reader(path: &Path, reader: impl Read, len: u64) -> Result<Table, InputError> {
+    read(reader, len).map_err(|e| match e {
+        ReadError::Io(source) => InputError::Io {
+            path: path.to_owned(),
+            source,
+        },
+        ReadError::Npy(source) => InputError::Npy {
+            path: path.to_owned(),
+            source,
+        },
     })
 }
 
-fn read(bytes: &[u8]) -> Result<Table, NpyError> {
-    let (header, data) = split_header(bytes)?;
-    let key = |name: &'static str| dict_value(header, name).ok_or(NpyError::MissingKey(name));
+/// A reader's failure or a format error.
+enum ReadError {
+    Io(std::io::Error),
+    Npy(NpyError),
+}
+
+impl From<NpyError> for ReadError {
+    fn from(e: NpyError) -> Self {
+        ReadError::Npy(e)
+    }
+}
+
+impl From<std::io::Error> for ReadError {
+    fn from(e: std::io::Error) -> Self {
+        ReadError::Io(e)
+    }
+}
+
+/// Values read per chunk.
+const CHUNK: usize = 1 << 13;
+
+fn read(mut reader: impl Read, len: u64) -> Result<Table, ReadError> {
+    let (header, header_end) = read_header(&mut reader)?;
+    let key = |name: &'static str| dict_value(&header, name).ok_or(NpyError::MissingKey(name));
     let dtype = Dtype::parse(key("descr")?.trim_matches(['\'', '"']))?;
     let fortran = key("fortran_order")? == "True";
     let shape = parse_shape(key("shape")?)?;
     let (rows, cols) = match shape[..] {
         [n] => (n, 1),
         [n, c] => (n, c),
-        _ => return Err(NpyError::Dimensions(shape)),
+        _ => return Err(NpyError::Dimensions(shape).into()),
     };
     let count = rows.checked_mul(cols).ok_or(NpyError::TooLarge)?;
     let need = count.saturating_mul(dtype.size);
-    if data.len() < need {
-        return Err(NpyError::Truncated {
-            shape,
-            dtype: dtype.name,
-            need,
-            have: data.len(),
-        });
+    let truncated = |shape: Vec<usize>, have: u64| NpyError::Truncated {
+        shape,
+        dtype: dtype.name.clone(),
+        need,
+        have: usize::try_from(have).unwrap_or(usize::MAX),
+    };
+    let have = len.saturating_sub(header_end as u64);
+    if have < need as u64 {
+        return Err(truncated(shape, have).into());
     }
     if count == 0 {
-        return Err(NpyError::Empty);
+        return Err(NpyError::Empty.into());
     }
-    let values: Vec<f64> = data[..need]
-        .chunks_exact(dtype.size)
-        .map(|b| dtype.read(b))
-        .collect();
-    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-        let (row, col) = if fortran {
-            (i % rows, i / rows)
-        } else {
-            (i / cols, i % cols)
-        };
-        return Err(NpyError::NotFinite {
-            row,
-            col,
-            value: values[i],
-        });
+    let mut columns: Vec<Vec<f64>> = (0..cols).map(|_| Vec::with_capacity(rows)).collect();
+    let mut bytes = vec![0u8; CHUNK * dtype.size];
+    let mut at = 0;
+    // The file's order runs along a row (C order) or down a column (Fortran order):
+    // `row_start` is the index of that run's first element, `column` the Fortran column.
+    let (mut row_start, mut column) = (0, 0);
+    while at < count {
+        let take = CHUNK.min(count - at);
+        let chunk = &mut bytes[..take * dtype.size];
+        if let Err(e) = reader.read_exact(chunk) {
+            return Err(match e.kind() {
+                std::io::ErrorKind::UnexpectedEof => {
+                    truncated(shape, (at * dtype.size) as u64).into()
+                }
+                _ => e.into(),
+            });
+        }
+        for (i, b) in (at..).zip(chunk.chunks_exact(dtype.size)) {
+            let value = dtype.read(b);
+            // Element i of the file's order is in column i / rows (Fortran order) or
+            // i % cols (C order).
+            let col = if fortran { column } else { i - row_start };
+            if !value.is_finite() {
+                let row = if fortran { i - row_start } else { i / cols };
+                return Err(NpyError::NotFinite { row, col, value }.into());
+            }
+            columns[col].push(value);
+            let stride = if fortran { rows } else { cols };
+            if i + 1 - row_start == stride {
+                row_start += stride;
+                column += usize::from(fortran);
+            }
+        }
+        at += take;
     }
-    let channels = (0..cols)
-        .map(|c| {
-            let column: Vec<f64> = if fortran {
-                values[c * rows..(c + 1) * rows].to_vec()
-            } else {
-                values.iter().skip(c).step_by(cols).copied().collect()
-            };
-            (format!("c{c}"), column)
-        })
+    let channels = columns
+        .into_iter()
+        .enumerate()
+        .map(|(c, column)| (format!("c{c}"), column))
         .collect();
     Ok(Table {
         channels,
@@ -130,25 +180,47 @@ pub fn write_f64(path: &Path, values: &[f64]) -> std::io::Result<()> {
     out.flush()
 }
 
-/// The header dictionary text and the data after it.
-fn split_header(bytes: &[u8]) -> Result<(&str, &[u8]), NpyError> {
-    if !bytes.starts_with(MAGIC) || bytes.len() < 10 {
-        return Err(NpyError::BadMagic);
+/// The header dictionary text and the number of bytes before the data.
+fn read_header(reader: &mut impl Read) -> Result<(String, usize), ReadError> {
+    let mut start = [0u8; 12];
+    let got = read_up_to(reader, &mut start[..10])?;
+    if got < 10 || !start.starts_with(MAGIC) {
+        return Err(NpyError::BadMagic.into());
     }
-    let (len, start): (usize, usize) = match bytes[6] {
-        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
-        2 | 3 if bytes.len() >= 12 => (
-            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
-            12,
-        ),
-        v => return Err(NpyError::Version(v)),
+    let (len, begin): (usize, usize) = match start[6] {
+        1 => (u16::from_le_bytes([start[8], start[9]]) as usize, 10),
+        v @ (2 | 3) => {
+            if read_up_to(reader, &mut start[10..12])? < 2 {
+                return Err(NpyError::Version(v).into());
+            }
+            (
+                u32::from_le_bytes([start[8], start[9], start[10], start[11]]) as usize,
+                12,
+            )
+        }
+        v => return Err(NpyError::Version(v).into()),
     };
-    let end = start
-        .checked_add(len)
-        .filter(|&e| e <= bytes.len())
-        .ok_or(NpyError::HeaderTruncated)?;
-    let header = std::str::from_utf8(&bytes[start..end]).map_err(|_| NpyError::HeaderNotText)?;
-    Ok((header, &bytes[end..]))
+    let mut header = Vec::new();
+    let got = reader.by_ref().take(len as u64).read_to_end(&mut header)?;
+    if got < len {
+        return Err(NpyError::HeaderTruncated.into());
+    }
+    let header = String::from_utf8(header).map_err(|_| NpyError::HeaderNotText)?;
+    Ok((header, begin + len))
+}
+
+/// Fill as much of `buf` as the reader holds; the count filled.
+fn read_up_to(reader: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut filled = 0;
+    while filled < buf.len() {
+        match reader.read(&mut buf[filled..]) {
+            Ok(0) => break,
+            Ok(k) => filled += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(filled)
 }
 
 /// The text of `key`'s value in the header's Python dict literal.

@@ -192,7 +192,7 @@ pub fn spectrum(
     segment_len: usize,
     window: Window,
 ) -> Result<Vec<SpectrumPoint>, PsdError> {
-    Ok(pyramid(rate, rate_hz, segment_len, window)?
+    Ok(pyramid(rate, rate_hz, segment_len, window, None)?
         .into_iter()
         .map(|p| p.public)
         .collect())
@@ -203,6 +203,7 @@ fn pyramid(
     rate_hz: f64,
     segment_len: usize,
     window: Window,
+    level0: Option<&psd::Psd>,
 ) -> Result<Vec<Point>, PsdError> {
     let len = match segment_len {
         0 => psd::segment_len_for(rate.len()),
@@ -215,14 +216,20 @@ fn pyramid(
         detrend_mean: true,
     };
     let w = window.coefficients(len);
-    let lag_corr = ordinate_correlation(&w);
-    let smoothing = window_smoothing(&w);
+    let turns = Turns::new(len);
+    let lag_corr = ordinate_correlation_with(&w, &turns);
+    let smoothing = window_smoothing_with(&w, &turns);
+    drop(turns);
     let mut points = Vec::new();
     let mut series: Cow<[f64]> = Cow::Borrowed(rate);
     let mut fs = rate_hz;
     let mut level = 0;
     loop {
-        let spec = psd::welch(&series, fs, &opts)?;
+        let spec = match level0 {
+            // The caller's Welch estimate of the record with these options.
+            Some(p) if level == 0 && p.density.len() == len / 2 + 1 => Cow::Borrowed(p),
+            _ => Cow::Owned(psd::welch_with(&series, fs, &opts, Some(&w))?),
+        };
         let k_eff =
             effective_segments(&w, len - (len as f64 * 0.5).floor() as usize, spec.segments);
         // Level 0: up to Nyquist (excluded: one degree of freedom); deeper levels: the
@@ -332,33 +339,65 @@ fn bin_level(
 /// so its expected value is `sum_m |W(m)|^2 S(f_j+m)` normalised (Hann: 2/3 at 0, 1/6 at
 /// +-1). On the steep spectra of the lowest ordinates this matters: for `1 / f^2` at j = 3 the
 /// smoothed value is 13.5 % above `S(f_3)`.
+#[cfg(test)]
 fn window_smoothing(w: &[f64]) -> [f64; MAX_LAG + 1] {
-    let power: [f64; MAX_LAG + 1] = std::array::from_fn(|m| dft_power(w, m));
+    window_smoothing_with(w, &Turns::new(w.len()))
+}
+
+fn window_smoothing_with(w: &[f64], turns: &Turns) -> [f64; MAX_LAG + 1] {
+    let power: [f64; MAX_LAG + 1] = std::array::from_fn(|m| dft_power(w, m, turns));
     let total = power[0] + 2.0 * power[1..].iter().sum::<f64>();
     power.map(|p| p / total)
 }
 
 /// `|sum_t v_t e^(-2 pi i m t / L)|^2`, L the length of v; 0 below rounding (a generalised
 /// cosine window's transform is exactly 0 beyond its reach).
-fn dft_power(v: &[f64], m: usize) -> f64 {
-    let len = v.len() as f64;
+fn dft_power(v: &[f64], m: usize, turns: &Turns) -> f64 {
     let (mut re, mut im) = (0.0, 0.0);
-    for (t, x) in v.iter().enumerate() {
-        let phase = 2.0 * PI * (m * t) as f64 / len;
-        re += x * phase.cos();
-        im -= x * phase.sin();
+    let len = turns.0.len();
+    // The entry of `m t mod L`, advanced by m per sample.
+    let mut j = 0;
+    for x in v {
+        let (sin, cos) = turns.0[j];
+        re += x * cos;
+        im -= x * sin;
+        j += m;
+        while j >= len {
+            j -= len;
+        }
     }
     let scale: f64 = v.iter().map(|x| x.abs()).sum();
     let p = re * re + im * im;
     if p.sqrt() < 1e-9 * scale { 0.0 } else { p }
 }
 
+/// `(sin, cos)` of `2 pi j / L` for j = 0..L: the phases of a length-L DFT, each computed
+/// once for every lag (`2 pi m t / L` is the entry `m t mod L`, equal to the direct
+/// evaluation to rounding).
+struct Turns(Vec<(f64, f64)>);
+
+impl Turns {
+    fn new(len: usize) -> Turns {
+        let l = len as f64;
+        Turns(
+            (0..len)
+                .map(|j| (2.0 * PI * j as f64 / l).sin_cos())
+                .collect(),
+        )
+    }
+}
+
 /// `c(m)^2`, m = 0..=MAX_LAG: the squared correlation of Welch ordinates m apart for a
 /// window `w` (see the module documentation).
+#[cfg(test)]
 fn ordinate_correlation(w: &[f64]) -> [f64; MAX_LAG + 1] {
+    ordinate_correlation_with(w, &Turns::new(w.len()))
+}
+
+fn ordinate_correlation_with(w: &[f64], turns: &Turns) -> [f64; MAX_LAG + 1] {
     let w2: Vec<f64> = w.iter().map(|x| x * x).collect();
     let total: f64 = w2.iter().sum();
-    std::array::from_fn(|m| dft_power(&w2, m) / (total * total))
+    std::array::from_fn(|m| dft_power(&w2, m, turns) / (total * total))
 }
 
 /// Welch's segments counted as independent ones (Percival & Walden eq. 292b), for `count`
@@ -402,10 +441,22 @@ pub fn fit_psd(
     rate_hz: f64,
     opts: &PsdFitOptions,
 ) -> Result<PsdNoiseTerms, PsdFitError> {
+    fit_psd_with(rate, rate_hz, opts, None)
+}
+
+/// [`fit_psd`], given the record's own Welch estimate with the fit's segment length and
+/// window (Hann or `opts.window`, 50 % overlap, segment means removed), which is then not
+/// computed again; a `welch` of another segment length is not used.
+pub fn fit_psd_with(
+    rate: &[f64],
+    rate_hz: f64,
+    opts: &PsdFitOptions,
+    welch: Option<&psd::Psd>,
+) -> Result<PsdNoiseTerms, PsdFitError> {
     if !(opts.confidence > 0.0 && opts.confidence < 1.0) {
         return Err(PsdFitError::BadConfidence(opts.confidence));
     }
-    let all: Vec<Point> = pyramid(rate, rate_hz, opts.segment_len, opts.window)?
+    let all: Vec<Point> = pyramid(rate, rate_hz, opts.segment_len, opts.window, welch)?
         .into_iter()
         .filter(|p| p.public.density > 0.0)
         .collect();

@@ -3,29 +3,69 @@
 
 use super::scan::DOF_GRID;
 use super::{BLOCKS_PER_DECADE, MEDIAN_HALF_WIDTH, MIN_BLOCK, SHAPE_ERROR};
+use std::cell::Cell;
 use std::f64::consts::LN_2;
 
 /// A smooth background PSD per bin, the relative variance of its estimate, and the degrees of
 /// freedom `nu = 2 / rel_var` of the scaled chi-square that stands for it, rounded down to
-/// the grid `2 DOF_GRID^bucket`.
+/// the grid `2 DOF_GRID^bucket`. Held as the smoothed blocks and interpolated where it is
+/// read (a value per bin would be as large as the record).
 pub(super) struct Background {
-    pub(super) level: Vec<f64>,
-    pub(super) rel_var: Vec<f64>,
-    pub(super) bucket: Vec<i32>,
+    /// (ln centre bin, ln level, relative variance) per block, in increasing frequency.
+    blocks: Vec<(f64, f64, f64)>,
+    /// The block found last: bins are mostly read in order, so the next one is usually
+    /// found there without a search.
+    hint: Cell<usize>,
 }
 
 impl Background {
-    fn new(level: Vec<f64>, rel_var: Vec<f64>) -> Self {
-        let step = DOF_GRID.ln();
-        let bucket = rel_var
-            .iter()
-            .map(|v| ((1.0 / v).max(1.0).ln() / step).floor() as i32)
-            .collect();
-        Background {
-            level,
-            rel_var,
-            bucket,
+    /// The level at bin k (one-sided PSD), interpolated linearly in ln-ln between block
+    /// centres; constant beyond the first and last.
+    pub(super) fn level(&self, k: usize) -> f64 {
+        self.at(k).map_or(f64::MIN_POSITIVE, |(ln_level, _)| {
+            ln_level.exp().max(f64::MIN_POSITIVE)
+        })
+    }
+
+    /// The relative variance of [`Background::level`] at bin k.
+    pub(super) fn rel_var(&self, k: usize) -> f64 {
+        self.at(k).map_or(1.0, |(_, var)| var)
+    }
+
+    /// The least relative variance at any bin (interpolation stays between blocks' values).
+    pub(super) fn least_rel_var(&self) -> f64 {
+        self.blocks.iter().map(|b| b.2).fold(1.0, f64::min)
+    }
+
+    /// The degrees of freedom at bin k on the grid `2 DOF_GRID^bucket`.
+    pub(super) fn bucket(&self, k: usize) -> i32 {
+        ((1.0 / self.rel_var(k)).max(1.0).ln() / DOF_GRID.ln()).floor() as i32
+    }
+
+    /// (ln level, relative variance) at bin k >= 1; None at bin 0 or without blocks.
+    fn at(&self, k: usize) -> Option<(f64, f64)> {
+        let smoothed = &self.blocks;
+        if k == 0 || smoothed.is_empty() {
+            return None;
         }
+        let x = (k as f64).ln();
+        // The last block whose centre is at or below x (the first when none is).
+        let hint = self.hint.get();
+        let i = if hint + 1 < smoothed.len() && smoothed[hint].0 <= x && x < smoothed[hint + 1].0 {
+            hint
+        } else {
+            smoothed.partition_point(|b| b.0 <= x).saturating_sub(1)
+        };
+        self.hint.set(i);
+        Some(if x <= smoothed[0].0 {
+            (smoothed[0].1, smoothed[0].2)
+        } else if i + 1 >= smoothed.len() {
+            (smoothed[i].1, smoothed[i].2)
+        } else {
+            let (a, b) = (smoothed[i], smoothed[i + 1]);
+            let w = (x - a.0) / (b.0 - a.0);
+            (a.1 + w * (b.1 - a.1), a.2 + w * (b.2 - a.2))
+        })
     }
 }
 
@@ -33,9 +73,8 @@ impl Background {
 /// (module documentation, step 2); `median_variance` is the constant c of its relative
 /// variance `c / n_w`.
 pub(super) fn background(
-    power: &[f64],
+    power: impl Fn(usize) -> f64,
     mask: &[bool],
-    ln_bin: &[f64],
     k_hi: usize,
     widest: usize,
     median_variance: f64,
@@ -52,7 +91,7 @@ pub(super) fn background(
         let width = ((start as f64 * growth) as usize).clamp(MIN_BLOCK, most);
         let end = (start + width).min(k_hi + 1);
         values.clear();
-        values.extend((start..end).filter(|&k| !mask[k]).map(|k| power[k]));
+        values.extend((start..end).filter(|&k| !mask[k]).map(&power));
         if values.len() * 2 >= end - start && values.len() >= 3 {
             // An odd count, so that the median is one order statistic.
             let m = values.len() - (1 - values.len() % 2);
@@ -81,29 +120,10 @@ pub(super) fn background(
             (blocks[i].0, level, rel_var)
         })
         .collect();
-    let mut level = vec![f64::MIN_POSITIVE; power.len()];
-    let mut rel_var = vec![1.0; power.len()];
-    if smoothed.is_empty() {
-        return Background::new(level, rel_var);
+    Background {
+        blocks: smoothed,
+        hint: Cell::new(0),
     }
-    let mut i = 0;
-    for (k, &x) in ln_bin.iter().enumerate().skip(1) {
-        while i + 1 < smoothed.len() && smoothed[i + 1].0 <= x {
-            i += 1;
-        }
-        let (ln_level, var) = if x <= smoothed[0].0 {
-            (smoothed[0].1, smoothed[0].2)
-        } else if i + 1 >= smoothed.len() {
-            (smoothed[i].1, smoothed[i].2)
-        } else {
-            let (a, b) = (smoothed[i], smoothed[i + 1]);
-            let w = (x - a.0) / (b.0 - a.0);
-            (a.1 + w * (b.1 - a.1), a.2 + w * (b.2 - a.2))
-        };
-        level[k] = ln_level.exp().max(f64::MIN_POSITIVE);
-        rel_var[k] = var;
-    }
-    Background::new(level, rel_var)
 }
 
 /// The background's ln level at block `at` of a window of blocks (ln centre, ln level), and

@@ -84,9 +84,11 @@
 
 pub use tone::tone_near;
 
+use background::Background;
 use realfft::num_complex::Complex;
 use realfft::{RealFftPlanner, RealToComplex};
 use serde::Serialize;
+use std::borrow::Cow;
 use std::f64::consts::PI;
 use std::sync::Arc;
 use tone::{Tone, fit_tone, jacobsen, subtract};
@@ -185,44 +187,61 @@ pub fn detect(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Vec<Line
 /// band the Fourier coefficients scaled so that the band's power falls to the background's
 /// (the background's own fluctuation within the band is kept; only the excess goes).
 pub fn remove(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Removed, LineError> {
-    let found = search(rate, rate_hz, opts)?;
-    if found.bands.is_empty() {
-        return Ok(Removed {
-            lines: found.lines,
-            rate: found.work,
-        });
+    let Cleaned { lines, rate } = clean(rate, rate_hz, opts)?;
+    Ok(Removed {
+        lines,
+        rate: rate.into_owned(),
+    })
+}
+
+/// The lines of a record and the record without them, borrowed when there were none.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cleaned<'a> {
+    pub lines: Vec<Line>,
+    pub rate: Cow<'a, [f64]>,
+}
+
+/// [`remove`] without a copy of a record that has no lines.
+pub fn clean<'a>(
+    rate: &'a [f64],
+    rate_hz: f64,
+    opts: &LineOptions,
+) -> Result<Cleaned<'a>, LineError> {
+    let Found {
+        lines,
+        bands,
+        background,
+        work,
+        mut spectrum,
+        trend,
+    } = search(rate, rate_hz, opts)?;
+    if bands.is_empty() {
+        return Ok(Cleaned { lines, rate: work });
     }
-    let (trend, mut x) = detrend(&found.work);
-    let n = x.len();
-    let mut planner = RealFftPlanner::<f64>::new();
-    let forward = planner.plan_fft_forward(n);
-    let inverse = planner.plan_fft_inverse(n);
-    let mut spectrum = forward.make_output_vec();
-    // Lengths come from the plans, so neither transform can fail.
-    forward
-        .process(&mut x, &mut spectrum)
-        .expect("buffer lengths match the FFT plan");
+    // `spectrum` is the DFT of `work` less `trend`, from the search's last round.
+    let n = work.len();
+    drop(work);
     let scale = 2.0 / (rate_hz * n as f64);
-    for &(a, b) in &found.bands {
+    for &(a, b) in &bands {
         let observed: f64 = spectrum[a..=b].iter().map(|c| c.norm_sqr() * scale).sum();
-        let expected: f64 = found.background[a..=b].iter().sum();
+        let expected: f64 = (a..=b).map(|k| background.level(k)).sum();
         if observed > expected && observed > 0.0 {
             let g = (expected / observed).sqrt();
             spectrum[a..=b].iter_mut().for_each(|c| *c *= g);
         }
     }
+    let inverse = RealFftPlanner::<f64>::new().plan_fft_inverse(n);
     let mut y = inverse.make_output_vec();
     inverse
         .process(&mut spectrum, &mut y)
         .expect("buffer lengths match the FFT plan");
-    let rate = y
-        .iter()
-        .enumerate()
-        .map(|(t, v)| v / n as f64 + trend.at(t, n))
-        .collect();
-    Ok(Removed {
-        lines: found.lines,
-        rate,
+    drop(spectrum);
+    for (t, v) in y.iter_mut().enumerate() {
+        *v = *v / n as f64 + trend.at(t, n);
+    }
+    Ok(Cleaned {
+        lines,
+        rate: Cow::Owned(y),
     })
 }
 
@@ -338,14 +357,17 @@ struct Measured {
 }
 
 /// What a search found.
-struct Found {
+struct Found<'a> {
     lines: Vec<Line>,
     /// Measured bands of the last round (inclusive bin ranges).
     bands: Vec<(usize, usize)>,
-    /// The background of the last round, one-sided PSD per bin.
-    background: Vec<f64>,
-    /// The record minus the tones.
-    work: Vec<f64>,
+    /// The background of the last round's rectangular periodogram.
+    background: Background,
+    /// The record minus the tones (the record itself when there were none).
+    work: Cow<'a, [f64]>,
+    /// The DFT of `work` less `trend`, its least-squares line.
+    spectrum: Vec<Complex<f64>>,
+    trend: Trend,
 }
 
 /// The fixed parts of one search: record length, rate, options and the FFT plan.
@@ -357,8 +379,6 @@ struct Search<'a> {
     /// First and last bin searched.
     k_lo: usize,
     k_hi: usize,
-    /// `ln k` for k = 0..=n/2 (`ln 0` unused).
-    ln_bin: Vec<f64>,
 }
 
 fn validate(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<(), LineError> {
@@ -414,7 +434,7 @@ fn validate(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<(), LineEr
     Ok(())
 }
 
-fn search(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Found, LineError> {
+fn search<'a>(rate: &'a [f64], rate_hz: f64, opts: &LineOptions) -> Result<Found<'a>, LineError> {
     validate(rate, rate_hz, opts)?;
     let n = rate.len();
     let s = Search {
@@ -425,18 +445,20 @@ fn search(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Found, LineE
         k_lo: (opts.min_cycles.ceil() as usize).max(2),
         // The Nyquist bin of an even length is real (one degree of freedom): not searched.
         k_hi: (n - 1) / 2,
-        ln_bin: (0..=n / 2).map(|k| (k as f64).ln()).collect(),
     };
-    let mut work = rate.to_vec();
+    let mut work = Cow::Borrowed(rate);
     let mut tones: Vec<Tone> = Vec::new();
     let mut round = 0;
     loop {
         let (trend, x) = detrend(&work);
-        let spectra = s.periodograms(&x);
+        let spectra = s.periodograms(x);
         let (backgrounds, bands) = s.backgrounds_and_bands(&spectra);
         let measured: Vec<Measured> = bands
             .iter()
-            .map(|&band| s.measure(&spectra.hann, &backgrounds.hann.level, band, &bands))
+            .map(|&band| {
+                let hann = |k| spectra.hann(k);
+                s.measure(hann, |k| backgrounds.hann.level(k), band, &bands)
+            })
             .filter(|m| m.power > 0.0)
             .collect();
         let mut new: Vec<&Measured> = measured
@@ -445,7 +467,14 @@ fn search(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Found, LineE
             .collect();
         round += 1;
         if new.is_empty() || round == MAX_ROUNDS {
-            return Ok(s.assemble(&tones, &measured, backgrounds.rect.level, work));
+            return Ok(Found {
+                lines: s.assemble(&tones, &measured),
+                bands: measured.iter().map(|m| (m.lo, m.hi)).collect(),
+                background: backgrounds.rect,
+                work,
+                spectrum: spectra.dft,
+                trend,
+            });
         }
         new.sort_by(|a, b| b.power.total_cmp(&a.power));
         for m in new {
@@ -453,7 +482,7 @@ fn search(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Found, LineE
             if let Some(mut tone) = fit_tone(&work, trend, start * 2.0 * PI / n as f64) {
                 tone.bin = m.peak;
                 tone.statistic = m.statistic;
-                subtract(&mut work, &tone);
+                subtract(work.to_mut(), &tone);
                 tones.push(tone);
             }
         }

@@ -3,22 +3,60 @@
 
 use super::background::{Background, background};
 use super::{
-    Found, HANN_MEDIAN_VARIANCE, Line, Measured, RECT_MEDIAN_VARIANCE, SHAPE_ERROR, Search,
-    TONE_LOBE, Tone,
+    HANN_MEDIAN_VARIANCE, Line, Measured, RECT_MEDIAN_VARIANCE, SHAPE_ERROR, Search, TONE_LOBE,
+    Tone,
 };
 use realfft::num_complex::Complex;
 use statrs::distribution::{Continuous, ContinuousCDF, FisherSnedecor};
 use std::collections::HashMap;
 use std::f64::consts::PI;
 
-/// The DFT of a record and its two periodograms (one-sided PSD, u^2/Hz, k = 0..=n/2).
+/// The DFT of a record and its two periodograms (one-sided PSD, u^2/Hz, k = 0..=n/2), the
+/// periodograms computed from the DFT where they are read rather than held: a record's
+/// periodograms would be as large as the record.
 pub(super) struct Spectra {
     pub(super) dft: Vec<Complex<f64>>,
+    /// The record's length.
+    n: usize,
+    rect_scale: f64,
+    hann_scale: f64,
+}
+
+impl Spectra {
+    /// Bins k = 0..=n/2.
+    pub(super) fn len(&self) -> usize {
+        self.dft.len()
+    }
+
     /// Rectangular window: `2 |X_k|^2 / (f_s n)`.
-    pub(super) rect: Vec<f64>,
+    pub(super) fn rect(&self, k: usize) -> f64 {
+        self.dft[k].norm_sqr() * self.rect_scale
+    }
+
     /// Periodic Hann window `w_t = (1 - cos(2 pi t / n)) / 2`, whose DFT is
     /// `X_k / 2 - (X_{k-1} + X_{k+1}) / 4`: `2 |X^H_k|^2 / (f_s sum w^2)`, `sum w^2 = 3 n / 8`.
-    pub(super) hann: Vec<f64>,
+    pub(super) fn hann(&self, k: usize) -> f64 {
+        let k = k as isize;
+        (0.5 * self.at(k) - 0.25 * (self.at(k - 1) + self.at(k + 1))).norm_sqr() * self.hann_scale
+    }
+
+    /// `X_k` for k from -1 to n/2 + 1: `X_{-1} = conj(X_1)`; past the end,
+    /// `X_{n/2 + 1} = conj(X_{n/2 - 1})` (even n) or `conj(X_{(n-1)/2})` (odd n).
+    fn at(&self, k: isize) -> Complex<f64> {
+        let last = self.dft.len() - 1;
+        if k < 0 {
+            self.dft[(-k) as usize].conj()
+        } else if k as usize > last {
+            let mirror = if self.n.is_multiple_of(2) {
+                2 * last - k as usize
+            } else {
+                2 * last + 1 - k as usize
+            };
+            self.dft[mirror].conj()
+        } else {
+            self.dft[k as usize]
+        }
+    }
 }
 
 /// A background for each periodogram.
@@ -42,37 +80,20 @@ impl Search<'_> {
         ((self.opts.max_width_hz / self.df()).floor() as usize).max(1)
     }
 
-    pub(super) fn periodograms(&self, x: &[f64]) -> Spectra {
-        let mut input = x.to_vec();
+    /// The DFT of `x` (consumed: the transform works in it) and its periodograms.
+    pub(super) fn periodograms(&self, mut x: Vec<f64>) -> Spectra {
         let mut dft = self.fft.make_output_vec();
         self.fft
-            .process(&mut input, &mut dft)
+            .process(&mut x, &mut dft)
             .expect("buffer lengths match the FFT plan");
+        drop(x);
         let n = self.n as f64;
-        let rect_scale = 2.0 / (self.rate_hz * n);
-        let hann_scale = 2.0 / (self.rate_hz * 3.0 * n / 8.0);
-        let last = dft.len() - 1;
-        // X_{-1} = conj(X_1); past the end, X_{n/2 + 1} = conj(X_{n/2 - 1}) (even n) or
-        // conj(X_{(n-1)/2}) (odd n).
-        let at = |k: isize| -> Complex<f64> {
-            if k < 0 {
-                dft[(-k) as usize].conj()
-            } else if k as usize > last {
-                let mirror = if self.n.is_multiple_of(2) {
-                    2 * last - k as usize
-                } else {
-                    2 * last + 1 - k as usize
-                };
-                dft[mirror].conj()
-            } else {
-                dft[k as usize]
-            }
-        };
-        let hann = (0..=last as isize)
-            .map(|k| (0.5 * at(k) - 0.25 * (at(k - 1) + at(k + 1))).norm_sqr() * hann_scale)
-            .collect();
-        let rect = dft.iter().map(|c| c.norm_sqr() * rect_scale).collect();
-        Spectra { dft, rect, hann }
+        Spectra {
+            dft,
+            n: self.n,
+            rect_scale: 2.0 / (self.rate_hz * n),
+            hann_scale: 2.0 / (self.rate_hz * 3.0 * n / 8.0),
+        }
     }
 
     /// The backgrounds (two passes: the second leaves out what the first flagged) and the
@@ -81,21 +102,19 @@ impl Search<'_> {
         &self,
         spectra: &Spectra,
     ) -> (Backgrounds, Vec<(usize, usize)>) {
-        let mut mask = vec![false; spectra.rect.len()];
+        let mut mask = vec![false; spectra.len()];
         let widest = self.widest();
         let estimate = |mask: &[bool]| Backgrounds {
             rect: background(
-                &spectra.rect,
+                |k| spectra.rect(k),
                 mask,
-                &self.ln_bin,
                 self.k_hi,
                 widest,
                 RECT_MEDIAN_VARIANCE,
             ),
             hann: background(
-                &spectra.hann,
+                |k| spectra.hann(k),
                 mask,
-                &self.ln_bin,
                 self.k_hi,
                 widest,
                 HANN_MEDIAN_VARIANCE,
@@ -110,6 +129,7 @@ impl Search<'_> {
             let (lo, hi) = self.widen(a, b, &[]);
             mask[lo..=hi].iter_mut().for_each(|m| *m = true);
         }
+        drop(first);
         let second = estimate(&mask);
         let bands = self.bands(spectra, &second);
         (second, bands)
@@ -158,7 +178,7 @@ impl Search<'_> {
         }
         let mut cum = vec![0.0; k_hi - k_lo + 2];
         for k in k_lo..=k_hi {
-            cum[k - k_lo + 1] = cum[k - k_lo] + spectra.rect[k] / bg.rect.level[k];
+            cum[k - k_lo + 1] = cum[k - k_lo] + spectra.rect(k) / bg.rect.level(k);
         }
         let widest = self.widest();
         let scales: Vec<usize> = std::iter::successors(Some(1usize), |l| Some(l * 2))
@@ -183,6 +203,7 @@ impl Search<'_> {
         }
         let octaves = per_octave.iter().filter(|&&c| c > 0).count().max(1);
         let mut thresholds = Thresholds::default();
+        let least_rel_var = [bg.hann.least_rel_var(), bg.rect.least_rel_var()];
         // Passing tests as (surprise, first bin, length): ranked by how unlikely they are
         // without a line, so that each line is located by the run that fits it best.
         let mut passed: Vec<(f64, usize, usize)> = Vec::new();
@@ -192,17 +213,21 @@ impl Search<'_> {
                 let level = self.opts.false_alarm / (octaves * per_octave[o]) as f64;
                 let centre = j + l / 2;
                 let (mean, background) = if l == 1 {
-                    (spectra.hann[j] / bg.hann.level[j], &bg.hann)
+                    (spectra.hann(j) / bg.hann.level(j), &bg.hann)
                 } else {
                     ((cum[j + l - k_lo] - cum[j - k_lo]) / l as f64, &bg.rect)
                 };
-                let v = background.rel_var[centre];
                 // Every threshold lies beyond two standard deviations (level < 1 %): most runs
-                // are settled without one.
+                // are settled without one, and most of those by the least variance alone.
+                let least = least_rel_var[usize::from(l > 1)];
+                if mean <= 1.0 + 2.0 * (1.0 / l as f64 + least).sqrt() {
+                    continue;
+                }
+                let v = background.rel_var(centre);
                 if mean <= 1.0 + 2.0 * (1.0 / l as f64 + v).sqrt() {
                     continue;
                 }
-                if mean > thresholds.get(l, background.bucket[centre], o, level) {
+                if mean > thresholds.get(l, background.bucket(centre), o, level) {
                     passed.push((surprise(mean, l, v), j, l));
                 }
             }
@@ -223,34 +248,39 @@ impl Search<'_> {
     /// beyond +-2 bins of a tone).
     pub(super) fn measure(
         &self,
-        power: &[f64],
-        background: &[f64],
+        power: impl Fn(usize) -> f64,
+        background: impl Fn(usize) -> f64,
         band: (usize, usize),
         others: &[(usize, usize)],
     ) -> Measured {
         let df = self.df();
         let (lo, hi) = self.widen(band.0, band.1, others);
-        let first = Excess::of(power, background, lo, hi, df);
+        let first = Excess::of(&power, &background, lo, hi, df);
         // Again on a window centred on the line, reaching two widths beyond its quartiles
         // (a band found off-centre would bias the centre and width towards its own side).
         let reach =
             (((band.1 - band.0 + 1) as f64).max(2.0 * first.iqr).ceil() as usize).max(TONE_LOBE);
         let centre = (first.centre.round().max(0.0) as usize).clamp(lo, hi);
         let (lo, hi) = self.clip(centre.saturating_sub(reach), centre + reach, band, others);
-        let e = Excess::of(power, background, lo, hi, df);
+        let e = Excess::of(&power, &background, lo, hi, df);
         let (width, fraction) = lorentzian_truncation(
             e.iqr,
             e.centre - (lo as f64 - 0.5),
             hi as f64 + 0.5 - e.centre,
         );
         let near: f64 = (e.peak.saturating_sub(TONE_LOBE).max(lo)..=(e.peak + TONE_LOBE).min(hi))
-            .map(|k| (power[k] - background[k]) * df)
+            .map(|k| (power(k) - background(k)) * df)
             .sum();
         let (lo, hi, peak, total, centre) = (lo, hi, e.peak, e.total, e.centre);
         let (band_lo, band_hi) = band;
-        let sum_s: f64 = background[band_lo..=band_hi].iter().sum();
-        let sum_s2: f64 = background[band_lo..=band_hi].iter().map(|s| s * s).sum();
-        let sum_p: f64 = power[band_lo..=band_hi].iter().sum();
+        let sum_s: f64 = (band_lo..=band_hi).map(&background).sum();
+        let sum_s2: f64 = (band_lo..=band_hi)
+            .map(|k| {
+                let s = background(k);
+                s * s
+            })
+            .sum();
+        let sum_p: f64 = (band_lo..=band_hi).map(&power).sum();
         let spread = (HANN_SUM_VARIANCE * sum_s2 + (SHAPE_ERROR * sum_s).powi(2)).sqrt();
         Measured {
             lo,
@@ -265,13 +295,7 @@ impl Search<'_> {
     }
 
     /// Lines from the fitted tones and the last round's bands.
-    pub(super) fn assemble(
-        &self,
-        tones: &[Tone],
-        measured: &[Measured],
-        background: Vec<f64>,
-        work: Vec<f64>,
-    ) -> Found {
+    pub(super) fn assemble(&self, tones: &[Tone], measured: &[Measured]) -> Vec<Line> {
         // Each band left after the tones belongs to the strongest tone inside it (its
         // residual: the line's width), or else is a line of its own.
         let mut used = vec![false; measured.len()];
@@ -318,12 +342,7 @@ impl Search<'_> {
                 }),
         );
         lines.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
-        Found {
-            lines,
-            bands: measured.iter().map(|m| (m.lo, m.hi)).collect(),
-            background,
-            work,
-        }
+        lines
     }
 }
 
@@ -338,8 +357,14 @@ struct Excess {
 }
 
 impl Excess {
-    fn of(power: &[f64], background: &[f64], lo: usize, hi: usize, df: f64) -> Excess {
-        let excess: Vec<f64> = (lo..=hi).map(|k| (power[k] - background[k]) * df).collect();
+    fn of(
+        power: impl Fn(usize) -> f64,
+        background: impl Fn(usize) -> f64,
+        lo: usize,
+        hi: usize,
+        df: f64,
+    ) -> Excess {
+        let excess: Vec<f64> = (lo..=hi).map(|k| (power(k) - background(k)) * df).collect();
         let total: f64 = excess.iter().sum();
         let peak = lo
             + excess

@@ -581,7 +581,6 @@ fn background_calibration() {
         fft: RealFftPlanner::<f64>::new().plan_fft_forward(n),
         k_lo: 5,
         k_hi: (n - 1) / 2,
-        ln_bin: (0..=n / 2).map(|k| (k as f64).ln()).collect(),
     };
     let ranges = [
         (5, 8),
@@ -599,19 +598,20 @@ fn background_calibration() {
             .map(|_| rng.sample::<f64, _>(rand_distr::StandardNormal))
             .collect();
         let (_, x) = detrend(&y);
-        let spectra = s.periodograms(&x);
-        let mask = vec![false; spectra.rect.len()];
+        let spectra = s.periodograms(x);
+        let mask = vec![false; spectra.len()];
         let truth = 2.0 / rate;
-        for (which, power, c) in [
-            (0, &spectra.rect, RECT_MEDIAN_VARIANCE),
-            (1, &spectra.hann, HANN_MEDIAN_VARIANCE),
-        ] {
-            let bg = background(power, &mask, &s.ln_bin, s.k_hi, s.widest(), c);
+        for (which, c) in [(0, RECT_MEDIAN_VARIANCE), (1, HANN_MEDIAN_VARIANCE)] {
+            let power = |k| match which {
+                0 => spectra.rect(k),
+                _ => spectra.hann(k),
+            };
+            let bg = background(power, &mask, s.k_hi, s.widest(), c);
             for (r, &(a, b)) in ranges.iter().enumerate() {
                 for k in a..b {
-                    let e = (bg.level[k] / truth).ln();
+                    let e = (bg.level(k) / truth).ln();
                     acc[r][3 * which] += e * e;
-                    acc[r][3 * which + 1] += bg.rel_var[k] - SHAPE_ERROR * SHAPE_ERROR;
+                    acc[r][3 * which + 1] += bg.rel_var(k) - SHAPE_ERROR * SHAPE_ERROR;
                     acc[r][3 * which + 2] += 1.0;
                     acc[r][6 + which] += e;
                 }
