@@ -340,10 +340,10 @@ mod tests {
 
     #[test]
     fn written_arrays_read_back() {
-        let path = std::env::temp_dir().join(format!("imunoise-npy-{}.npy", std::process::id()));
+        let scratch = tempfile::tempdir().unwrap();
+        let path = scratch.path().join("a.npy");
         write_f64(&path, &[1.5, -2.0, 1e-300]).unwrap();
         let bytes = std::fs::read(&path).unwrap();
-        std::fs::remove_file(&path).unwrap();
         assert_eq!((bytes.len() - 3 * 8) % 64, 0);
         let t = parse_bytes(&bytes).unwrap();
         assert_eq!(t.channels[0].1, [1.5, -2.0, 1e-300]);

@@ -286,8 +286,8 @@ mod tests {
 
     #[test]
     fn png_and_bad_extension() {
-        let dir = std::env::temp_dir().join(format!("imunoise-plot-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
         let png = dir.join("a.png");
         write(&png, &[figure()]).unwrap();
         let bytes = std::fs::read(&png).unwrap();
@@ -298,6 +298,5 @@ mod tests {
                 .contains("a.pdf: plots are written as .svg or .png")
         );
         assert!(matches!(write(&png, &[]), Err(PlotError::Empty)));
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
