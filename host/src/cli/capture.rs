@@ -18,7 +18,7 @@ use imunoise::link::board::{Board, BoardError};
 use imunoise::link::replay::{ReplayLink, Speed};
 use imunoise::link::setup::streamable;
 use imunoise::link::{self, Link, Opened, PortSpec, start_board};
-use imunoise::recorder::live::LiveOptions;
+use imunoise::recorder::live::{LiveOptions, RuleAxes};
 use imunoise::recorder::{self, Ending, Progress, RecordOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use protocol::SensorSettings;
@@ -69,11 +69,14 @@ pub struct CaptureArgs {
     /// Stop after this much data: 2h, 30m, 90s (default: until the source ends or Ctrl-C)
     #[arg(long)]
     pub duration: Option<String>,
-    /// Stop once each named term's interval half-width on every gyro axis is within this
-    /// fraction of its value, as `analyze` computes it: N:1%,B:20%,K:30% (--duration stays
-    /// the cap)
+    /// Stop once each named term's interval half-width on every axis of --until-axes is
+    /// within this fraction of its value, as `analyze` computes it: N:1%,B:20%,K:30%
+    /// (--duration stays the cap)
     #[arg(long, value_name = "RULE")]
     pub until: Option<StopRule>,
+    /// The axes the stop rule applies to: gyro, accel, all, or a list such as gz,az
+    #[arg(long, value_name = "AXES", default_value = "gyro", requires = "until")]
+    pub until_axes: RuleAxes,
     /// Confidence of the intervals the stop rule and the live view use (as analyze's)
     #[arg(long, default_value_t = 0.683)]
     pub confidence: f64,
@@ -86,6 +89,7 @@ pub struct CaptureArgs {
 /// or a week).
 pub fn live_options(
     until: Option<&StopRule>,
+    rule_axes: &RuleAxes,
     confidence: f64,
     duration_s: Option<f64>,
 ) -> Result<LiveOptions> {
@@ -94,6 +98,7 @@ pub fn live_options(
     }
     Ok(LiveOptions {
         rule: until.cloned(),
+        rule_axes: rule_axes.clone(),
         confidence,
         longest_s: duration_s.unwrap_or(7.0 * 86400.0),
     })
@@ -182,7 +187,12 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         .map(parse_duration)
         .transpose()
         .map_err(|e| anyhow!("--duration: {e}"))?;
-    let live = live_options(args.until.as_ref(), args.confidence, duration_s)?;
+    let live = live_options(
+        args.until.as_ref(),
+        &args.until_axes,
+        args.confidence,
+        duration_s,
+    )?;
     let settings = match (args.rate, args.bandwidth) {
         (Some(rate), Some(bandwidth)) => Some(board_settings(
             rate,

@@ -18,7 +18,7 @@ use imunoise::experiment::sweep::{self, Event, Plan, SweepRow, figures, html, ta
 use imunoise::link::PortSpec;
 use imunoise::link::replay::Speed;
 use imunoise::link::setup::streamable;
-use imunoise::recorder::live::LiveOptions;
+use imunoise::recorder::live::{LiveOptions, RuleAxes};
 use imunoise::report::plot;
 use imunoise::store::Store;
 use indicatif::ProgressBar;
@@ -50,10 +50,13 @@ pub struct SweepArgs {
     /// Write an HTML report (the table and the figures) to PATH
     #[arg(long, value_name = "PATH")]
     pub report: Option<PathBuf>,
-    /// Stop each setting's capture once the rule is met on every gyro axis, as with
+    /// Stop each setting's capture once the rule is met on every axis of --until-axes, as with
     /// `capture --until`: N:1%,B:20% (--duration stays the cap per setting)
     #[arg(long, value_name = "RULE")]
     pub until: Option<StopRule>,
+    /// The axes the stop rule applies to: gyro, accel, all, or a list such as gz,az
+    #[arg(long, value_name = "AXES", default_value = "gyro", requires = "until")]
+    pub until_axes: RuleAxes,
     /// Confidence of the intervals the stop rule and the live view use
     #[arg(long, default_value_t = 0.683)]
     pub confidence: f64,
@@ -87,7 +90,12 @@ pub fn parse_settings(text: &str) -> Result<Vec<SensorSettings>> {
 pub fn run(args: &SweepArgs, store: Option<&Path>) -> Result<()> {
     let settings = parse_settings(&args.settings)?;
     let seconds = parse_duration(&args.duration).map_err(|e| anyhow!("--duration: {e}"))?;
-    let live = live_options(args.until.as_ref(), args.confidence, Some(seconds))?;
+    let live = live_options(
+        args.until.as_ref(),
+        &args.until_axes,
+        args.confidence,
+        Some(seconds),
+    )?;
     if let Some(path) = &args.plot {
         check_plot(path)?;
     }

@@ -1,7 +1,8 @@
 //! The live view and the stop rule while recording: the samples the decoder takes
 //! ([`StreamDecoder::tap`]) are fed, in SI units, into [`Live`] accumulators for the six
 //! axes, in memory that does not grow with the capture; snapshots go out with the progress
-//! reports; and when a snapshot says the stop rule is met on every gyro axis, `analyze`'s
+//! reports; and when a snapshot says the stop rule is met on every axis it applies to (the
+//! gyro's by default, [`RuleAxes`]), `analyze`'s
 //! own pipeline confirms it on the session file's current run before the capture stops, so
 //! the stored session shows the precision asked for.
 //!
@@ -20,9 +21,65 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// The axes the accumulators follow, in [`crate::capture`]'s record order.
-const AXES: [&str; 6] = ["gx", "gy", "gz", "ax", "ay", "az"];
-/// The axes the stop rule applies to.
-pub const RULE_AXES: [&str; 3] = ["gx", "gy", "gz"];
+pub const AXES: [&str; 6] = ["gx", "gy", "gz", "ax", "ay", "az"];
+
+/// The axes a stop rule applies to: `gyro` (gx, gy, gz; the default), `accel` (ax, ay, az),
+/// `all`, or a comma-separated list of axes (`gz,az`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RuleAxes(Vec<&'static str>);
+
+impl Default for RuleAxes {
+    fn default() -> Self {
+        RuleAxes(AXES[..3].to_vec())
+    }
+}
+
+impl RuleAxes {
+    pub fn contains(&self, axis: &str) -> bool {
+        self.0.contains(&axis)
+    }
+
+    pub fn names(&self) -> &[&'static str] {
+        &self.0
+    }
+}
+
+/// A `--until-axes` value that names no axis.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("'{0}': axes are gyro, accel, all or a list of gx, gy, gz, ax, ay, az (e.g. gz,az)")]
+pub struct RuleAxesError(pub String);
+
+impl std::str::FromStr for RuleAxes {
+    type Err = RuleAxesError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let axes: Vec<&'static str> = match s.trim() {
+            "gyro" => AXES[..3].to_vec(),
+            "accel" => AXES[3..].to_vec(),
+            "all" => AXES.to_vec(),
+            list => {
+                let mut axes = Vec::new();
+                for part in list.split(',').map(str::trim) {
+                    let axis = AXES
+                        .iter()
+                        .find(|a| **a == part)
+                        .ok_or_else(|| RuleAxesError(part.to_string()))?;
+                    if !axes.contains(axis) {
+                        axes.push(*axis);
+                    }
+                }
+                axes
+            }
+        };
+        Ok(RuleAxes(axes))
+    }
+}
+
+impl std::fmt::Display for RuleAxes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0.join(","))
+    }
+}
 
 /// Snapshots at least this often on the host's clock, so a real-time view updates.
 const WALL_EVERY: Duration = Duration::from_secs(3);
@@ -38,15 +95,16 @@ const CONFIRM_GROWTH: f64 = 0.1;
 /// What to watch.
 #[derive(Debug, Clone)]
 pub struct LiveOptions {
-    /// Stop when every target is met on every gyro axis.
+    /// Stop when every target is met on every axis of `rule_axes`.
     pub rule: Option<StopRule>,
+    pub rule_axes: RuleAxes,
     /// Confidence of the intervals (as `analyze --confidence`).
     pub confidence: f64,
     /// The longest record expected (the capture's duration cap), s: the Allan ladder's end.
     pub longest_s: f64,
 }
 
-/// Why the rule stopped the capture: each gyro axis's targets as `analyze` computed them.
+/// Why the rule stopped the capture: each rule axis's targets as `analyze` computed them.
 #[derive(Debug, Clone)]
 pub struct RuleMet {
     pub rule: StopRule,
@@ -66,7 +124,7 @@ impl RuleMet {
 }
 
 /// The end reason of a capture whose duration came before its stop rule was met: the
-/// precision the last snapshot showed on each gyro axis.
+/// precision the last snapshot showed on each axis of the rule.
 pub fn unmet(rule: &StopRule, last: Option<&Snapshot>) -> String {
     let axes: Vec<String> = last
         .map(|s| {
@@ -177,7 +235,11 @@ impl Watcher {
         }
         self.next_sample_s = (elapsed * (1.0 + SAMPLE_GROWTH)).max(elapsed + SAMPLE_EVERY_S);
         self.last_wall = Instant::now();
-        Some(live.snapshot(self.options.rule.as_ref(), &RULE_AXES, &self.fit))
+        Some(live.snapshot(
+            self.options.rule.as_ref(),
+            self.options.rule_axes.names(),
+            &self.fit,
+        ))
     }
 
     /// Whether `snapshot` meets the rule and a confirmation is due (see [`CONFIRM_GROWTH`]):
@@ -188,7 +250,7 @@ impl Watcher {
             && snapshot.elapsed_s >= self.next_confirm_s
     }
 
-    /// After [`Watcher::wants_confirmation`]: `analyze`'s pipeline on the gyro axes of the
+    /// After [`Watcher::wants_confirmation`]: `analyze`'s pipeline on the rule's axes of the
     /// last gap-free run in the session file at `path` (flushed), with the options `analyze`
     /// uses for a stored session (the board's own filter, 10 factors per decade, spectral
     /// lines removed), and the verdict if it agrees.
@@ -203,7 +265,7 @@ impl Watcher {
             channels: full
                 .channels
                 .into_iter()
-                .filter(|c| RULE_AXES.contains(&c.name.as_str()))
+                .filter(|c| self.options.rule_axes.contains(&c.name))
                 .collect(),
             ..full
         };
@@ -226,5 +288,22 @@ impl Watcher {
             rule: rule.clone(),
             axes,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{RuleAxes, RuleAxesError};
+
+    #[test]
+    fn rule_axes_parse_by_sensor_and_by_name() {
+        let names = |s: &str| s.parse::<RuleAxes>().map(|a| a.names().to_vec());
+        assert_eq!(names("gyro"), Ok(vec!["gx", "gy", "gz"]));
+        assert_eq!(names("accel"), Ok(vec!["ax", "ay", "az"]));
+        assert_eq!(names("all").unwrap().len(), 6);
+        assert_eq!(names("gz, az,gz"), Ok(vec!["gz", "az"]));
+        assert_eq!(RuleAxes::default().to_string(), "gx,gy,gz");
+        assert_eq!(names("gz,temp"), Err(RuleAxesError("temp".into())));
+        assert_eq!(names(""), Err(RuleAxesError(String::new())));
     }
 }

@@ -517,12 +517,13 @@ mod tests {
 
     /// The virtual board of [`started`] captured under `rule` with a cap of `cap_s`, into
     /// `store`; the snapshots seen.
-    fn until(store: &Store, rule: &str, cap_s: f64) -> (Outcome, Vec<Snapshot>) {
+    fn until(store: &Store, rule: &str, axes: &str, cap_s: f64) -> (Outcome, Vec<Snapshot>) {
         let mut board = started(11);
         let options = RecordOptions {
             duration_s: Some(cap_s),
             live: Some(live::LiveOptions {
                 rule: Some(rule.parse().unwrap()),
+                rule_axes: axes.parse().unwrap(),
                 confidence: 0.683,
                 longest_s: cap_s,
             }),
@@ -548,7 +549,7 @@ mod tests {
     fn the_stop_rule_ends_a_capture_with_the_precision_asked_for() {
         let dir = tempfile::tempdir().unwrap();
         let store = Store::open(dir.path()).unwrap();
-        let (outcome, snapshots) = until(&store, "N:1%", 3600.0);
+        let (outcome, snapshots) = until(&store, "N:1%", "gyro", 3600.0);
         let Ending::RuleMet(met) = &outcome.ending else {
             panic!("{:?}", outcome.ending)
         };
@@ -568,20 +569,46 @@ mod tests {
         assert!(reason.starts_with("stop rule N:1% met (gx N "), "{reason}");
         assert_eq!(session.state.as_str(), "complete");
         let capture = Capture::decode(&std::fs::read(&session.file).unwrap()).unwrap();
+        assert_n_within(&capture, &["gx", "gy", "gz"], 0.01);
+    }
+
+    /// `analyze`'s pipeline on the stored `capture` gives N on each of `axes` within
+    /// `fraction` (interval half-width over value).
+    fn assert_n_within(capture: &Capture, axes: &[&str], fraction: f64) {
         let record = capture.to_record("until", false).unwrap();
         let options = crate::analysis::pipeline::Options {
             low_pass: crate::analysis::pipeline::LowPassChoice::Sensor(capture.info.settings),
             ..Default::default()
         };
         let results = crate::analysis::pipeline::analyze(&record, &options, &|| {}).unwrap();
-        for r in results
-            .iter()
-            .filter(|r| ["gx", "gy", "gz"].contains(&r.name.as_str()))
-        {
+        for r in results.iter().filter(|r| axes.contains(&r.name.as_str())) {
             let n = r.fit.as_ref().unwrap().n;
             let half = (n.hi - n.lo) / (2.0 * n.value);
-            assert!(half <= 0.01, "{}: N {n:?}, {half}", r.name);
+            assert!(half <= fraction, "{}: N {n:?}, {half}", r.name);
         }
+    }
+
+    /// A rule on chosen axes (one gyro and one accel axis) is judged on those axes only:
+    /// the session's reason names them, and `analyze` shows the precision there.
+    #[test]
+    fn the_stop_rule_applies_to_the_axes_chosen() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        let (outcome, _) = until(&store, "N:2%", "gz,az", 3600.0);
+        let Ending::RuleMet(met) = &outcome.ending else {
+            panic!("{:?}", outcome.ending)
+        };
+        let names: Vec<&str> = met.axes.iter().map(|(a, _)| a.as_str()).collect();
+        assert_eq!(names, ["gz", "az"]);
+        let session = store.get(outcome.session_id).unwrap().unwrap();
+        let reason = session.end_reason.unwrap();
+        assert!(reason.starts_with("stop rule N:2% met (gz N "), "{reason}");
+        assert!(
+            reason.contains("; az N ") && !reason.contains("gx"),
+            "{reason}"
+        );
+        let capture = Capture::decode(&std::fs::read(&session.file).unwrap()).unwrap();
+        assert_n_within(&capture, &["gz", "az"], 0.02);
     }
 
     /// A rule the cap comes first for: the session is complete, and its reason says which
@@ -590,7 +617,7 @@ mod tests {
     fn a_cap_before_the_rule_says_what_was_reached() {
         let dir = tempfile::tempdir().unwrap();
         let store = Store::open(dir.path()).unwrap();
-        let (outcome, snapshots) = until(&store, "N:0.01%", 60.0);
+        let (outcome, snapshots) = until(&store, "N:0.01%", "gyro", 60.0);
         assert!(matches!(outcome.ending, Ending::DurationReached));
         assert!(!snapshots.is_empty());
         let session = store.get(outcome.session_id).unwrap().unwrap();
