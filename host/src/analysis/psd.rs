@@ -323,7 +323,8 @@ impl WelchStream {
             self.pending.extend_from_slice(&ys[..take]);
             ys = &ys[take..];
             if self.pending.len() == len {
-                self.periodogram.add(&self.pending, &self.window, self.detrend);
+                self.periodogram
+                    .add(&self.pending, &self.window, self.detrend);
                 self.count += 1;
                 self.pending.drain(..self.step);
             }
@@ -734,10 +735,14 @@ mod tests {
             }
         }
         assert_eq!(
-            WelchStream::new(10, 50.0, &WelchOptions {
-                segment_len: 11,
-                ..WelchOptions::default()
-            })
+            WelchStream::new(
+                10,
+                50.0,
+                &WelchOptions {
+                    segment_len: 11,
+                    ..WelchOptions::default()
+                }
+            )
             .err(),
             Some(PsdError::SegmentTooLong {
                 segment_len: 11,
