@@ -229,6 +229,22 @@ impl Streaming {
         })
     }
 
+    /// The estimator accumulated.
+    pub fn estimator(&self) -> Estimator {
+        self.estimator
+    }
+
+    /// The averaging factors served, ascending.
+    pub fn factors(&self) -> Vec<usize> {
+        let mut m: Vec<usize> = self
+            .levels
+            .iter()
+            .flat_map(|l| l.terms.iter().map(|t| t.m))
+            .collect();
+        m.sort_unstable();
+        m
+    }
+
     /// Rate samples taken so far.
     pub fn samples(&self) -> u64 {
         self.samples
