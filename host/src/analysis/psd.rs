@@ -220,7 +220,11 @@ fn density_of(sums: &[f64], window: &[f64], count: usize, rate_hz: f64) -> Psd {
     let len = window.len();
     let sum_w2: f64 = window.iter().map(|w| w * w).sum();
     let scale = 1.0 / (rate_hz * sum_w2 * count as f64);
-    let nyquist = if len % 2 == 0 { len / 2 } else { usize::MAX };
+    let nyquist = if len.is_multiple_of(2) {
+        len / 2
+    } else {
+        usize::MAX
+    };
     let density = sums
         .iter()
         .enumerate()
