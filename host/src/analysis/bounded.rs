@@ -354,24 +354,8 @@ fn intervals(curve: &Curve, model: Option<&NoiseFit>, confidence: f64) -> ci::In
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::analysis::streaming::tests::series;
     use crate::record::Record;
-    use rand::SeedableRng;
-    use rand_chacha::ChaCha8Rng;
-    use rand_distr::{Distribution, StandardNormal};
-
-    /// White noise, a random walk and a bias: every tau has something to measure.
-    fn series(n: usize, seed: u64) -> Vec<f64> {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let mut walk = 0.0;
-        (0..n)
-            .map(|_| {
-                let w: f64 = StandardNormal.sample(&mut rng);
-                let s: f64 = StandardNormal.sample(&mut rng);
-                walk += 2e-4 * s;
-                0.37 + 1e-2 * w + walk
-            })
-            .collect()
-    }
 
     fn streamed(
         record: &Record,
