@@ -109,6 +109,8 @@ impl Bounded {
             window: options.psd_window,
             ..WelchOptions::default()
         };
+        // One window and one FFT plan serve every channel.
+        let welch = WelchStream::new(samples, rate_hz, &welch);
         let states = channels
             .iter()
             .map(|(name, quantity)| {
@@ -125,7 +127,10 @@ impl Bounded {
                     name: name.clone(),
                     quantity: *quantity,
                     curves,
-                    welch: WelchStream::new(samples, rate_hz, &welch),
+                    welch: welch
+                        .as_ref()
+                        .map(WelchStream::empty_like)
+                        .map_err(Clone::clone),
                     first: None,
                     varies: false,
                 })

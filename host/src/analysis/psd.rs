@@ -19,10 +19,11 @@
 //! two-sided density.
 
 use rayon::prelude::*;
-use realfft::RealFftPlanner;
+use realfft::{RealFftPlanner, RealToComplex};
 use serde::Serialize;
 use std::borrow::Cow;
 use std::f64::consts::PI;
+use std::sync::Arc;
 
 /// Errors from [`welch`]; each names the input at fault.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -245,7 +246,7 @@ fn density_of(sums: &[f64], window: &[f64], count: usize, rate_hz: f64) -> Psd {
 
 /// One segment's transform, added to the running sum of `|X[j]|^2`.
 struct Periodogram {
-    fft: std::sync::Arc<dyn realfft::RealToComplex<f64>>,
+    fft: Arc<dyn RealToComplex<f64>>,
     input: Vec<f64>,
     spectrum: Vec<realfft::num_complex::Complex<f64>>,
     scratch: Vec<realfft::num_complex::Complex<f64>>,
@@ -253,12 +254,13 @@ struct Periodogram {
 }
 
 impl Periodogram {
-    fn new(fft: std::sync::Arc<dyn realfft::RealToComplex<f64>>) -> Self {
+    /// Buffers for `fft`, adding to `acc` (`len / 2 + 1` sums).
+    fn new(fft: Arc<dyn RealToComplex<f64>>, acc: Vec<f64>) -> Self {
         Periodogram {
             input: fft.make_input_vec(),
             spectrum: fft.make_output_vec(),
             scratch: fft.make_scratch_vec(),
-            acc: vec![0.0; fft.len() / 2 + 1],
+            acc,
             fft,
         }
     }
@@ -283,19 +285,27 @@ impl Periodogram {
     }
 }
 
+thread_local! {
+    /// One FFT's work buffers per thread, serving every [`WelchStream`] the thread feeds
+    /// (kept for the next segment: allocating them per segment costs more than the FFT).
+    static WORK: std::cell::RefCell<Option<Periodogram>> = const { std::cell::RefCell::new(None) };
+}
+
 /// [`welch`] fed a record chunk by chunk, for records not held in memory: it keeps one
-/// segment of samples and one FFT's buffers. With the record's length known in advance it
-/// averages the same segments as [`welch`] (scipy's), so the density is the same up to
-/// rounding.
+/// segment of samples and the sums, the FFT's work buffers being its thread's; estimates made with [`WelchStream::empty_like`] share the window
+/// and the FFT's plan. With the record's length known in advance it averages the same
+/// segments as [`welch`] (scipy's), so the density is the same up to rounding.
 pub struct WelchStream {
     rate_hz: f64,
     detrend: bool,
-    window: Vec<f64>,
+    window: Arc<[f64]>,
+    fft: Arc<dyn RealToComplex<f64>>,
     step: usize,
     /// Samples of the segment being filled (the next segment starts at its front).
     pending: Vec<f64>,
     count: usize,
-    periodogram: Periodogram,
+    /// Sum over segments of `|X[j]|^2`.
+    acc: Vec<f64>,
 }
 
 impl WelchStream {
@@ -307,16 +317,31 @@ impl WelchStream {
             return Err(PsdError::Empty);
         }
         let plan = SegmentPlan::for_length(samples, rate_hz, opts)?;
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(plan.len);
         Ok(WelchStream {
             rate_hz,
             detrend: opts.detrend_mean,
-            window: opts.window.coefficients(plan.len),
+            window: opts.window.coefficients(plan.len).into(),
+            fft: RealFftPlanner::<f64>::new().plan_fft_forward(plan.len),
             step: plan.step,
             pending: Vec::with_capacity(plan.len),
             count: 0,
-            periodogram: Periodogram::new(fft),
+            acc: vec![0.0; plan.len / 2 + 1],
         })
+    }
+
+    /// An estimate with this one's settings and nothing fed, sharing its window and plan
+    /// (another channel of the same record).
+    pub fn empty_like(&self) -> WelchStream {
+        WelchStream {
+            rate_hz: self.rate_hz,
+            detrend: self.detrend,
+            window: self.window.clone(),
+            fft: self.fft.clone(),
+            step: self.step,
+            pending: Vec::with_capacity(self.window.len()),
+            count: 0,
+            acc: vec![0.0; self.acc.len()],
+        }
     }
 
     /// Take the record's next samples (finite: the caller validates them).
@@ -327,8 +352,15 @@ impl WelchStream {
             self.pending.extend_from_slice(&ys[..take]);
             ys = &ys[take..];
             if self.pending.len() == len {
-                self.periodogram
-                    .add(&self.pending, &self.window, self.detrend);
+                WORK.with_borrow_mut(|work| {
+                    let periodogram = match work {
+                        Some(p) if p.fft.len() == len => p,
+                        _ => work.insert(Periodogram::new(self.fft.clone(), Vec::new())),
+                    };
+                    std::mem::swap(&mut periodogram.acc, &mut self.acc);
+                    periodogram.add(&self.pending, &self.window, self.detrend);
+                    std::mem::swap(&mut periodogram.acc, &mut self.acc);
+                });
                 self.count += 1;
                 self.pending.drain(..self.step);
             }
@@ -342,7 +374,7 @@ impl WelchStream {
             return Err(PsdError::Empty);
         }
         Ok(density_of(
-            &self.periodogram.acc,
+            &self.acc,
             &self.window,
             self.count,
             self.rate_hz,
@@ -409,7 +441,7 @@ impl SegmentPlan {
             .map(|g| {
                 let first = g * per_group;
                 let last = ((g + 1) * per_group).min(self.count);
-                let mut periodogram = Periodogram::new(fft.clone());
+                let mut periodogram = Periodogram::new(fft.clone(), vec![0.0; self.len / 2 + 1]);
                 for s in first..last {
                     let seg = &y[s * self.step..s * self.step + self.len];
                     periodogram.add(seg, window, detrend);
@@ -721,7 +753,8 @@ mod tests {
                 ..WelchOptions::default()
             };
             let whole = welch(&y, 50.0, &opts).unwrap();
-            let mut stream = WelchStream::new(y.len(), 50.0, &opts).unwrap();
+            let first = WelchStream::new(y.len(), 50.0, &opts).unwrap();
+            let mut stream = first.empty_like();
             let mut rest = &y[..];
             for size in [1, 17, 4000, 333].iter().cycle() {
                 let (chunk, tail) = rest.split_at((*size).min(rest.len()));
