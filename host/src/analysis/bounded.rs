@@ -44,6 +44,8 @@ pub enum BoundedError {
         got: usize,
         expected: usize,
     },
+    #[error("a block of {got} channels; the record has {expected}")]
+    Channels { got: usize, expected: usize },
     #[error("{got} samples fed; the record has {expected}")]
     Length { got: usize, expected: usize },
     #[error(transparent)]
@@ -149,13 +151,14 @@ impl Bounded {
     /// Take the next rows: one slice per channel, all of one length. A non-finite sample is
     /// [`AnalysisError::NotFinite`] with its index in the record.
     pub fn feed(&mut self, block: &[&[f64]]) -> Result<(), BoundedError> {
+        if block.len() != self.channels.len() {
+            return Err(BoundedError::Channels {
+                got: block.len(),
+                expected: self.channels.len(),
+            });
+        }
         let expected = block.first().map_or(0, |b| b.len());
-        if let Some((channel, b)) = block
-            .iter()
-            .enumerate()
-            .find(|(_, b)| b.len() != expected)
-            .or_else(|| (block.len() != self.channels.len()).then_some((block.len(), &block[0])))
-        {
+        if let Some((channel, b)) = block.iter().enumerate().find(|(_, b)| b.len() != expected) {
             return Err(BoundedError::Ragged {
                 channel,
                 got: b.len(),
@@ -473,6 +476,27 @@ mod tests {
             streamed(&record, &options, 300).unwrap_err().to_string(),
             whole.to_string()
         );
+        let names = [("gx".to_string(), Quantity::AngularRate)];
+        let mut b = Bounded::new(&names, 100, 100.0, &options).unwrap();
+        assert_eq!(
+            b.feed(&[]).unwrap_err(),
+            BoundedError::Channels {
+                got: 0,
+                expected: 1
+            }
+        );
+        b.feed(&[&[1.0; 60]]).unwrap();
+        assert_eq!(
+            b.feed(&[&[1.0; 60]]).unwrap_err(),
+            BoundedError::Length {
+                got: 120,
+                expected: 100
+            }
+        );
+        assert!(matches!(
+            b.finish(),
+            Err(BoundedError::Length { got: 60, .. })
+        ));
         let options = Options {
             estimators: vec![Estimator::Oadev, Estimator::Totdev],
             ..Options::default()
