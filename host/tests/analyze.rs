@@ -661,3 +661,133 @@ fn bad_outputs_and_ranges_fail_before_anything_is_printed() {
     assert!(stderr(&out).contains("--plot x.jpg: plots are written as .svg or .png"));
     assert!(!store.exists());
 }
+
+/// A 2-D C-order float64 `.npy` of `rows` rows (one column per channel).
+fn write_npy_2d(path: &Path, columns: &[Vec<f64>]) {
+    let rows = columns[0].len();
+    let mut header = format!(
+        "{{'descr': '<f8', 'fortran_order': False, 'shape': ({rows}, {}), }}",
+        columns.len()
+    );
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    for r in 0..rows {
+        for c in columns {
+            bytes.extend_from_slice(&c[r].to_le_bytes());
+        }
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// White noise plus a random walk, from a fixed seed.
+fn white_and_walk(n: usize, seed: u64) -> Vec<f64> {
+    let mut u = uniform(seed);
+    let mut walk = 0.0;
+    (0..n)
+        .map(|_| {
+            walk += 2e-4 * (u() - 0.5);
+            0.01 * (u() - 0.5) + walk
+        })
+        .collect()
+}
+
+/// An .npy larger than `--memory-budget` is analysed streamed: the same oadev at every
+/// exact tau (1e-9 relative: rounding), N within the in-memory interval, the computation
+/// stated in the text, the JSON and on stderr; a NaN is the in-memory path's error.
+#[test]
+fn npy_beyond_the_memory_budget_is_streamed() {
+    let store = TempStore::new();
+    let path = store.file("big.npy");
+    let columns = [white_and_walk(200_000, 1), white_and_walk(200_000, 2)];
+    write_npy_2d(&path, &columns);
+    let file = path.to_str().unwrap();
+    let common = [
+        "analyze",
+        file,
+        "--rate",
+        "100",
+        "--names",
+        "gx,gy",
+        "--bandwidth",
+        "off",
+    ];
+    let analyse = |budget: &str, json: bool| {
+        let mut args = common.to_vec();
+        args.extend(["--memory-budget", budget]);
+        if json {
+            args.extend(["--json", "-"]);
+        }
+        common::run_in(&store.path(), &args)
+    };
+    let streamed = analyse("1", true);
+    assert!(
+        stderr(&streamed).contains("more than the memory budget (1 MB): analysed streamed"),
+        "{}",
+        stderr(&streamed)
+    );
+    let (s, w) = (json_of(&streamed), json_of(&analyse("1000", true)));
+    assert_eq!(s["samples"], 200_000);
+    for (sc, wc) in s["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(w["channels"].as_array().unwrap())
+    {
+        let note = sc["computation"].as_str().unwrap();
+        assert!(
+            note.starts_with("streamed: oadev exact for m <= 16384 ("),
+            "{note}"
+        );
+        assert!(wc.get("computation").is_none());
+        let (sd, wd) = (&sc["deviations"]["oadev"], &wc["deviations"]["oadev"]);
+        let (sm, wm) = (floats(&sd["m"]), floats(&wd["m"]));
+        let (sdev, wdev) = (floats(&sd["dev"]), floats(&wd["dev"]));
+        let exact = wm.iter().filter(|&&m| m <= 16384.0).count();
+        assert!(exact > 30);
+        assert_eq!(sm[..exact], wm[..exact]);
+        for k in 0..exact {
+            assert!((sdev[k] / wdev[k] - 1.0).abs() < 1e-9, "m {}", wm[k]);
+        }
+        let (sn, wn) = (noise_n(sc, true), noise_n(wc, true));
+        let value = sn["value"].as_f64().unwrap();
+        assert!(wn["lo"].as_f64().unwrap() <= value && value <= wn["hi"].as_f64().unwrap());
+        assert!(
+            sc["psd_noise"]["error"]
+                .as_str()
+                .unwrap()
+                .starts_with("not computed")
+        );
+    }
+    let text = common::stdout(&analyse("1", false));
+    assert!(
+        text.contains("\nstreamed: oadev exact for m <= 16384 ("),
+        "{text}"
+    );
+    // --bandwidth off states the filter, so no roll-off detection is missing.
+    assert!(
+        text.contains("taus); no line search; PSD by Welch only\n"),
+        "{text}"
+    );
+
+    let mut bad = columns.clone();
+    bad[1][123_456] = f64::NAN;
+    write_npy_2d(&path, &bad);
+    let (s, w) = (analyse("1", false), analyse("1000", false));
+    assert!(!s.status.success() && !w.status.success());
+    assert!(
+        stderr(&w).contains("element [123456, 1] is NaN"),
+        "{}",
+        stderr(&w)
+    );
+    assert_eq!(
+        stderr(&s).lines().last(),
+        stderr(&w).lines().last(),
+        "{}",
+        stderr(&s)
+    );
+}

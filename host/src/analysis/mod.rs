@@ -10,6 +10,7 @@
 //! - PSDs are one-sided; white rate noise with Allan coefficient N has one-sided PSD 2 N^2.
 
 pub mod allan;
+pub mod bounded;
 pub mod ci;
 pub mod compare;
 pub mod filter;

@@ -109,6 +109,9 @@ pub struct ChannelResult {
     pub psd: Result<(Psd, BinnedPsd), PsdError>,
     /// N, B and K fitted to the multi-resolution PSD; `Err` says why there are none.
     pub psd_terms: Result<PsdNoiseTerms, PsdFitError>,
+    /// How the results were computed when not as this module computes them (a record
+    /// analysed in bounded memory, [`super::bounded`]); `None` here.
+    pub computation: Option<String>,
 }
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -156,21 +159,34 @@ pub fn analyze(
         return Err(AnalysisError::NoChannels);
     }
     if !(options.confidence > 0.0 && options.confidence < 1.0) {
-        return Err(AnalysisError::Options(format!(
-            "--confidence {}: between 0 and 1 (e.g. 0.683, 0.95)",
-            options.confidence
-        )));
+        return Err(confidence_error(options.confidence));
     }
     record.channels.iter().try_for_each(validate)?;
-    if let LowPassChoice::Bandwidth(hz) = options.low_pass {
-        LowPass::for_bandwidth(hz, record.rate_hz, crate::sim::dlpf::Sensor::Gyro)
-            .map_err(|e| AnalysisError::Options(format!("--bandwidth {hz}: {e}")))?;
-    }
+    check_options(options, record.rate_hz)?;
     record
         .channels
         .par_iter()
         .map(|c| Ok(analyze_channel(c, record.rate_hz, options, tick)))
         .collect()
+}
+
+fn confidence_error(confidence: f64) -> AnalysisError {
+    AnalysisError::Options(format!(
+        "--confidence {confidence}: between 0 and 1 (e.g. 0.683, 0.95)"
+    ))
+}
+
+/// The options' own checks, for a record at `rate_hz`: the confidence and a stated
+/// bandwidth.
+pub(super) fn check_options(options: &Options, rate_hz: f64) -> Result<(), AnalysisError> {
+    if !(options.confidence > 0.0 && options.confidence < 1.0) {
+        return Err(confidence_error(options.confidence));
+    }
+    if let LowPassChoice::Bandwidth(hz) = options.low_pass {
+        LowPass::for_bandwidth(hz, rate_hz, crate::sim::dlpf::Sensor::Gyro)
+            .map_err(|e| AnalysisError::Options(format!("--bandwidth {hz}: {e}")))?;
+    }
+    Ok(())
 }
 
 /// Steps [`analyze`] ticks per channel.
@@ -306,6 +322,7 @@ fn analyze_channel(
         readouts,
         psd,
         psd_terms,
+        computation: None,
     }
 }
 
@@ -323,7 +340,7 @@ pub fn sensor_kind(quantity: Quantity) -> SensorKind {
 /// A detected filter is looked for in `rate` with its lines removed, as `searched` (the
 /// channel's own line search) found them, or as a search with the default options finds
 /// them when the channel's was off.
-fn channel_low_pass(
+pub(super) fn channel_low_pass(
     quantity: Quantity,
     rate: &[f64],
     searched: Option<&lines::Cleaned>,
@@ -394,7 +411,7 @@ pub fn without_lines(rate: &[f64], rate_hz: f64) -> Vec<f64> {
     lines::remove(rate, rate_hz, &LineOptions::default()).map_or_else(|_| rate.to_vec(), |r| r.rate)
 }
 
-fn fit_noise(
+pub(super) fn fit_noise(
     d: &Deviation,
     n_phase: usize,
     low_pass: Option<LowPass>,

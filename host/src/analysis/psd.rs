@@ -19,10 +19,11 @@
 //! two-sided density.
 
 use rayon::prelude::*;
-use realfft::RealFftPlanner;
+use realfft::{RealFftPlanner, RealToComplex};
 use serde::Serialize;
 use std::borrow::Cow;
 use std::f64::consts::PI;
+use std::sync::Arc;
 
 /// Errors from [`welch`]; each names the input at fault.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -210,11 +211,18 @@ pub fn welch_with(
         Some(w) if w.len() == plan.len => Cow::Borrowed(w),
         _ => Cow::Owned(opts.window.coefficients(plan.len)),
     };
-    let sum_w2: f64 = window.iter().map(|w| w * w).sum();
     let sums = plan.sum_periodograms(y, &window, opts.detrend_mean);
-    let scale = 1.0 / (rate_hz * sum_w2 * plan.count as f64);
-    let nyquist = if plan.len % 2 == 0 {
-        plan.len / 2
+    Ok(density_of(&sums, &window, plan.count, rate_hz))
+}
+
+/// The one-sided density from the sum over `count` segments of `|X[j]|^2` (the module
+/// documentation's normalisation).
+fn density_of(sums: &[f64], window: &[f64], count: usize, rate_hz: f64) -> Psd {
+    let len = window.len();
+    let sum_w2: f64 = window.iter().map(|w| w * w).sum();
+    let scale = 1.0 / (rate_hz * sum_w2 * count as f64);
+    let nyquist = if len.is_multiple_of(2) {
+        len / 2
     } else {
         usize::MAX
     };
@@ -226,14 +234,152 @@ pub fn welch_with(
             s * scale * one_sided
         })
         .collect();
-    let freq = (0..=plan.len / 2)
-        .map(|j| j as f64 * rate_hz / plan.len as f64)
+    let freq = (0..=len / 2)
+        .map(|j| j as f64 * rate_hz / len as f64)
         .collect();
-    Ok(Psd {
+    Psd {
         freq,
         density,
-        segments: plan.count,
-    })
+        segments: count,
+    }
+}
+
+/// One segment's transform, added to the running sum of `|X[j]|^2`.
+struct Periodogram {
+    fft: Arc<dyn RealToComplex<f64>>,
+    input: Vec<f64>,
+    spectrum: Vec<realfft::num_complex::Complex<f64>>,
+    scratch: Vec<realfft::num_complex::Complex<f64>>,
+    acc: Vec<f64>,
+}
+
+impl Periodogram {
+    /// Buffers for `fft`, adding to `acc` (`len / 2 + 1` sums).
+    fn new(fft: Arc<dyn RealToComplex<f64>>, acc: Vec<f64>) -> Self {
+        Periodogram {
+            input: fft.make_input_vec(),
+            spectrum: fft.make_output_vec(),
+            scratch: fft.make_scratch_vec(),
+            acc,
+            fft,
+        }
+    }
+
+    /// Remove the segment's mean (when `detrend`), taper, transform, and add.
+    fn add(&mut self, seg: &[f64], window: &[f64], detrend: bool) {
+        let mean = if detrend {
+            seg.iter().sum::<f64>() / seg.len() as f64
+        } else {
+            0.0
+        };
+        for ((dst, &v), &w) in self.input.iter_mut().zip(seg).zip(window) {
+            *dst = (v - mean) * w;
+        }
+        // Lengths come from the plan itself, so this cannot fail.
+        self.fft
+            .process_with_scratch(&mut self.input, &mut self.spectrum, &mut self.scratch)
+            .expect("buffer lengths match the FFT plan");
+        for (a, c) in self.acc.iter_mut().zip(&self.spectrum) {
+            *a += c.norm_sqr();
+        }
+    }
+}
+
+thread_local! {
+    /// One FFT's work buffers per thread, serving every [`WelchStream`] the thread feeds
+    /// (kept for the next segment: allocating them per segment costs more than the FFT).
+    static WORK: std::cell::RefCell<Option<Periodogram>> = const { std::cell::RefCell::new(None) };
+}
+
+/// [`welch`] fed a record chunk by chunk, for records not held in memory: it keeps one
+/// segment of samples and the sums, the FFT's work buffers being its thread's; estimates made with [`WelchStream::empty_like`] share the window
+/// and the FFT's plan. With the record's length known in advance it averages the same
+/// segments as [`welch`] (scipy's), so the density is the same up to rounding.
+pub struct WelchStream {
+    rate_hz: f64,
+    detrend: bool,
+    window: Arc<[f64]>,
+    fft: Arc<dyn RealToComplex<f64>>,
+    step: usize,
+    /// Samples of the segment being filled (the next segment starts at its front).
+    pending: Vec<f64>,
+    count: usize,
+    /// Sum over segments of `|X[j]|^2`.
+    acc: Vec<f64>,
+}
+
+impl WelchStream {
+    /// A Welch estimate of `samples` samples at `rate_hz`; `opts.segment_len` 0 chooses the
+    /// segment with [`segment_len_for`]`(samples)`. Errors as [`welch`]'s for a record of that
+    /// length.
+    pub fn new(samples: usize, rate_hz: f64, opts: &WelchOptions) -> Result<Self, PsdError> {
+        if samples == 0 {
+            return Err(PsdError::Empty);
+        }
+        let plan = SegmentPlan::for_length(samples, rate_hz, opts)?;
+        Ok(WelchStream {
+            rate_hz,
+            detrend: opts.detrend_mean,
+            window: opts.window.coefficients(plan.len).into(),
+            fft: RealFftPlanner::<f64>::new().plan_fft_forward(plan.len),
+            step: plan.step,
+            pending: Vec::with_capacity(plan.len),
+            count: 0,
+            acc: vec![0.0; plan.len / 2 + 1],
+        })
+    }
+
+    /// An estimate with this one's settings and nothing fed, sharing its window and plan
+    /// (another channel of the same record).
+    pub fn empty_like(&self) -> WelchStream {
+        WelchStream {
+            rate_hz: self.rate_hz,
+            detrend: self.detrend,
+            window: self.window.clone(),
+            fft: self.fft.clone(),
+            step: self.step,
+            pending: Vec::with_capacity(self.window.len()),
+            count: 0,
+            acc: vec![0.0; self.acc.len()],
+        }
+    }
+
+    /// Take the record's next samples (finite: the caller validates them).
+    pub fn extend(&mut self, mut ys: &[f64]) {
+        let len = self.window.len();
+        while !ys.is_empty() {
+            let take = (len - self.pending.len()).min(ys.len());
+            self.pending.extend_from_slice(&ys[..take]);
+            ys = &ys[take..];
+            if self.pending.len() == len {
+                WORK.with_borrow_mut(|work| {
+                    let periodogram = match work {
+                        Some(p) if p.fft.len() == len => p,
+                        _ => work.insert(Periodogram::new(self.fft.clone(), Vec::new())),
+                    };
+                    std::mem::swap(&mut periodogram.acc, &mut self.acc);
+                    periodogram.add(&self.pending, &self.window, self.detrend);
+                    std::mem::swap(&mut periodogram.acc, &mut self.acc);
+                });
+                self.count += 1;
+                self.pending.drain(..self.step);
+            }
+        }
+    }
+
+    /// The density over the segments completed (trailing samples that fill none are
+    /// dropped, as [`welch`] drops them); `Empty` when none was.
+    pub fn finish(&self) -> Result<Psd, PsdError> {
+        if self.count == 0 {
+            return Err(PsdError::Empty);
+        }
+        Ok(density_of(
+            &self.acc,
+            &self.window,
+            self.count,
+            self.rate_hz,
+        ))
+    }
 }
 
 /// Where the segments are: length, step and count, after validating the inputs.
@@ -254,25 +400,33 @@ impl SegmentPlan {
         if let Some((index, &value)) = y.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Err(PsdError::NonFinite { index, value });
         }
+        Self::for_length(y.len(), rate_hz, opts)
+    }
+
+    /// The plan for a record of `samples` finite samples.
+    fn for_length(samples: usize, rate_hz: f64, opts: &WelchOptions) -> Result<Self, PsdError> {
+        if !(rate_hz.is_finite() && rate_hz > 0.0) {
+            return Err(PsdError::BadRate(rate_hz));
+        }
         if !(opts.overlap.is_finite() && (0.0..1.0).contains(&opts.overlap)) {
             return Err(PsdError::BadOverlap(opts.overlap));
         }
         let len = match opts.segment_len {
-            0 => segment_len_for(y.len()),
+            0 => segment_len_for(samples),
             l => l,
         };
         if len < 2 {
             return Err(PsdError::SegmentTooShort(len));
         }
-        if len > y.len() {
+        if len > samples {
             return Err(PsdError::SegmentTooLong {
                 segment_len: len,
-                samples: y.len(),
+                samples,
             });
         }
         let overlap = ((opts.overlap * len as f64).floor() as usize).min(len - 1);
         let step = len - overlap;
-        let count = (y.len() - overlap) / step;
+        let count = (samples - overlap) / step;
         Ok(SegmentPlan { len, step, count })
     }
 
@@ -287,28 +441,12 @@ impl SegmentPlan {
             .map(|g| {
                 let first = g * per_group;
                 let last = ((g + 1) * per_group).min(self.count);
-                let mut input = fft.make_input_vec();
-                let mut spectrum = fft.make_output_vec();
-                let mut scratch = fft.make_scratch_vec();
-                let mut acc = vec![0.0; self.len / 2 + 1];
+                let mut periodogram = Periodogram::new(fft.clone(), vec![0.0; self.len / 2 + 1]);
                 for s in first..last {
                     let seg = &y[s * self.step..s * self.step + self.len];
-                    let mean = if detrend {
-                        seg.iter().sum::<f64>() / self.len as f64
-                    } else {
-                        0.0
-                    };
-                    for ((dst, &v), &w) in input.iter_mut().zip(seg).zip(window) {
-                        *dst = (v - mean) * w;
-                    }
-                    // Lengths come from the plan itself, so this cannot fail.
-                    fft.process_with_scratch(&mut input, &mut spectrum, &mut scratch)
-                        .expect("buffer lengths match the FFT plan");
-                    for (a, c) in acc.iter_mut().zip(&spectrum) {
-                        *a += c.norm_sqr();
-                    }
+                    periodogram.add(seg, window, detrend);
                 }
-                acc
+                periodogram.acc
             })
             .collect();
         let mut total = vec![0.0; self.len / 2 + 1];
@@ -598,5 +736,55 @@ mod tests {
                 "bin at {f} Hz: {s:e}"
             );
         }
+    }
+
+    /// Fed in uneven chunks, the streamed estimate averages the same segments as `welch`
+    /// and differs from it by rounding only (summation order).
+    #[test]
+    fn streamed_welch_is_welch() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let y: Vec<f64> = (0..10_007)
+            .map(|_| 0.3 + Distribution::<f64>::sample(&StandardNormal, &mut rng))
+            .collect();
+        for (segment_len, window) in [(0, Window::Hann), (1000, Window::Blackman)] {
+            let opts = WelchOptions {
+                segment_len,
+                window,
+                ..WelchOptions::default()
+            };
+            let whole = welch(&y, 50.0, &opts).unwrap();
+            let first = WelchStream::new(y.len(), 50.0, &opts).unwrap();
+            let mut stream = first.empty_like();
+            let mut rest = &y[..];
+            for size in [1, 17, 4000, 333].iter().cycle() {
+                let (chunk, tail) = rest.split_at((*size).min(rest.len()));
+                stream.extend(chunk);
+                rest = tail;
+                if rest.is_empty() {
+                    break;
+                }
+            }
+            let streamed = stream.finish().unwrap();
+            assert_eq!(streamed.segments, whole.segments);
+            assert_eq!(streamed.freq, whole.freq);
+            for (a, b) in streamed.density.iter().zip(&whole.density) {
+                assert!((a / b - 1.0).abs() < 1e-12, "{a} vs {b}");
+            }
+        }
+        assert_eq!(
+            WelchStream::new(
+                10,
+                50.0,
+                &WelchOptions {
+                    segment_len: 11,
+                    ..WelchOptions::default()
+                }
+            )
+            .err(),
+            Some(PsdError::SegmentTooLong {
+                segment_len: 11,
+                samples: 10
+            })
+        );
     }
 }

@@ -229,6 +229,22 @@ impl Streaming {
         })
     }
 
+    /// The estimator accumulated.
+    pub fn estimator(&self) -> Estimator {
+        self.estimator
+    }
+
+    /// The averaging factors served, ascending.
+    pub fn factors(&self) -> Vec<usize> {
+        let mut m: Vec<usize> = self
+            .levels
+            .iter()
+            .flat_map(|l| l.terms.iter().map(|t| t.m))
+            .collect();
+        m.sort_unstable();
+        m
+    }
+
     /// Rate samples taken so far.
     pub fn samples(&self) -> u64 {
         self.samples
@@ -349,7 +365,7 @@ impl Curve {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::analysis::taus::{self, TauGrid};
     use crate::analysis::{allan, phase_from_rate};
@@ -359,7 +375,7 @@ mod tests {
 
     /// White noise plus a random walk and a bias, so every tau has something to measure and
     /// the phase drifts far from zero.
-    fn series(n: usize, seed: u64) -> Vec<f64> {
+    pub(crate) fn series(n: usize, seed: u64) -> Vec<f64> {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut walk = 0.0;
         (0..n)

@@ -6,12 +6,14 @@ use crate::cli::output;
 use crate::cli::settings::{accel_range, gyro_range};
 use crate::cli::stored;
 use anyhow::{Context, Result};
+use imunoise::analysis::bounded::Bounded;
 use imunoise::analysis::filter;
-use imunoise::analysis::pipeline::{self, LowPassChoice, Options};
+use imunoise::analysis::pipeline::{self, ChannelResult, LowPassChoice, Options};
 use imunoise::analysis::psd::Window;
 use imunoise::analysis::taus::TauGrid;
 use imunoise::analysis::{DataType, Estimator};
-use imunoise::input::{CountScale, LoadOptions, Loaded};
+use imunoise::input::{self, CountScale, LoadOptions, Loaded, NpyStream, ReadReport};
+use imunoise::record::{Quantity, Record};
 use imunoise::report;
 use imunoise::report::filter::FilterFileError;
 use protocol::mpu6050::SensorSettings;
@@ -27,6 +29,11 @@ pub struct AnalyzeArgs {
     /// stored data are not altered)
     #[arg(long)]
     pub calibrated: bool,
+    /// Memory for the samples, MB: an uncompressed .npy whose samples need more is analysed
+    /// streamed, in bounded memory (oadev/ohdev, noise fit, Welch PSD; no line search).
+    /// Default: half of the memory available
+    #[arg(long, value_name = "MB")]
+    pub memory_budget: Option<f64>,
     #[command(flatten)]
     pub analysis: AnalysisArgs,
 }
@@ -145,6 +152,10 @@ pub fn run(args: &AnalyzeArgs, store: Option<&Path>) -> Result<()> {
     for (path, flag) in args.analysis.outputs() {
         output::check(path, flag, store_dir.as_deref(), &[&args.input])?;
     }
+    if let Some(stream) = too_large(args)? {
+        analyse_streamed(stream, &args.analysis)?;
+        return Ok(());
+    }
     let stored::Input {
         mut loaded,
         session,
@@ -166,6 +177,94 @@ pub fn run(args: &AnalyzeArgs, store: Option<&Path>) -> Result<()> {
     }
     let analysed = analyse(loaded, &args.analysis)?;
     stored::keep_analysis(session.as_ref(), &analysed.options, &analysed.document)
+}
+
+/// Rows of a streamed record read at a time: about 1 MiB of samples.
+const BLOCK_BYTES: usize = 1 << 20;
+
+/// `--memory-budget` when not given: half of the memory available (MemAvailable in
+/// /proc/meminfo), or 4096 MB where that cannot be read.
+fn default_budget_mb() -> f64 {
+    std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|text| {
+            let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+            let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+            Some(kb / 1024.0 / 2.0)
+        })
+        .unwrap_or(4096.0)
+}
+
+/// The input opened for streaming when it is an uncompressed .npy file whose samples
+/// (8 bytes each) exceed the memory budget; `None` reads it whole.
+fn too_large(args: &AnalyzeArgs) -> Result<Option<NpyStream>> {
+    let budget = args.memory_budget.unwrap_or_else(default_budget_mb);
+    anyhow::ensure!(
+        budget.is_finite() && budget > 0.0,
+        "--memory-budget {budget}: a positive number of MB"
+    );
+    if args.calibrated || !args.input.is_file() {
+        return Ok(None);
+    }
+    let Some(stream) = input::open_npy(&args.input, &args.analysis.read.load_options()?)? else {
+        return Ok(None);
+    };
+    let mb = (stream.rows() * stream.record.channels.len()) as f64 * 8.0 / 1e6;
+    if mb <= budget {
+        return Ok(None);
+    }
+    eprintln!(
+        "note: {}: the samples need {mb:.0} MB, more than the memory budget ({budget:.0} MB): \
+         analysed streamed, in bounded memory (--memory-budget MB to read it whole)",
+        args.input.display()
+    );
+    Ok(Some(stream))
+}
+
+/// [`analyse`] for a record read a block of rows at a time ([`bounded`]).
+fn analyse_streamed(mut stream: NpyStream, args: &AnalysisArgs) -> Result<Analysed> {
+    let rows = stream.rows();
+    let all = stream
+        .record
+        .names()
+        .iter()
+        .map(|n| n.to_string())
+        .collect::<Vec<_>>();
+    let record = stream
+        .record
+        .clone()
+        .select(&args.columns)
+        .map_err(anyhow::Error::msg)?;
+    let picked: Vec<usize> = record
+        .channels
+        .iter()
+        .filter_map(|c| all.iter().position(|n| *n == c.name))
+        .collect();
+    if let Some(segment) = args.psd_segment {
+        check_psd_segment(segment, Some(rows))?;
+    }
+    let mut options = options(args)?;
+    options.low_pass = low_pass_choice(args.bandwidth, None);
+    let channels: Vec<(String, Quantity)> = record
+        .channels
+        .iter()
+        .map(|c| (c.name.clone(), c.quantity))
+        .collect();
+    let mut analysis = Bounded::new(&channels, rows, record.rate_hz, &options)
+        .with_context(|| record.source.clone())?;
+    let block = (BLOCK_BYTES / (8 * all.len())).max(1);
+    let mut columns = vec![Vec::new(); all.len()];
+    let bar = crate::cli::progress::bar(rows as u64, "analysing");
+    while stream.next_rows(block, &mut columns)? > 0 {
+        let picked: Vec<&[f64]> = picked.iter().map(|&i| &columns[i][..]).collect();
+        analysis
+            .feed(&picked)
+            .with_context(|| record.source.clone())?;
+        bar.inc(columns[0].len() as u64);
+    }
+    let results = analysis.finish().with_context(|| record.source.clone())?;
+    bar.finish_and_clear();
+    write_outputs(&record, options, &results, &stream.report, args)
 }
 
 /// How to read a record: shared by every command that takes one (analyze, replay, model).
@@ -312,21 +411,32 @@ pub fn analyse(loaded: Loaded, args: &AnalysisArgs) -> Result<Analysed> {
     let results = pipeline::analyze(&record, &options, &|| bar.inc(1))
         .with_context(|| record.source.clone())?;
     bar.finish_and_clear();
-    for warning in report::table::fit_warnings(&results) {
+    write_outputs(&record, options, &results, &read, args)
+}
+
+/// Print and write everything `args` ask for from `results`; the JSON document.
+fn write_outputs(
+    record: &Record,
+    options: Options,
+    results: &[ChannelResult],
+    read: &ReadReport,
+    args: &AnalysisArgs,
+) -> Result<Analysed> {
+    for warning in report::table::fit_warnings(results) {
         eprintln!("warning: {warning}");
     }
-    let mut document = report::json::document(&record, &options, &results);
-    document["input"] = serde_json::to_value(&read)?;
+    let mut document = report::json::document(record, &options, results);
+    document["input"] = serde_json::to_value(read)?;
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     if !json_to_stdout {
         read.lines().iter().for_each(|line| println!("{line}"));
-        print!("{}", report::table::render(&record, &options, &results));
+        print!("{}", report::table::render(record, &options, results));
     }
     if args.filter_period.is_some() || !args.filter.is_empty() {
         let period = args.filter_period.unwrap_or(1.0 / record.rate_hz);
-        let filters = filter::for_channels(&results, period)
+        let filters = filter::for_channels(results, period)
             .map_err(|e| anyhow::anyhow!("--filter-period {period}: {e}"))?;
-        let filter_document = report::filter::document(&record, &filters);
+        let filter_document = report::filter::document(record, &filters);
         if !json_to_stdout {
             print!("{}", report::filter::render(&filters));
         }
@@ -346,16 +456,16 @@ pub fn analyse(loaded: Loaded, args: &AnalysisArgs) -> Result<Analysed> {
         }
     }
     if let Some(path) = &args.plot {
-        report::plot::write(path, &report::figures::figures(&results))?;
+        report::plot::write(path, &report::figures::figures(results))?;
         note(json_to_stdout, path, "figures");
     }
     if let Some(path) = &args.kalibr {
-        let yaml = report::kalibr::yaml(&record, &results).map_err(anyhow::Error::msg)?;
+        let yaml = report::kalibr::yaml(record, results).map_err(anyhow::Error::msg)?;
         write(path, &yaml)?;
         note(json_to_stdout, path, "Kalibr IMU YAML");
     }
     if let Some(path) = &args.report {
-        write(path, &report::html::page(&record, &options, &results)?)?;
+        write(path, &report::html::page(record, &options, results)?)?;
         note(json_to_stdout, path, "HTML report");
     }
     Ok(Analysed { document, options })

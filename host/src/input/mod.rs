@@ -10,7 +10,7 @@ mod text;
 pub mod timing;
 mod units;
 
-pub use npy::{NpyError, write_f64 as write_npy};
+pub use npy::{NpyChunks, NpyError, write_f64 as write_npy};
 pub use timing::Timing;
 pub use units::UnitConversion;
 
@@ -217,6 +217,113 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Loaded, InputError> {
         settings,
         report,
     })
+}
+
+/// An uncompressed `.npy` input opened to be read a block of rows at a time ([`open_npy`]):
+/// for records larger than memory.
+pub struct NpyStream {
+    /// The record's source, rate and channels, the channels without samples.
+    pub record: Record,
+    /// How the file is read (units from column names, warnings).
+    pub report: ReadReport,
+    chunks: NpyChunks<std::io::BufReader<std::fs::File>>,
+    /// Per channel: the unit suffix's factor to SI and the `--scale` factor.
+    factors: Vec<(f64, f64)>,
+    counts: Option<CountScale>,
+}
+
+impl NpyStream {
+    /// Samples per channel.
+    pub fn rows(&self) -> usize {
+        self.chunks.rows()
+    }
+
+    /// Replace `columns` (one per channel of [`NpyStream::record`]) with the next rows, at
+    /// most `max_rows`, converted as [`load`] converts them; the count read, 0 at the end.
+    pub fn next_rows(
+        &mut self,
+        max_rows: usize,
+        columns: &mut [Vec<f64>],
+    ) -> Result<usize, InputError> {
+        let got = self.chunks.next_rows(max_rows, columns)?;
+        for ((column, channel), &(unit, scale)) in columns
+            .iter_mut()
+            .zip(&self.record.channels)
+            .zip(&self.factors)
+        {
+            if unit != 1.0 {
+                column.iter_mut().for_each(|v| *v *= unit);
+            }
+            if let Some(counts) = self.counts {
+                let mut converted = Channel {
+                    name: String::new(),
+                    quantity: channel.quantity,
+                    values: std::mem::take(column),
+                };
+                counts_to_si(&mut converted, counts);
+                *column = converted.values;
+            }
+            if scale != 1.0 {
+                column.iter_mut().for_each(|v| *v *= scale);
+            }
+        }
+        Ok(got)
+    }
+}
+
+/// `path` opened as an [`NpyStream`] when it is an uncompressed `.npy` file (`None`
+/// otherwise): its header read, and the names, units, rate and conversions of `options`
+/// resolved as [`load`] resolves them.
+pub fn open_npy(path: &Path, options: &LoadOptions) -> Result<Option<NpyStream>, InputError> {
+    let io = |source| InputError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let mut magic = [0u8; 6];
+    let mut file = std::fs::File::open(path).map_err(io)?;
+    match file.read_exact(&mut magic) {
+        Ok(()) if magic == npy::MAGIC => {}
+        Ok(()) => return Ok(None),
+        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(None),
+        Err(e) => return Err(io(e)),
+    }
+    drop(file);
+    let chunks = NpyChunks::open(path)?;
+    let table = Table {
+        channels: (0..chunks.cols())
+            .map(|c| (format!("c{c}"), Vec::new()))
+            .collect(),
+        rate_hz: None,
+        timing: None,
+        ignored_time: None,
+    };
+    let mut report = ReadReport::default();
+    let record = build_record(path, table, options, &mut report)?;
+    let factors = record
+        .channels
+        .iter()
+        .map(|c| {
+            let unit = report
+                .units
+                .iter()
+                .find(|u| u.channel == c.name)
+                .map_or(1.0, |u| u.factor);
+            let scale = options
+                .scales
+                .iter()
+                .filter(|(name, _)| *name == c.name)
+                .map(|(_, f)| f)
+                .product();
+            (unit, scale)
+        })
+        .collect();
+    Ok(Some(NpyStream {
+        record,
+        report,
+        chunks,
+        factors,
+        counts: options.counts,
+    }))
 }
 
 /// The uncompressed bytes of a gzip file (every member of a concatenated one).

@@ -50,22 +50,29 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<Table, InputError> {
 /// [`parse`] from a reader holding `len` bytes (a file read as it is): each value goes
 /// straight into its channel, so reading costs no buffer beside the channels.
 pub(super) fn parse_reader(path: &Path, reader: impl Read, len: u64) -> Result<Table, InputError> {
-    read(reader, len).map_err(|e| match e {
-        ReadError::Io(source) => InputError::Io {
-            path: path.to_owned(),
-            source,
-        },
-        ReadError::Npy(source) => InputError::Npy {
-            path: path.to_owned(),
-            source,
-        },
-    })
+    read(reader, len).map_err(|e| e.at(path))
 }
 
 /// A reader's failure or a format error.
 enum ReadError {
     Io(std::io::Error),
     Npy(NpyError),
+}
+
+impl ReadError {
+    /// The error as the file at `path`'s.
+    fn at(self, path: &Path) -> InputError {
+        match self {
+            ReadError::Io(source) => InputError::Io {
+                path: path.to_owned(),
+                source,
+            },
+            ReadError::Npy(source) => InputError::Npy {
+                path: path.to_owned(),
+                source,
+            },
+        }
+    }
 }
 
 impl From<NpyError> for ReadError {
@@ -83,32 +90,96 @@ impl From<std::io::Error> for ReadError {
 /// Values read per chunk.
 const CHUNK: usize = 1 << 13;
 
+/// What the header says about the data, checked against the file's length.
+struct Layout {
+    dtype: Dtype,
+    fortran: bool,
+    shape: Vec<usize>,
+    rows: usize,
+    cols: usize,
+    /// Bytes before the data.
+    header_end: usize,
+}
+
+impl Layout {
+    fn read(reader: &mut impl Read, len: u64) -> Result<Layout, ReadError> {
+        let (header, header_end) = read_header(reader)?;
+        let key = |name: &'static str| dict_value(&header, name).ok_or(NpyError::MissingKey(name));
+        let dtype = Dtype::parse(key("descr")?.trim_matches(['\'', '"']))?;
+        let fortran = key("fortran_order")? == "True";
+        let shape = parse_shape(key("shape")?)?;
+        let (rows, cols) = match shape[..] {
+            [n] => (n, 1),
+            [n, c] => (n, c),
+            _ => return Err(NpyError::Dimensions(shape).into()),
+        };
+        let layout = Layout {
+            dtype,
+            fortran,
+            shape,
+            rows,
+            cols,
+            header_end,
+        };
+        let count = rows.checked_mul(cols).ok_or(NpyError::TooLarge)?;
+        let have = len.saturating_sub(header_end as u64);
+        if have < layout.need() as u64 {
+            return Err(layout.truncated(have).into());
+        }
+        if count == 0 {
+            return Err(NpyError::Empty.into());
+        }
+        Ok(layout)
+    }
+
+    /// Bytes of data the shape needs.
+    fn need(&self) -> usize {
+        (self.rows * self.cols).saturating_mul(self.dtype.size)
+    }
+
+    fn truncated(&self, have: u64) -> NpyError {
+        NpyError::Truncated {
+            shape: self.shape.clone(),
+            dtype: self.dtype.name.clone(),
+            need: self.need(),
+            have: usize::try_from(have).unwrap_or(usize::MAX),
+        }
+    }
+
+    /// Value `b` of element [row, col], finite or the error naming it.
+    fn value(&self, b: &[u8], row: usize, col: usize) -> Result<f64, NpyError> {
+        let value = self.dtype.read(b);
+        if value.is_finite() {
+            Ok(value)
+        } else {
+            Err(NpyError::NotFinite { row, col, value })
+        }
+    }
+
+    /// Fill `bytes` from the reader; a short file is `Truncated` with `at` bytes read.
+    fn read_exact(
+        &self,
+        reader: &mut impl Read,
+        bytes: &mut [u8],
+        at: usize,
+    ) -> Result<(), ReadError> {
+        reader.read_exact(bytes).map_err(|e| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => self.truncated(at as u64).into(),
+            _ => e.into(),
+        })
+    }
+}
+
 fn read(mut reader: impl Read, len: u64) -> Result<Table, ReadError> {
-    let (header, header_end) = read_header(&mut reader)?;
-    let key = |name: &'static str| dict_value(&header, name).ok_or(NpyError::MissingKey(name));
-    let dtype = Dtype::parse(key("descr")?.trim_matches(['\'', '"']))?;
-    let fortran = key("fortran_order")? == "True";
-    let shape = parse_shape(key("shape")?)?;
-    let (rows, cols) = match shape[..] {
-        [n] => (n, 1),
-        [n, c] => (n, c),
-        _ => return Err(NpyError::Dimensions(shape).into()),
-    };
-    let count = rows.checked_mul(cols).ok_or(NpyError::TooLarge)?;
-    let need = count.saturating_mul(dtype.size);
-    let truncated = |shape: Vec<usize>, have: u64| NpyError::Truncated {
-        shape,
-        dtype: dtype.name.clone(),
-        need,
-        have: usize::try_from(have).unwrap_or(usize::MAX),
-    };
-    let have = len.saturating_sub(header_end as u64);
-    if have < need as u64 {
-        return Err(truncated(shape, have).into());
-    }
-    if count == 0 {
-        return Err(NpyError::Empty.into());
-    }
+    let layout = Layout::read(&mut reader, len)?;
+    let Layout {
+        ref dtype,
+        fortran,
+        rows,
+        cols,
+        ..
+    } = layout;
+    let count = rows * cols;
     let mut columns: Vec<Vec<f64>> = (0..cols).map(|_| Vec::with_capacity(rows)).collect();
     let mut bytes = vec![0u8; CHUNK * dtype.size];
     let mut at = 0;
@@ -118,24 +189,13 @@ fn read(mut reader: impl Read, len: u64) -> Result<Table, ReadError> {
     while at < count {
         let take = CHUNK.min(count - at);
         let chunk = &mut bytes[..take * dtype.size];
-        if let Err(e) = reader.read_exact(chunk) {
-            return Err(match e.kind() {
-                std::io::ErrorKind::UnexpectedEof => {
-                    truncated(shape, (at * dtype.size) as u64).into()
-                }
-                _ => e.into(),
-            });
-        }
+        layout.read_exact(&mut reader, chunk, at * dtype.size)?;
         for (i, b) in (at..).zip(chunk.chunks_exact(dtype.size)) {
-            let value = dtype.read(b);
             // Element i of the file's order is in column i / rows (Fortran order) or
             // i % cols (C order).
             let col = if fortran { column } else { i - row_start };
-            if !value.is_finite() {
-                let row = if fortran { i - row_start } else { i / cols };
-                return Err(NpyError::NotFinite { row, col, value }.into());
-            }
-            columns[col].push(value);
+            let row = if fortran { i - row_start } else { i / cols };
+            columns[col].push(layout.value(b, row, col)?);
             let stride = if fortran { rows } else { cols };
             if i + 1 - row_start == stride {
                 row_start += stride;
@@ -155,6 +215,108 @@ fn read(mut reader: impl Read, len: u64) -> Result<Table, ReadError> {
         timing: None,
         ignored_time: None,
     })
+}
+
+/// An `.npy` array read a block of rows at a time, for records larger than memory: the
+/// same checks and errors as reading it whole ([`parse_reader`]), in memory that does not
+/// grow with the array. C order is read straight through; Fortran order reads each column's
+/// next rows after a seek.
+pub struct NpyChunks<R> {
+    path: std::path::PathBuf,
+    reader: R,
+    layout: Layout,
+    /// Rows read so far.
+    row: usize,
+    bytes: Vec<u8>,
+}
+
+impl NpyChunks<std::io::BufReader<std::fs::File>> {
+    /// Open the `.npy` file at `path` (uncompressed) and read its header.
+    pub fn open(path: &Path) -> Result<Self, InputError> {
+        let io = |source| InputError::Io {
+            path: path.to_owned(),
+            source,
+        };
+        let file = std::fs::File::open(path).map_err(io)?;
+        let len = file.metadata().map_err(io)?.len();
+        NpyChunks::new(path, std::io::BufReader::new(file), len)
+    }
+}
+
+impl<R: Read + std::io::Seek> NpyChunks<R> {
+    /// The array in `reader`, `len` bytes long; `path` names it in errors.
+    pub fn new(path: &Path, mut reader: R, len: u64) -> Result<Self, InputError> {
+        let layout = Layout::read(&mut reader, len).map_err(|e| e.at(path))?;
+        Ok(NpyChunks {
+            path: path.to_owned(),
+            reader,
+            layout,
+            row: 0,
+            bytes: Vec::new(),
+        })
+    }
+
+    /// Rows (samples per channel).
+    pub fn rows(&self) -> usize {
+        self.layout.rows
+    }
+
+    /// Columns (channels).
+    pub fn cols(&self) -> usize {
+        self.layout.cols
+    }
+
+    /// Replace `columns` (one per channel) with the next rows, at most `max_rows` (at least
+    /// one); the count read, 0 at the end.
+    pub fn next_rows(
+        &mut self,
+        max_rows: usize,
+        columns: &mut [Vec<f64>],
+    ) -> Result<usize, InputError> {
+        self.fill(max_rows.max(1), columns)
+            .map_err(|e| e.at(&self.path))
+    }
+
+    fn fill(&mut self, max_rows: usize, columns: &mut [Vec<f64>]) -> Result<usize, ReadError> {
+        let Layout {
+            ref dtype,
+            fortran,
+            rows,
+            cols,
+            header_end,
+            ..
+        } = self.layout;
+        let take = max_rows.min(rows - self.row);
+        columns.iter_mut().for_each(Vec::clear);
+        if take == 0 {
+            return Ok(0);
+        }
+        let size = dtype.size;
+        if fortran {
+            self.bytes.resize(take * size, 0);
+            for (col, column) in columns.iter_mut().enumerate().take(cols) {
+                let at = (col * rows + self.row) * size;
+                self.reader
+                    .seek(std::io::SeekFrom::Start((header_end + at) as u64))?;
+                self.layout
+                    .read_exact(&mut self.reader, &mut self.bytes, at)?;
+                for (row, b) in (self.row..).zip(self.bytes.chunks_exact(size)) {
+                    column.push(self.layout.value(b, row, col)?);
+                }
+            }
+        } else {
+            self.bytes.resize(take * cols * size, 0);
+            let at = self.row * cols * size;
+            self.layout
+                .read_exact(&mut self.reader, &mut self.bytes, at)?;
+            for (i, b) in self.bytes.chunks_exact(size).enumerate() {
+                let (row, col) = (self.row + i / cols, i % cols);
+                columns[col].push(self.layout.value(b, row, col)?);
+            }
+        }
+        self.row += take;
+        Ok(take)
+    }
 }
 
 /// Write a 1-D float64 array as `.npy` (format 1.0): the bench hands data to numpy this way.
@@ -386,5 +548,66 @@ mod tests {
         assert!(e.to_string().contains("bad magic"), "{e}");
         let e = parse_bytes(&npy("<f8", false, "(1, 1, 1)", &[0; 8])).unwrap_err();
         assert!(e.to_string().contains("only 1-D or 2-D"), "{e}");
+    }
+
+    /// Read `bytes` in blocks of `block` rows: the channels, or the first error.
+    fn chunked(bytes: &[u8], block: usize) -> Result<Vec<Vec<f64>>, InputError> {
+        let cursor = std::io::Cursor::new(bytes);
+        let mut chunks = NpyChunks::new(Path::new("a.npy"), cursor, bytes.len() as u64)?;
+        let mut out = vec![Vec::new(); chunks.cols()];
+        let mut block_columns = vec![Vec::new(); chunks.cols()];
+        while chunks.next_rows(block, &mut block_columns)? > 0 {
+            for (o, b) in out.iter_mut().zip(&block_columns) {
+                o.extend_from_slice(b);
+            }
+        }
+        assert_eq!(out[0].len(), chunks.rows());
+        Ok(out)
+    }
+
+    /// Blocks of any size give the channels (and the errors) reading the whole array gives,
+    /// for 1-D and 2-D arrays in C and Fortran order.
+    #[test]
+    fn chunks_read_what_the_whole_read_reads() {
+        let values: Vec<f64> = (0..105).map(|i| (i as f64 * 0.37).sin()).collect();
+        let data: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let ints: Vec<u8> = (0..105i16).flat_map(|v| (v - 50).to_be_bytes()).collect();
+        let files = [
+            npy("<f8", false, "(105,)", &data),
+            npy("<f8", false, "(35, 3)", &data),
+            npy("<f8", true, "(35, 3)", &data),
+            npy("<f8", false, "(21, 5)", &data),
+            npy(">i2", false, "(15, 7)", &ints),
+        ];
+        for file in &files {
+            let whole: Vec<Vec<f64>> = parse_bytes(file)
+                .unwrap()
+                .channels
+                .into_iter()
+                .map(|(_, v)| v)
+                .collect();
+            for block in [1, 2, 7, 1000] {
+                assert_eq!(chunked(file, block).unwrap(), whole, "block {block}");
+            }
+        }
+        // A NaN at [4, 1], and a file cut short: the same messages as the whole read's.
+        let mut bad = values.clone();
+        bad[4 * 3 + 1] = f64::NAN;
+        let bad: Vec<u8> = bad.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let short = &data[..data.len() - 8];
+        for file in [
+            npy("<f8", false, "(35, 3)", &bad),
+            npy("<f8", false, "(35, 3)", short),
+        ] {
+            let whole = parse_bytes(&file).err().map(|e| e.to_string());
+            assert!(whole.is_some());
+            assert_eq!(chunked(&file, 3).err().map(|e| e.to_string()), whole);
+        }
+        assert_eq!(
+            chunked(&npy("<f8", false, "(35, 3)", &bad), 3)
+                .unwrap_err()
+                .to_string(),
+            "a.npy: element [4, 1] is NaN: the data must be finite"
+        );
     }
 }

@@ -26,9 +26,9 @@ pub fn page(
         h,
         "<p>{} channel(s), {} samples at {} Hz ({} s). Intervals: {} % two-sided.</p>",
         results.len(),
-        record.len(),
+        super::samples(record, results),
         sig(record.rate_hz, 6),
-        sig(record.duration_s(), 6),
+        sig(super::duration_s(record, results), 6),
         sig(options.confidence * 100.0, 3)
     );
     h.push_str("<h2>Noise terms (IEEE-952 fit to the overlapping Allan variance)</h2>\n");

@@ -93,6 +93,10 @@ pub struct Channel<'a> {
     pub low_pass: Option<&'a LowPass>,
     /// The spectral lines removed before the fit.
     pub lines: &'a [Line],
+    /// How the channel was computed when the record was not held in memory (what is exact,
+    /// what approximated, what left out); absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub computation: Option<&'a str>,
 }
 
 /// One estimator's curve with its intervals, point by point.
@@ -264,8 +268,8 @@ impl<'a> Document<'a> {
             version: env!("CARGO_PKG_VERSION"),
             source: &record.source,
             rate_hz: record.rate_hz,
-            samples: record.len(),
-            duration_s: record.duration_s(),
+            samples: super::samples(record, results),
+            duration_s: super::duration_s(record, results),
             data_type: options.data_type,
             confidence: options.confidence,
             conventions: conventions(options),
@@ -310,6 +314,7 @@ fn channel(r: &ChannelResult) -> Channel<'_> {
         psd_noise: Part::of(&r.psd_terms, |p| psd_noise(p, r.kind)),
         low_pass: r.fit.as_ref().ok().and_then(|f| f.low_pass.as_ref()),
         lines: &r.lines,
+        computation: r.computation.as_deref(),
     }
 }
 

@@ -118,7 +118,7 @@ pub fn yaml(record: &Record, results: &[ChannelResult]) -> Result<String, Kalibr
          update_rate: {rate}  # [Hz]\n",
         version = env!("CARGO_PKG_VERSION"),
         source = record.source,
-        samples = record.len(),
+        samples = super::samples(record, results),
         rate = record.rate_hz,
         rule = k.rule,
         an = yaml_float(noise.accelerometer_noise_density),

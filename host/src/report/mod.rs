@@ -16,8 +16,9 @@ pub mod table;
 pub mod yaml;
 
 use crate::analysis::fit::{NoiseFit, Support, Term};
-use crate::analysis::pipeline::Options;
+use crate::analysis::pipeline::{ChannelResult, Options};
 use crate::analysis::units::NoiseTerm;
+use crate::record::Record;
 use serde_json::{Value, json};
 
 /// The IEEE-952 terms in the order they are printed.
@@ -49,6 +50,17 @@ pub fn support_of(fit: &NoiseFit, term: NoiseTerm) -> &Support {
         NoiseTerm::K => &s.k,
         NoiseTerm::R => &s.r,
     }
+}
+
+/// Samples per channel: the results', which count them when the record was analysed without
+/// being held in memory (its channels then hold no samples).
+pub fn samples(record: &Record, results: &[ChannelResult]) -> usize {
+    results.first().map_or(record.len(), |r| r.n)
+}
+
+/// The record's length, s ([`samples`] at its rate).
+pub fn duration_s(record: &Record, results: &[ChannelResult]) -> f64 {
+    samples(record, results) as f64 / record.rate_hz
 }
 
 /// The conventions every output states, so no number is read in the wrong units.

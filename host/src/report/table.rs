@@ -18,14 +18,23 @@ pub fn render(record: &Record, options: &Options, results: &[ChannelResult]) -> 
         "{}: {} channel(s), {} samples at {} Hz ({} s), {} data",
         record.source,
         results.len(),
-        record.len(),
+        super::samples(record, results),
         sig(record.rate_hz, 6),
-        sig(record.duration_s(), 6),
+        sig(super::duration_s(record, results), 6),
         match options.data_type {
             crate::analysis::DataType::Rate => "rate",
             crate::analysis::DataType::Phase => "phase",
         }
     );
+    // Every channel of a streamed record shares one ladder and one length: one line.
+    let mut notes: Vec<&str> = results
+        .iter()
+        .filter_map(|r| r.computation.as_deref())
+        .collect();
+    notes.dedup();
+    for note in notes {
+        let _ = writeln!(out, "{note}");
+    }
     let _ = writeln!(
         out,
         "\nIEEE-952 noise terms: weighted least squares on the overlapping Allan variance, \

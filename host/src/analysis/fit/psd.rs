@@ -108,6 +108,8 @@ pub enum PsdFitError {
     TooFewPoints(usize),
     #[error("confidence {0} is not in (0, 1)")]
     BadConfidence(f64),
+    #[error("not computed: {0}")]
+    NotComputed(&'static str),
 }
 
 /// One coefficient from the PSD, SI (N in u/sqrt(Hz), B in u, K in u*sqrt(Hz)).
