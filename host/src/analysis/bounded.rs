@@ -5,8 +5,8 @@
 //! [`ChannelResult::computation`] says what was computed and how.
 //!
 //! What it computes as the pipeline does: the overlapping Allan (and on request Hadamard)
-//! deviation, exact at factors up to [`streaming::Config::exact_up_to`] and on a decimated
-//! phase above ([`streaming`]'s module documentation), on the pipeline's taus moved by
+//! deviation, exact at factors up to [`Config::exact_up_to`](super::streaming::Config::exact_up_to) and on a decimated
+//! phase above ([`streaming`](super::streaming)'s module documentation), on the pipeline's taus moved by
 //! [`snap_factors`] where decimated; the noise fit on that curve; the slope read-outs; the
 //! Welch PSD. The intervals take each tau's noise type from the fitted model
 //! ([`Curve::intervals`]), since there is no record to identify it on.

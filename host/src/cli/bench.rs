@@ -6,18 +6,18 @@
 //!    `imunoise analyze` of the same data as a `.npy` file (a child process, best of three:
 //!    reading, line search, Allan curve with intervals, fit, PSD and its fit, output), their
 //!    ratios, and the largest relative difference of the deviations; the engine's peak memory
-//!    and the whole analysis's peak resident memory (Linux), each over the input's size.
+//!    and the whole analysis's peak resident memory (Linux), each over the input's size; and
+//!    the same for the streamed analysis (`--memory-budget 1`).
 //! 2. A full `analyze` (six channels, oadev with CIs, PSD, fit) of an 8-hour 200 Hz record.
 //! 3. The simulator's cost per noise term: an hour of six axes at 1 kHz.
 //! 4. Decoding a large capture file (target: at least 100 MB/s).
 //! 5. The model workflow on a 3-hour 100 Hz record (target: under 30 s).
-//! 6. Streaming Allan accumulators (the live view's) over 24 h of six axes at 1 kHz, fed in
-//!    batches as a capture feeds them: throughput and memory, against the memory a batch
-//!    analysis would need for the same record.
+//! 6. The streamed analysis (`analyze` of an .npy beyond `--memory-budget`: streaming Allan
+//!    accumulators, a streamed Welch PSD, the noise fit) over 24 h of six axes at 1 kHz, fed
+//!    in blocks: throughput and peak memory, against the memory the record read whole needs.
 
 use anyhow::{Context, Result, bail};
 use imunoise::analysis::pipeline::{self, Options};
-use imunoise::analysis::streaming::{Config, Curve, Streaming, snap_factors};
 use imunoise::analysis::taus::{self, TauGrid};
 use imunoise::analysis::{Estimator, allan, into_phase};
 use imunoise::input;
@@ -106,9 +106,23 @@ fn allan_comparison(args: &BenchArgs, dir: &Path) -> Result<()> {
         None => println!("   engine peak memory: not measurable on this OS"),
     }
     drop(y);
-    // Before any other child process: the peak resident memory of the children so far is
-    // then the analysis's.
-    let whole = time_analyze(&data, args.taus, dir)?;
+    // The streamed analysis first, then the whole one, before any other child process: the
+    // peak resident memory of the children so far is then each one's (the streamed one holds
+    // less).
+    // A child spawned by vfork shares this process's memory until it execs, and Linux keeps
+    // that memory's high-water mark as the child's peak: reset it to what is resident now
+    // (the record was dropped above), so the peak is the child's own.
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+    let streamed = time_analyze(&data, args.taus, dir, &["--memory-budget", "1"])?;
+    let streamed_rss = children_peak_rss().map(|bytes| bytes / input_bytes);
+    println!(
+        "   streamed analyze: {:>6.3} s (best of 3; the same with --memory-budget 1: no line search, no roll-off detection, PSD by Welch only)",
+        streamed.seconds
+    );
+    if let Some(r) = streamed_rss {
+        println!("   streamed analyze peak memory: {r:.2} x the input, resident (getrusage)");
+    }
+    let whole = time_analyze(&data, args.taus, dir, &[])?;
     println!(
         "   whole analyze:  {:>8.3} s (best of 3; `imunoise analyze y.npy --rate {COMPARISON_RATE_HZ} --estimator oadev --taus {}`)",
         whole.seconds, args.taus
@@ -150,14 +164,22 @@ fn allan_comparison(args: &BenchArgs, dir: &Path) -> Result<()> {
             if let Some(r) = rss_ratio {
                 println!("     whole analyze peak RSS / input:    {r:>6.2} (target 1.5)");
             }
+            println!(
+                "     streamed analyze vs allantools:    {:>6.1} x faster",
+                seconds / streamed.seconds
+            );
+            if let Some(r) = streamed_rss {
+                println!("     streamed analyze peak RSS / input: {r:>6.2}");
+            }
         }
         Err(e) => println!("   allantools: not run ({e:#})"),
     }
     Ok(())
 }
 
-/// Best of three runs of this executable's `analyze` on `data`, with its oadev curve.
-fn time_analyze(data: &Path, grid: TauGrid, dir: &Path) -> Result<Timed> {
+/// Best of three runs of this executable's `analyze` on `data` with `extra` arguments, with
+/// its oadev curve.
+fn time_analyze(data: &Path, grid: TauGrid, dir: &Path, extra: &[&str]) -> Result<Timed> {
     let exe = std::env::current_exe().context("finding the imunoise executable")?;
     let json = dir.join("analysis.json");
     let mut best = f64::INFINITY;
@@ -170,6 +192,7 @@ fn time_analyze(data: &Path, grid: TauGrid, dir: &Path) -> Result<Timed> {
             .arg(data)
             .args(["--rate", &COMPARISON_RATE_HZ.to_string()])
             .args(["--estimator", "oadev", "--taus", &grid.to_string()])
+            .args(extra)
             .arg("--json")
             .arg(&json)
             .stdout(std::process::Stdio::null())
@@ -209,67 +232,90 @@ fn children_peak_rss() -> Option<f64> {
     None
 }
 
-/// Six axes of `hours` at 1 kHz, generated and fed in 64 Ki-sample batches (never held
-/// whole), through the live view's accumulators on `analyze`'s ladder (snapped).
+/// Six axes of `hours` at 1 kHz, generated and fed in 64 Ki-sample blocks (never held
+/// whole), through the streamed analysis `analyze` uses beyond its memory budget.
 fn streaming(hours: f64) -> Result<()> {
+    use imunoise::analysis::bounded::Bounded;
+    use imunoise::record::Quantity;
     let rate_hz = 1000.0;
     let n = (hours * 3600.0 * rate_hz).round() as usize;
     if n < 1000 {
         bail!("--stream-hours {hours}: too short");
     }
-    let config = Config::default();
-    let ladder = snap_factors(
-        &taus::factors(
-            TauGrid::PerDecade(10),
-            allan::max_factor(Estimator::Oadev, n + 1),
-        ),
-        config,
-    );
-    println!(
-        "\n6. Streaming oadev: 6 axes x {n} samples ({hours} h at 1 kHz), {} taus, fed in batches",
-        ladder.len()
-    );
-    let start = Instant::now();
-    let axes: Vec<(Curve, usize)> = (0..6u64)
-        .into_par_iter()
-        .map(|axis| {
-            let mut s = Streaming::new(Estimator::Oadev, 1.0 / rate_hz, &ladder, config)
-                .expect("a valid ladder");
-            let mut rng = ChaCha8Rng::seed_from_u64(300 + axis);
-            let mut batch = vec![0.0; 1 << 16];
-            let mut left = n;
-            while left > 0 {
-                let len = left.min(batch.len());
-                for v in &mut batch[..len] {
-                    *v = StandardNormal.sample(&mut rng);
-                }
-                s.extend(&batch[..len]);
-                left -= len;
-            }
-            (s.curve(), s.ring_bytes())
+    let axes: Vec<(String, Quantity)> = ["gx", "gy", "gz", "ax", "ay", "az"]
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let q = if i < 3 {
+                Quantity::AngularRate
+            } else {
+                Quantity::Acceleration
+            };
+            (a.to_string(), q)
         })
         .collect();
+    let options = Options::default();
+    let mut analysis = Bounded::new(&axes, n, rate_hz, &options)?;
+    println!(
+        "\n6. Streamed analyze (what `analyze` does with an .npy beyond --memory-budget): 6 axes x {n} samples ({hours} h at 1 kHz) of unit white noise, fed in blocks"
+    );
+    let baseline = resident("VmRSS:");
+    let reset = std::fs::write("/proc/self/clear_refs", "5").is_ok();
+    let start = Instant::now();
+    const BLOCK: usize = 1 << 16;
+    let mut rngs: Vec<ChaCha8Rng> = (0..6u64)
+        .map(|axis| ChaCha8Rng::seed_from_u64(300 + axis))
+        .collect();
+    let mut block = vec![vec![0.0; BLOCK]; 6];
+    let mut left = n;
+    while left > 0 {
+        let len = left.min(BLOCK);
+        block.par_iter_mut().zip(&mut rngs).for_each(|(b, rng)| {
+            for v in &mut b[..len] {
+                *v = StandardNormal.sample(rng);
+            }
+        });
+        let slices: Vec<&[f64]> = block.iter().map(|b| &b[..len]).collect();
+        analysis.feed(&slices)?;
+        left -= len;
+    }
+    let note = analysis.computation();
+    let results = analysis.finish()?;
     let seconds = start.elapsed().as_secs_f64();
-    let rings: usize = axes.iter().map(|a| a.1).sum();
-    let curve = &axes[0].0;
-    let exact = curve.stride.iter().filter(|&&d| d == 1).count();
     println!(
         "   imunoise:   {seconds:>8.3} s ({:.0} M samples/s, generation included)",
         6.0 * n as f64 / seconds / 1e6
     );
-    println!(
-        "   memory:     {:.2} MiB of rings for the six axes; a batch analysis holds the record, {:.2} GiB",
-        rings as f64 / (1 << 20) as f64,
-        6.0 * n as f64 * 8.0 / (1u64 << 30) as f64
-    );
-    println!(
-        "   taus:       {} to {:.0} s; {exact} exact (m <= {}), {} decimated",
-        curve.deviation.tau.first().copied().unwrap_or(0.0),
-        curve.deviation.tau.last().copied().unwrap_or(0.0),
-        config.exact_up_to,
-        curve.stride.len() - exact
-    );
+    println!("   computed:   {note}");
+    let record_gib = 6.0 * n as f64 * 8.0 / (1u64 << 30) as f64;
+    match (baseline, resident("VmHWM:"), reset) {
+        (Some(b), Some(peak), true) => println!(
+            "   memory:     peak resident {:.1} MiB above the process's before the analysis; the record read whole holds {record_gib:.2} GiB",
+            (peak - b) / (1 << 20) as f64
+        ),
+        _ => println!(
+            "   memory:     not measured (no /proc); the record read whole holds {record_gib:.2} GiB"
+        ),
+    }
+    // Unit white noise at 1 kHz has N = 1 / sqrt(1000 Hz).
+    let truth = 1.0 / rate_hz.sqrt();
+    for r in results.iter().take(1) {
+        if let Ok(fit) = &r.fit {
+            println!(
+                "   {}: N = {:.5e} [{:.5e} .. {:.5e}] u/sqrt(Hz), truth {truth:.5e}",
+                r.name, fit.n.value, fit.n.lo, fit.n.hi
+            );
+        }
+    }
     Ok(())
+}
+
+/// A field of /proc/self/status in bytes (Linux).
+fn resident(key: &str) -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with(key))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024.0)
 }
 
 /// The model workflow end to end on a 3-hour 100 Hz record with a hidden Gauss-Markov
@@ -449,12 +495,7 @@ fn time_oadev(y: &[f64], factors: &[usize]) -> Timed {
 /// Peak resident memory while computing (input copy + phase in place + estimator), over the
 /// input's size. Linux: VmHWM after resetting it through /proc/self/clear_refs.
 fn peak_over_input(y: &[f64], factors: &[usize]) -> Option<f64> {
-    let rss = |key: &str| -> Option<f64> {
-        let status = std::fs::read_to_string("/proc/self/status").ok()?;
-        let line = status.lines().find(|l| l.starts_with(key))?;
-        let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-        Some(kb * 1024.0)
-    };
+    let rss = resident;
     let input_bytes = std::mem::size_of_val(y) as f64;
     let baseline = rss("VmRSS:")? - input_bytes;
     std::fs::write("/proc/self/clear_refs", "5").ok()?;

@@ -218,7 +218,7 @@ fn read(mut reader: impl Read, len: u64) -> Result<Table, ReadError> {
 }
 
 /// An `.npy` array read a block of rows at a time, for records larger than memory: the
-/// same checks and errors as reading it whole ([`parse_reader`]), in memory that does not
+/// same checks and errors as reading it whole (`parse_reader`), in memory that does not
 /// grow with the array. C order is read straight through; Fortran order reads each column's
 /// next rows after a seek.
 pub struct NpyChunks<R> {
