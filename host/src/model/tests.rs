@@ -98,17 +98,16 @@ const CI_SHAPE: Shape = Shape {
 };
 
 /// Every kind on three seeds at CI size (1 h at 20 Hz, shorter and slower than the study's
-/// 3 h at 50 Hz, so every effect is weaker against the noise): at least 21 of the 30 records
-/// named exactly right (23 of 30 measured: no Gauss-Markov process of 36-108 s is found in
-/// an hour, and ramps are found only when strong; the full study is the claim), and at most
-/// one effect added on the six records without one (the naming rule's family-wise level is
-/// 1 % per round).
+/// 3 h at 50 Hz, so every effect is weaker against the noise): at least 25 of the 30 records
+/// named exactly right (27 of 30 measured: no Gauss-Markov process of 36-108 s is found in
+/// an hour; the full study is the claim), and at most one effect added on the six records
+/// without one (the naming rule's family-wise level is 5 % per round, 0.3 expected).
 #[test]
 fn families_at_ci_size() {
     let results = study(CI_SHAPE, 1..4, &KINDS, &[]);
     let right: usize = results.iter().map(|r| r.1).sum();
     let total: usize = results.iter().map(|r| r.2).sum();
-    assert!(right * 10 >= total * 7, "{right}/{total}: {results:?}");
+    assert!(right * 6 >= total * 5, "{right}/{total}: {results:?}");
     let clean: usize = results
         .iter()
         .filter(|r| matches!(r.0, Kind::None | Kind::NoneWithTemperature))
