@@ -16,15 +16,14 @@
 //! low-pass only when the options state one), the multi-resolution PSD fit, and every
 //! estimator other than oadev and ohdev.
 
-use super::fit::NoiseFit;
 use super::fit::psd::PsdFitError;
 use super::pipeline::{
     self, AnalysisError, ChannelResult, DeviationResult, LowPassChoice, Options,
 };
 use super::psd::{self, WelchOptions, WelchStream};
 use super::streaming::{Config, Curve, Streaming, snap_factors};
-use super::{DataType, Estimator, allan, ci, taus};
-use crate::record::{Channel, Quantity};
+use super::{DataType, Estimator, allan, taus};
+use crate::record::Quantity;
 use rayon::prelude::*;
 
 /// Why a record cannot be analysed in bounded memory.
@@ -291,7 +290,7 @@ impl ChannelState {
         let model = fit.as_ref().ok();
         let with_intervals = |c: &Curve| DeviationResult {
             deviation: c.deviation.clone(),
-            intervals: intervals(c, model, options.confidence),
+            intervals: c.intervals(model, options.confidence),
         };
         let deviations = curves
             .iter()
@@ -302,16 +301,11 @@ impl ChannelState {
             let binned = psd::log_binned(&spectrum, options.psd_bins_per_decade);
             (spectrum, binned)
         });
-        let channel = Channel {
+        ChannelResult {
+            kind: pipeline::sensor_kind(self.quantity),
+            unit: self.quantity.si_unit(),
             name: self.name,
             quantity: self.quantity,
-            values: Vec::new(),
-        };
-        ChannelResult {
-            kind: pipeline::sensor_kind(channel.quantity),
-            unit: channel.unit(),
-            name: channel.name,
-            quantity: channel.quantity,
             rate_hz,
             n: samples,
             deviations,
@@ -328,42 +322,11 @@ impl ChannelState {
     }
 }
 
-/// Intervals of a streamed curve: each tau's noise type from `model`'s dominant term, or,
-/// without a fit, from the curve's local slope (`alpha = -mu - 1` for the Allan variance's
-/// slope mu, between -2 and 1: SP 1065 table 5).
-fn intervals(curve: &Curve, model: Option<&NoiseFit>, confidence: f64) -> ci::Intervals {
-    let (tau, dev) = (&curve.deviation.tau, &curve.deviation.dev);
-    let alpha: Vec<i32> = (0..tau.len())
-        .map(|k| match model {
-            Some(m) => m.dominant_alpha(tau[k]),
-            None => {
-                let (a, b) = (k.saturating_sub(1), (k + 1).min(tau.len() - 1));
-                if a == b {
-                    return 0;
-                }
-                let mu = 2.0 * (dev[b] / dev[a]).ln() / (tau[b] / tau[a]).ln();
-                ((-mu - 1.0).round() as i32).clamp(-2, 1)
-            }
-        })
-        .collect();
-    let edf: Vec<f64> = alpha
-        .iter()
-        .enumerate()
-        .map(|(k, &a)| curve.edf(k, a))
-        .collect();
-    let (lo, hi) = dev
-        .iter()
-        .zip(&edf)
-        .map(|(&d, &e)| ci::chi2_bounds(d, e, confidence))
-        .unzip();
-    ci::Intervals { alpha, edf, lo, hi }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::analysis::streaming::tests::series;
-    use crate::record::Record;
+    use crate::record::{Channel, Record};
 
     fn streamed(
         record: &Record,

@@ -184,7 +184,10 @@ impl Live {
         options: &FitOptions,
     ) -> ChannelSnapshot {
         let (lo, hi): (Vec<f64>, Vec<f64>) = match &fit {
-            Ok(f) => curve.intervals(f, options.confidence).into_iter().unzip(),
+            Ok(f) => {
+                let intervals = curve.intervals(Some(f), options.confidence);
+                (intervals.lo, intervals.hi)
+            }
             Err(_) => (Vec::new(), Vec::new()),
         };
         let targets = match (&fit, rule) {

@@ -350,17 +350,38 @@ impl Curve {
         )
     }
 
-    /// `confidence` bounds (lo, hi) at every point, the noise type at each tau taken from
-    /// the fitted `model` (the power law of the term that dominates its AVAR there,
+    /// `confidence` intervals at every point. The noise type at each tau is taken from the
+    /// fitted `model` (the power law of the term that dominates its AVAR there,
     /// [`NoiseFit::dominant_alpha`]): a stream has no record to identify noise on, and the
-    /// fit rests on the whole curve.
-    pub fn intervals(&self, model: &NoiseFit, confidence: f64) -> Vec<(f64, f64)> {
-        (0..self.deviation.m.len())
-            .map(|k| {
-                let alpha = model.dominant_alpha(self.deviation.tau[k]);
-                chi2_bounds(self.deviation.dev[k], self.edf(k, alpha), confidence)
+    /// fit rests on the whole curve. Without a model, from the curve's local slope
+    /// (`alpha = -mu - 1` for the Allan variance's slope mu, between -2 and 1: SP 1065
+    /// table 5).
+    pub fn intervals(&self, model: Option<&NoiseFit>, confidence: f64) -> ci::Intervals {
+        let (tau, dev) = (&self.deviation.tau, &self.deviation.dev);
+        let alpha: Vec<i32> = (0..tau.len())
+            .map(|k| match model {
+                Some(m) => m.dominant_alpha(tau[k]),
+                None => {
+                    let (a, b) = (k.saturating_sub(1), (k + 1).min(tau.len() - 1));
+                    if a == b {
+                        return 0;
+                    }
+                    let mu = 2.0 * (dev[b] / dev[a]).ln() / (tau[b] / tau[a]).ln();
+                    ((-mu - 1.0).round() as i32).clamp(-2, 1)
+                }
             })
-            .collect()
+            .collect();
+        let edf: Vec<f64> = alpha
+            .iter()
+            .enumerate()
+            .map(|(k, &a)| self.edf(k, a))
+            .collect();
+        let (lo, hi) = dev
+            .iter()
+            .zip(&edf)
+            .map(|(&d, &e)| chi2_bounds(d, e, confidence))
+            .unzip();
+        ci::Intervals { alpha, edf, lo, hi }
     }
 }
 

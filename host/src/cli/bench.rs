@@ -495,14 +495,13 @@ fn time_oadev(y: &[f64], factors: &[usize]) -> Timed {
 /// Peak resident memory while computing (input copy + phase in place + estimator), over the
 /// input's size. Linux: VmHWM after resetting it through /proc/self/clear_refs.
 fn peak_over_input(y: &[f64], factors: &[usize]) -> Option<f64> {
-    let rss = resident;
     let input_bytes = std::mem::size_of_val(y) as f64;
-    let baseline = rss("VmRSS:")? - input_bytes;
+    let baseline = resident("VmRSS:")? - input_bytes;
     std::fs::write("/proc/self/clear_refs", "5").ok()?;
     let phase = into_phase(y.to_vec(), 1.0);
     let d = allan::deviation(Estimator::Oadev, &phase, 1.0, factors);
     drop((phase, d));
-    let peak = rss("VmHWM:")?;
+    let peak = resident("VmHWM:")?;
     // What the engine holds at its peak, its own input included (the process's baseline and
     // the benchmark's reference copy of the data excluded), relative to the input's size: the
     // rate becomes phase in place, so this is ~1.

@@ -69,9 +69,19 @@ pub struct CaptureArgs {
     /// Stop after this much data: 2h, 30m, 90s (default: until the source ends or Ctrl-C)
     #[arg(long)]
     pub duration: Option<String>,
+    #[command(flatten)]
+    pub stop: StopRuleArgs,
+    /// Live view as JSON lines on stdout (one object per update, and one at the end)
+    #[arg(long)]
+    pub json_progress: bool,
+}
+
+/// The stop rule and the live view's confidence, shared by `capture` and `sweep`.
+#[derive(clap::Args, Debug)]
+pub struct StopRuleArgs {
     /// Stop once each named term's interval half-width on every axis of --until-axes is
     /// within this fraction of its value, as `analyze` computes it: N:1%,B:20%,K:30%
-    /// (--duration stays the cap)
+    /// (--duration stays the cap; in a sweep, per setting)
     #[arg(long, value_name = "RULE")]
     pub until: Option<StopRule>,
     /// The axes the stop rule applies to: gyro, accel, all, or a list such as gz,az
@@ -80,28 +90,23 @@ pub struct CaptureArgs {
     /// Confidence of the intervals the stop rule and the live view use (as analyze's)
     #[arg(long, default_value_t = 0.683)]
     pub confidence: f64,
-    /// Live view as JSON lines on stdout (one object per update, and one at the end)
-    #[arg(long)]
-    pub json_progress: bool,
 }
 
-/// The live view's options: the rule, its confidence, and the Allan ladder's end (the cap,
-/// or a week).
-pub fn live_options(
-    until: Option<&StopRule>,
-    rule_axes: &RuleAxes,
-    confidence: f64,
-    duration_s: Option<f64>,
-) -> Result<LiveOptions> {
-    if !(confidence > 0.0 && confidence < 1.0) {
-        bail!("--confidence {confidence}: between 0 and 1 (e.g. 0.683, 0.95)");
+impl StopRuleArgs {
+    /// The live view's options: the rule on its axes, its confidence, and the Allan
+    /// ladder's end (the cap `duration_s`, or a week).
+    pub fn live_options(&self, duration_s: Option<f64>) -> Result<LiveOptions> {
+        let confidence = self.confidence;
+        if !(confidence > 0.0 && confidence < 1.0) {
+            bail!("--confidence {confidence}: between 0 and 1 (e.g. 0.683, 0.95)");
+        }
+        Ok(LiveOptions {
+            rule: self.until.clone(),
+            rule_axes: self.until_axes.clone(),
+            confidence,
+            longest_s: duration_s.unwrap_or(7.0 * 86400.0),
+        })
     }
-    Ok(LiveOptions {
-        rule: until.cloned(),
-        rule_axes: rule_axes.clone(),
-        confidence,
-        longest_s: duration_s.unwrap_or(7.0 * 86400.0),
-    })
 }
 
 /// The virtual board's options (`--port sim`), shared by `capture` and `sweep`.
@@ -187,12 +192,7 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         .map(parse_duration)
         .transpose()
         .map_err(|e| anyhow!("--duration: {e}"))?;
-    let live = live_options(
-        args.until.as_ref(),
-        &args.until_axes,
-        args.confidence,
-        duration_s,
-    )?;
+    let live = args.stop.live_options(duration_s)?;
     let settings = match (args.rate, args.bandwidth) {
         (Some(rate), Some(bandwidth)) => Some(board_settings(
             rate,

@@ -5,7 +5,7 @@
 
 use crate::cli::analyze::check_plot;
 use crate::cli::capture::{
-    VirtualBoardArgs, live_options, open_port, show, stop_failed, stop_on_ctrl_c,
+    StopRuleArgs, VirtualBoardArgs, open_port, show, stop_failed, stop_on_ctrl_c,
 };
 use crate::cli::live_view::{LiveView, Mode};
 use crate::cli::output;
@@ -13,12 +13,11 @@ use crate::cli::progress;
 use crate::cli::simulate::parse_duration;
 use crate::cli::stored::open_store;
 use anyhow::{Context, Result, anyhow};
-use imunoise::analysis::precision::StopRule;
 use imunoise::experiment::sweep::{self, Event, Plan, SweepRow, figures, html, table};
 use imunoise::link::PortSpec;
 use imunoise::link::replay::Speed;
 use imunoise::link::setup::streamable;
-use imunoise::recorder::live::{LiveOptions, RuleAxes};
+use imunoise::recorder::live::LiveOptions;
 use imunoise::report::plot;
 use imunoise::store::Store;
 use indicatif::ProgressBar;
@@ -50,16 +49,8 @@ pub struct SweepArgs {
     /// Write an HTML report (the table and the figures) to PATH
     #[arg(long, value_name = "PATH")]
     pub report: Option<PathBuf>,
-    /// Stop each setting's capture once the rule is met on every axis of --until-axes, as with
-    /// `capture --until`: N:1%,B:20% (--duration stays the cap per setting)
-    #[arg(long, value_name = "RULE")]
-    pub until: Option<StopRule>,
-    /// The axes the stop rule applies to: gyro, accel, all, or a list such as gz,az
-    #[arg(long, value_name = "AXES", default_value = "gyro", requires = "until")]
-    pub until_axes: RuleAxes,
-    /// Confidence of the intervals the stop rule and the live view use
-    #[arg(long, default_value_t = 0.683)]
-    pub confidence: f64,
+    #[command(flatten)]
+    pub stop: StopRuleArgs,
     /// Print the sweep as JSON (each setting, its session and its analysis document, as
     /// `analyze --json` gives it) instead of the tables; notes go to stderr
     #[arg(long)]
@@ -90,12 +81,7 @@ pub fn parse_settings(text: &str) -> Result<Vec<SensorSettings>> {
 pub fn run(args: &SweepArgs, store: Option<&Path>) -> Result<()> {
     let settings = parse_settings(&args.settings)?;
     let seconds = parse_duration(&args.duration).map_err(|e| anyhow!("--duration: {e}"))?;
-    let live = live_options(
-        args.until.as_ref(),
-        &args.until_axes,
-        args.confidence,
-        Some(seconds),
-    )?;
+    let live = args.stop.live_options(Some(seconds))?;
     if let Some(path) = &args.plot {
         check_plot(path)?;
     }
