@@ -42,11 +42,14 @@
 
 mod bus;
 mod faults;
+mod port;
+mod sampler;
 #[cfg(test)]
 mod tests;
 
-pub use bus::SimI2cError;
 pub use faults::{Faults, Outage, SensorClock};
+pub use port::{Port, RegisterChip, SimI2cError, transaction};
+pub use sampler::{SampledChip, Sampler};
 
 use super::imu::{Imu, ImuModel, RawSample, TrueInput};
 use protocol::mpu6050::reg::bits::{
@@ -64,7 +67,7 @@ use std::time::Duration;
 pub struct SimMpu6050 {
     address: u8,
     regs: [u8; 128],
-    pointer: u8,
+    port: Port,
     fifo: VecDeque<u8>,
     fifo_last_read: u8,
     model: ImuModel,
@@ -80,10 +83,6 @@ pub struct SimMpu6050 {
     resets: u32,
     /// The scripted input ([`Imu::set_input`]), kept across runs.
     input: Option<TrueInput>,
-    /// Byte-level bus state: the next written byte is a register pointer.
-    expect_pointer: bool,
-    /// Byte-level bus state: a byte was written since the last (non-repeated) start.
-    written_since_start: bool,
     /// What the device did, when asked to keep a journal ([`SimMpu6050::keep_journal`]).
     journal: Option<Vec<JournalEntry>>,
 }
@@ -104,30 +103,7 @@ pub enum JournalEntry {
 #[derive(Debug, Clone)]
 struct Run {
     imu: Imu,
-    /// The oscillator's phase at which the run's sample 0 would be (its start), us, under
-    /// `clock`.
-    phase_origin_us: f64,
-    clock: SensorClock,
-    samples: u64,
-}
-
-impl Run {
-    /// Board time of the next sample, us (fractional): where the oscillator's phase reaches
-    /// the origin plus (k + 1) nominal sample periods. Each sample's time is computed from
-    /// the origin, so rounding does not accumulate.
-    fn next_us(&self) -> f64 {
-        let phase =
-            self.phase_origin_us + (self.samples + 1) as f64 * 1e6 / self.imu.output_rate_hz();
-        self.clock.time_at_phase_us(phase)
-    }
-
-    /// Continue under `clock` from board time `t_us` with the same progress towards the
-    /// next sample.
-    fn rebase(&mut self, clock: SensorClock, t_us: f64) {
-        let elapsed = self.clock.phase_us(t_us) - self.phase_origin_us;
-        self.phase_origin_us = clock.phase_us(t_us) - elapsed;
-        self.clock = clock;
-    }
+    sampler: Sampler,
 }
 
 impl SimMpu6050 {
@@ -137,7 +113,7 @@ impl SimMpu6050 {
         let mut dev = SimMpu6050 {
             address: DEFAULT_ADDRESS,
             regs: [0; 128],
-            pointer: 0,
+            port: Port::default(),
             fifo: VecDeque::with_capacity(FIFO_SIZE),
             fifo_last_read: 0,
             model,
@@ -149,8 +125,6 @@ impl SimMpu6050 {
             time_us: 0,
             faults: Faults::default(),
             resets: 0,
-            expect_pointer: true,
-            written_since_start: false,
             journal: None,
             input: None,
         };
@@ -257,40 +231,7 @@ impl SimMpu6050 {
     /// Move the clock to `t_us` (a time in the past is ignored), producing the samples due
     /// and the injected resets on the way.
     pub fn set_time_us(&mut self, t_us: u64) {
-        if t_us <= self.time_us {
-            return;
-        }
-        let clock = self.faults.clock;
-        if let Some(run) = self.run.as_mut().filter(|run| run.clock != clock) {
-            run.rebase(clock, self.time_us as f64);
-        }
-        self.faults.resets_at_us.sort_unstable();
-        loop {
-            let reset = self
-                .faults
-                .resets_at_us
-                .first()
-                .copied()
-                .filter(|&r| r <= t_us);
-            let sample = self
-                .run
-                .as_ref()
-                .map(Run::next_us)
-                .filter(|&s| s <= t_us as f64);
-            match (sample, reset) {
-                (Some(s), r) if r.is_none_or(|r| s < r as f64) => {
-                    self.time_us = self.time_us.max(s as u64);
-                    self.sample();
-                }
-                (_, Some(r)) => {
-                    self.time_us = self.time_us.max(r);
-                    self.faults.resets_at_us.remove(0);
-                    self.device_reset();
-                }
-                _ => break,
-            }
-        }
-        self.time_us = t_us;
+        self.advance_to_us(t_us);
     }
 
     fn device_reset(&mut self) {
@@ -299,7 +240,7 @@ impl SimMpu6050 {
         self.regs[usize::from(reg::WHO_AM_I)] = WHO_AM_I_VALUE;
         self.clear_fifo();
         self.fifo_last_read = 0;
-        self.pointer = 0;
+        self.reset_pointer();
         self.run = None;
         self.resets += 1;
     }
@@ -319,23 +260,17 @@ impl SimMpu6050 {
             let mut imu =
                 Imu::new(&self.model, self.settings(), seed, self.duration_hint_s).with_chip(chip);
             imu.set_input(self.input);
-            let clock = self.faults.clock;
-            Some(Run {
-                imu,
-                phase_origin_us: clock.phase_us(self.time_us as f64),
-                clock,
-                samples: 0,
-            })
+            let sampler = Sampler::start(self.faults.clock, self.time_us, imu.output_rate_hz());
+            Some(Run { imu, sampler })
         } else {
             None
         };
     }
 
     /// One output sample: data registers, DATA_RDY, FIFO.
-    fn sample(&mut self) {
+    fn sample_registers(&mut self) {
         let Some(run) = &mut self.run else { return };
         let raw = run.imu.next_raw();
-        run.samples += 1;
         self.samples_made += 1;
         let bytes = RawSample::to_fifo_bytes(&raw);
         self.regs[usize::from(reg::ACCEL_XOUT_H)..][..14].copy_from_slice(&bytes);
@@ -383,7 +318,7 @@ impl SimMpu6050 {
         self.fifo.push_back(byte);
     }
 
-    fn read_register(&mut self, r: u8) -> u8 {
+    fn read_mpu_register(&mut self, r: u8) -> u8 {
         let count = || {
             self.faults
                 .stuck_fifo_count
@@ -404,7 +339,7 @@ impl SimMpu6050 {
         }
     }
 
-    fn write_register(&mut self, r: u8, value: u8) {
+    fn write_mpu_register(&mut self, r: u8, value: u8) {
         let i = usize::from(r & 0x7F);
         match r {
             reg::PWR_MGMT_1 if value & DEVICE_RESET != 0 => self.device_reset(),
@@ -434,23 +369,53 @@ impl SimMpu6050 {
             _ => self.regs[i] = value,
         }
     }
-
-    fn step_pointer(&mut self) {
-        if self.pointer != reg::FIFO_R_W {
-            self.pointer = (self.pointer + 1) & 0x7F;
-        }
-    }
-
-    /// Consume one count of a fault, if set.
-    fn take(count: &mut u32) -> bool {
-        if *count == 0 {
-            return false;
-        }
-        if *count != u32::MAX {
-            *count -= 1;
-        }
-        true
-    }
 }
 
 const FIFO_COUNT_L: u8 = reg::FIFO_COUNT_H + 1;
+
+impl RegisterChip for SimMpu6050 {
+    fn address(&self) -> u8 {
+        self.address
+    }
+    fn time_us(&self) -> u64 {
+        self.time_us
+    }
+    fn faults_mut(&mut self) -> &mut Faults {
+        &mut self.faults
+    }
+    fn port_mut(&mut self) -> &mut Port {
+        &mut self.port
+    }
+    fn read_register(&mut self, register: u8) -> u8 {
+        self.read_mpu_register(register)
+    }
+    fn write_register(&mut self, register: u8, value: u8) {
+        self.write_mpu_register(register, value);
+    }
+    /// FIFO_R_W stays put, so a burst read drains the FIFO.
+    fn next_register(&self, register: u8) -> u8 {
+        if register == reg::FIFO_R_W {
+            register
+        } else {
+            register.wrapping_add(1) & 0x7F
+        }
+    }
+}
+
+impl SampledChip for SimMpu6050 {
+    fn faults(&self) -> &Faults {
+        &self.faults
+    }
+    fn sampler_mut(&mut self) -> Option<&mut Sampler> {
+        self.run.as_mut().map(|run| &mut run.sampler)
+    }
+    fn set_clock_us(&mut self, t_us: u64) {
+        self.time_us = t_us;
+    }
+    fn sample(&mut self) {
+        self.sample_registers();
+    }
+    fn power_on_reset(&mut self) {
+        self.device_reset();
+    }
+}
