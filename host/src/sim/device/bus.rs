@@ -1,19 +1,129 @@
-//! The device on the bus: the `embedded_hal` I2C transaction, whose bus events
-//! ([`super::RegisterChip`]) a bus model that reports each event drives directly.
+//! The chips on the bus: each alone as an `embedded_hal` I2C bus (a board with one sensor),
+//! and [`SimBus`], several chips at their own addresses on one bus (a GY-85's ITG-3200 and
+//! ADXL345). A transaction's bus events ([`super::RegisterChip`]) go to the chip addressed;
+//! an address no chip has is not acknowledged.
 
-use super::{SimI2cError, SimMpu6050, transaction};
-use embedded_hal::i2c::{ErrorType, I2c, Operation};
+use super::{
+    RegisterChip, SampledChip, SimAdxl345, SimI2cError, SimItg3200, SimMpu6050, transaction,
+};
+use embedded_hal::i2c::{ErrorType, I2c, NoAcknowledgeSource, Operation};
 
-impl ErrorType for SimMpu6050 {
+macro_rules! alone_on_the_bus {
+    ($($chip:ty),*) => {$(
+        impl ErrorType for $chip {
+            type Error = SimI2cError;
+        }
+
+        impl I2c for $chip {
+            fn transaction(
+                &mut self,
+                address: u8,
+                operations: &mut [Operation<'_>],
+            ) -> Result<(), Self::Error> {
+                transaction(self, address, operations)
+            }
+        }
+    )*};
+}
+
+alone_on_the_bus!(SimMpu6050, SimItg3200, SimAdxl345);
+
+/// One simulated chip on a shared bus.
+#[derive(Debug, Clone)]
+pub enum BusChip {
+    Mpu6050(SimMpu6050),
+    Itg3200(SimItg3200),
+    Adxl345(SimAdxl345),
+}
+
+impl BusChip {
+    fn chip(&mut self) -> &mut dyn RegisterChip {
+        match self {
+            BusChip::Mpu6050(c) => c,
+            BusChip::Itg3200(c) => c,
+            BusChip::Adxl345(c) => c,
+        }
+    }
+
+    fn advance_to_us(&mut self, t_us: u64) {
+        match self {
+            BusChip::Mpu6050(c) => c.advance_to_us(t_us),
+            BusChip::Itg3200(c) => c.advance_to_us(t_us),
+            BusChip::Adxl345(c) => c.advance_to_us(t_us),
+        }
+    }
+}
+
+/// Several chips on one bus, sharing its clock.
+#[derive(Debug, Clone, Default)]
+pub struct SimBus {
+    chips: Vec<BusChip>,
+    time_us: u64,
+}
+
+impl SimBus {
+    pub fn new(chips: Vec<BusChip>) -> Self {
+        SimBus { chips, time_us: 0 }
+    }
+
+    /// The bus's time, us.
+    pub fn time_us(&self) -> u64 {
+        self.time_us
+    }
+
+    /// Move every chip's clock to `t_us`, making the samples due.
+    pub fn set_time_us(&mut self, t_us: u64) {
+        self.time_us = self.time_us.max(t_us);
+        for chip in &mut self.chips {
+            chip.advance_to_us(t_us);
+        }
+    }
+
+    pub fn chips_mut(&mut self) -> &mut [BusChip] {
+        &mut self.chips
+    }
+
+    /// The first ITG-3200 on the bus.
+    pub fn itg3200_mut(&mut self) -> Option<&mut SimItg3200> {
+        self.chips.iter_mut().find_map(|c| match c {
+            BusChip::Itg3200(c) => Some(c),
+            _ => None,
+        })
+    }
+
+    /// The first ADXL345 on the bus.
+    pub fn adxl345_mut(&mut self) -> Option<&mut SimAdxl345> {
+        self.chips.iter_mut().find_map(|c| match c {
+            BusChip::Adxl345(c) => Some(c),
+            _ => None,
+        })
+    }
+
+    /// The first MPU-6050 on the bus.
+    pub fn mpu6050_mut(&mut self) -> Option<&mut SimMpu6050> {
+        self.chips.iter_mut().find_map(|c| match c {
+            BusChip::Mpu6050(c) => Some(c),
+            _ => None,
+        })
+    }
+}
+
+impl ErrorType for SimBus {
     type Error = SimI2cError;
 }
 
-impl I2c for SimMpu6050 {
+impl I2c for SimBus {
     fn transaction(
         &mut self,
         address: u8,
         operations: &mut [Operation<'_>],
     ) -> Result<(), Self::Error> {
-        transaction(self, address, operations)
+        let chip = self
+            .chips
+            .iter_mut()
+            .map(BusChip::chip)
+            .find(|c| c.address() == address)
+            .ok_or(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Address))?;
+        transaction(chip, address, operations)
     }
 }

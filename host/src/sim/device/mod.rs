@@ -40,14 +40,23 @@
 //! Not modelled: the DMP, the auxiliary I2C master, self-test, interrupt pin configuration,
 //! FIFO_EN's SLV bits, clock source selection, low-power cycle mode.
 
+mod adxl345;
 mod bus;
+mod core;
 mod faults;
+#[cfg(test)]
+mod gy85_tests;
+mod itg3200;
 mod port;
 mod sampler;
 #[cfg(test)]
 mod tests;
 
+pub use adxl345::SimAdxl345;
+pub use bus::{BusChip, SimBus};
+pub use core::{ChipCore, SimChip};
 pub use faults::{Faults, Outage, SensorClock};
+pub use itg3200::SimItg3200;
 pub use port::{Port, RegisterChip, SimI2cError, transaction};
 pub use sampler::{SampledChip, Sampler};
 
@@ -65,26 +74,15 @@ use std::time::Duration;
 
 #[derive(Debug, Clone)]
 pub struct SimMpu6050 {
-    address: u8,
+    core: ChipCore,
     regs: [u8; 128],
-    port: Port,
     fifo: VecDeque<u8>,
     fifo_last_read: u8,
     model: ImuModel,
-    seed: u64,
-    /// Run length the noise processes are built for (their flicker band), s.
-    duration_hint_s: f64,
     /// Sampling state while awake.
     run: Option<Run>,
-    runs_started: u64,
-    samples_made: u64,
-    time_us: u64,
-    faults: Faults,
-    resets: u32,
     /// The scripted input ([`Imu::set_input`]), kept across runs.
     input: Option<TrueInput>,
-    /// What the device did, when asked to keep a journal ([`SimMpu6050::keep_journal`]).
-    journal: Option<Vec<JournalEntry>>,
 }
 
 /// An event in the device's journal: the truth a test compares a capture with.
@@ -111,38 +109,17 @@ impl SimMpu6050 {
     /// state (asleep).
     pub fn new(model: ImuModel, seed: u64) -> Self {
         let mut dev = SimMpu6050 {
-            address: DEFAULT_ADDRESS,
+            core: ChipCore::new(DEFAULT_ADDRESS, seed),
             regs: [0; 128],
-            port: Port::default(),
             fifo: VecDeque::with_capacity(FIFO_SIZE),
             fifo_last_read: 0,
             model,
-            seed,
-            duration_hint_s: 3600.0,
             run: None,
-            runs_started: 0,
-            samples_made: 0,
-            time_us: 0,
-            faults: Faults::default(),
-            resets: 0,
-            journal: None,
             input: None,
         };
         dev.device_reset();
-        dev.resets = 0;
+        dev.core.resets = 0;
         dev
-    }
-
-    /// The same at another 7-bit address (0x69 with AD0 high).
-    pub fn with_address(mut self, address: u8) -> Self {
-        self.address = address;
-        self
-    }
-
-    /// Build noise processes for runs of about `seconds` (default one hour).
-    pub fn with_duration_hint(mut self, seconds: f64) -> Self {
-        self.duration_hint_s = seconds;
-        self
     }
 
     /// Turn and rotate the sensor (scripted procedures such as calibration): what it senses
@@ -152,54 +129,6 @@ impl SimMpu6050 {
         if let Some(run) = &mut self.run {
             run.imu.set_input(input);
         }
-    }
-
-    pub fn faults(&self) -> &Faults {
-        &self.faults
-    }
-
-    pub fn faults_mut(&mut self) -> &mut Faults {
-        &mut self.faults
-    }
-
-    /// A device reset when the clock passes `t_us` (see [`Faults::resets_at_us`]).
-    pub fn schedule_reset(&mut self, t_us: u64) {
-        self.faults.resets_at_us.push(t_us);
-        self.faults.resets_at_us.sort_unstable();
-    }
-
-    /// Samples made so far, all runs together (whether or not they reached the FIFO).
-    pub fn samples_made(&self) -> u64 {
-        self.samples_made
-    }
-
-    /// Start keeping a journal of FIFO resets and samples made (see [`JournalEntry`]).
-    pub fn keep_journal(&mut self) {
-        self.journal.get_or_insert_with(Vec::new);
-    }
-
-    /// The journal's entries since the last call (empty if no journal is kept).
-    pub fn take_journal(&mut self) -> Vec<JournalEntry> {
-        self.journal
-            .as_mut()
-            .map(std::mem::take)
-            .unwrap_or_default()
-    }
-
-    fn note(&mut self, entry: JournalEntry) {
-        if let Some(journal) = &mut self.journal {
-            journal.push(entry);
-        }
-    }
-
-    /// The current time, us.
-    pub fn time_us(&self) -> u64 {
-        self.time_us
-    }
-
-    /// Device resets so far (commanded or injected), after construction.
-    pub fn resets(&self) -> u32 {
-        self.resets
     }
 
     /// Bytes in the FIFO (the truth, whatever the faults).
@@ -225,7 +154,7 @@ impl SimMpu6050 {
     /// Advance the clock by `dt`, producing the samples due.
     pub fn advance(&mut self, dt: Duration) {
         let dt = u64::try_from(dt.as_micros()).unwrap_or(u64::MAX);
-        self.set_time_us(self.time_us.saturating_add(dt));
+        self.set_time_us(self.core.time_us.saturating_add(dt));
     }
 
     /// Move the clock to `t_us` (a time in the past is ignored), producing the samples due
@@ -242,7 +171,7 @@ impl SimMpu6050 {
         self.fifo_last_read = 0;
         self.reset_pointer();
         self.run = None;
-        self.resets += 1;
+        self.core.resets += 1;
     }
 
     fn awake(&self) -> bool {
@@ -252,15 +181,21 @@ impl SimMpu6050 {
     /// (Re)start sampling with the current settings, or stop when asleep.
     fn restart(&mut self) {
         self.run = if self.awake() {
-            self.runs_started += 1;
-            let seed = self
-                .seed
-                .wrapping_add(self.runs_started.wrapping_mul(0x9E37_79B9_7F4A_7C15));
-            let chip = chip_or_mpu6050(self.faults.who_am_i.unwrap_or(WHO_AM_I_VALUE));
-            let mut imu =
-                Imu::new(&self.model, self.settings(), seed, self.duration_hint_s).with_chip(chip);
+            let seed = self.core.next_run_seed();
+            let chip = chip_or_mpu6050(self.core.faults.who_am_i.unwrap_or(WHO_AM_I_VALUE));
+            let mut imu = Imu::new(
+                &self.model,
+                self.settings(),
+                seed,
+                self.core.duration_hint_s,
+            )
+            .with_chip(chip);
             imu.set_input(self.input);
-            let sampler = Sampler::start(self.faults.clock, self.time_us, imu.output_rate_hz());
+            let sampler = Sampler::start(
+                self.core.faults.clock,
+                self.core.time_us,
+                imu.output_rate_hz(),
+            );
             Some(Run { imu, sampler })
         } else {
             None
@@ -271,14 +206,14 @@ impl SimMpu6050 {
     fn sample_registers(&mut self) {
         let Some(run) = &mut self.run else { return };
         let raw = run.imu.next_raw();
-        self.samples_made += 1;
+        self.core.samples_made += 1;
         let bytes = RawSample::to_fifo_bytes(&raw);
         self.regs[usize::from(reg::ACCEL_XOUT_H)..][..14].copy_from_slice(&bytes);
         let enable = self.regs[usize::from(reg::INT_ENABLE)];
         self.regs[usize::from(reg::INT_STATUS)] |= enable & DATA_RDY;
         let in_fifo = self.regs[usize::from(reg::USER_CTRL)] & USER_FIFO_EN != 0;
-        let time_us = self.time_us;
-        self.note(JournalEntry::Sample {
+        let time_us = self.core.time_us;
+        self.core.note(JournalEntry::Sample {
             time_us,
             raw,
             in_fifo,
@@ -304,8 +239,8 @@ impl SimMpu6050 {
 
     fn clear_fifo(&mut self) {
         self.fifo.clear();
-        let time_us = self.time_us;
-        self.note(JournalEntry::FifoReset { time_us });
+        let time_us = self.core.time_us;
+        self.core.note(JournalEntry::FifoReset { time_us });
     }
 
     /// Append one byte, dropping the oldest when full (and flagging the overflow).
@@ -320,7 +255,8 @@ impl SimMpu6050 {
 
     fn read_mpu_register(&mut self, r: u8) -> u8 {
         let count = || {
-            self.faults
+            self.core
+                .faults
                 .stuck_fifo_count
                 .unwrap_or(self.fifo.len() as u16)
         };
@@ -334,7 +270,7 @@ impl SimMpu6050 {
                 }
                 self.fifo_last_read
             }
-            reg::WHO_AM_I => self.faults.who_am_i.unwrap_or(WHO_AM_I_VALUE),
+            reg::WHO_AM_I => self.core.faults.who_am_i.unwrap_or(WHO_AM_I_VALUE),
             _ => self.regs[usize::from(r & 0x7F)],
         }
     }
@@ -373,19 +309,16 @@ impl SimMpu6050 {
 
 const FIFO_COUNT_L: u8 = reg::FIFO_COUNT_H + 1;
 
+impl SimChip for SimMpu6050 {
+    fn core(&self) -> &ChipCore {
+        &self.core
+    }
+    fn core_mut(&mut self) -> &mut ChipCore {
+        &mut self.core
+    }
+}
+
 impl RegisterChip for SimMpu6050 {
-    fn address(&self) -> u8 {
-        self.address
-    }
-    fn time_us(&self) -> u64 {
-        self.time_us
-    }
-    fn faults_mut(&mut self) -> &mut Faults {
-        &mut self.faults
-    }
-    fn port_mut(&mut self) -> &mut Port {
-        &mut self.port
-    }
     fn read_register(&mut self, register: u8) -> u8 {
         self.read_mpu_register(register)
     }
@@ -403,14 +336,8 @@ impl RegisterChip for SimMpu6050 {
 }
 
 impl SampledChip for SimMpu6050 {
-    fn faults(&self) -> &Faults {
-        &self.faults
-    }
     fn sampler_mut(&mut self) -> Option<&mut Sampler> {
         self.run.as_mut().map(|run| &mut run.sampler)
-    }
-    fn set_clock_us(&mut self, t_us: u64) {
-        self.time_us = t_us;
     }
     fn sample(&mut self) {
         self.sample_registers();

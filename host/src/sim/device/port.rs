@@ -3,7 +3,8 @@
 //! stop), and the injected bus faults. A chip says only what its registers do
 //! ([`RegisterChip`]); the bus behaviour is written once, here.
 
-use super::faults::{Faults, take};
+use super::core::SimChip;
+use super::faults::take;
 use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource, Operation};
 
 /// The bus errors a simulated chip produces.
@@ -45,14 +46,8 @@ impl Default for Port {
 }
 
 /// A chip's registers as the bus reaches them. The provided methods are the bus events; a
-/// chip implements the accessors and its registers' meaning.
-pub trait RegisterChip {
-    /// The chip's 7-bit address.
-    fn address(&self) -> u8;
-    /// The chip's clock (the board's time), us.
-    fn time_us(&self) -> u64;
-    fn faults_mut(&mut self) -> &mut Faults;
-    fn port_mut(&mut self) -> &mut Port;
+/// chip implements its registers' meaning.
+pub trait RegisterChip: SimChip {
     /// A register read as the bus does it (with its side effects: a status cleared, a FIFO
     /// popped).
     fn read_register(&mut self, register: u8) -> u8;
@@ -77,9 +72,9 @@ pub trait RegisterChip {
             if take(&mut faults.bus_error) {
                 return Err(SimI2cError::Bus);
             }
-            self.port_mut().written_since_start = false;
+            self.core_mut().port.written_since_start = false;
         }
-        self.port_mut().expect_pointer = true;
+        self.core_mut().port.expect_pointer = true;
         Ok(())
     }
 
@@ -87,10 +82,10 @@ pub trait RegisterChip {
     /// else a register write (the pointer then advances). The first written byte of a
     /// transaction is refused, without effect, while a data NACK is injected.
     fn bus_write(&mut self, byte: u8) -> Result<(), SimI2cError> {
-        if !self.port_mut().written_since_start && take(&mut self.faults_mut().nack_data) {
+        if !self.core_mut().port.written_since_start && take(&mut self.faults_mut().nack_data) {
             return Err(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Data));
         }
-        let port = self.port_mut();
+        let port = &mut self.core_mut().port;
         port.written_since_start = true;
         if port.expect_pointer {
             port.pointer = byte & 0x7F;
@@ -98,7 +93,7 @@ pub trait RegisterChip {
         } else {
             let register = port.pointer;
             self.write_register(register, byte);
-            self.port_mut().pointer = self.next_register(register);
+            self.core_mut().port.pointer = self.next_register(register);
         }
         Ok(())
     }
@@ -106,10 +101,10 @@ pub trait RegisterChip {
     /// A read byte: the register at the pointer (which then advances). A write after reads
     /// starts with a new pointer, as after a repeated start.
     fn bus_read(&mut self) -> u8 {
-        let register = self.port_mut().pointer;
+        let register = self.core_mut().port.pointer;
         let b = self.read_register(register);
         let next = self.next_register(register);
-        let port = self.port_mut();
+        let port = &mut self.core_mut().port;
         port.pointer = next;
         port.expect_pointer = true;
         b
@@ -117,14 +112,14 @@ pub trait RegisterChip {
 
     /// A stop: the transaction ends.
     fn bus_stop(&mut self) {
-        let port = self.port_mut();
+        let port = &mut self.core_mut().port;
         port.expect_pointer = true;
         port.written_since_start = false;
     }
 
     /// Point the register pointer at 0 (a chip reset).
     fn reset_pointer(&mut self) {
-        self.port_mut().pointer = 0;
+        self.core_mut().port.pointer = 0;
     }
 }
 
@@ -132,7 +127,7 @@ pub trait RegisterChip {
 /// repeated start, so its first byte is a new register pointer; adjacent writes (or reads)
 /// continue one another.
 pub fn transaction(
-    chip: &mut impl RegisterChip,
+    chip: &mut (impl RegisterChip + ?Sized),
     address: u8,
     operations: &mut [Operation<'_>],
 ) -> Result<(), SimI2cError> {

@@ -8,7 +8,7 @@
 //! start reaches `k / f_s`, solved in closed form per sample, so no error accumulates over a
 //! night.
 
-use super::faults::{Faults, SensorClock};
+use super::faults::SensorClock;
 use super::port::RegisterChip;
 
 /// The sample times of one run (from a start, a wake-up or a change of settings).
@@ -56,10 +56,8 @@ impl Sampler {
 
 /// A chip that makes samples on a [`Sampler`].
 pub trait SampledChip: RegisterChip {
-    fn faults(&self) -> &Faults;
     /// The current run, if the chip is sampling.
     fn sampler_mut(&mut self) -> Option<&mut Sampler>;
-    fn set_clock_us(&mut self, t_us: u64);
     /// Make one sample (the run's count is advanced by the caller).
     fn sample(&mut self);
     /// Registers back to their power-on values.
@@ -91,20 +89,20 @@ pub trait SampledChip: RegisterChip {
             let now = self.time_us();
             match (sample, reset) {
                 (Some(s), r) if r.is_none_or(|r| s < r as f64) => {
-                    self.set_clock_us(now.max(s as u64));
+                    self.core_mut().time_us = now.max(s as u64);
                     if let Some(run) = self.sampler_mut() {
                         run.samples += 1;
                     }
                     self.sample();
                 }
                 (_, Some(r)) => {
-                    self.set_clock_us(now.max(r));
+                    self.core_mut().time_us = now.max(r);
                     self.faults_mut().resets_at_us.remove(0);
                     self.power_on_reset();
                 }
                 _ => break,
             }
         }
-        self.set_clock_us(t_us);
+        self.core_mut().time_us = t_us;
     }
 }
