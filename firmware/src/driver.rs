@@ -8,22 +8,19 @@
 //! what was written is an error the host sees ([`ErrorCode::VerifyFailed`]), never a silent
 //! difference between the settings the host asked for and the ones the sensor uses.
 //!
-//! Errors are [`ErrorCode`]s, the values the host receives. Every failed I2C attempt is
-//! counted ([`Mpu6050::i2c_errors`]); idempotent transactions (register reads and writes)
-//! are retried up to [`ATTEMPTS`] times, FIFO reads never (a failed burst may already have
-//! popped bytes, so repeating it would silently misalign samples).
+//! Register access (retries, counting, verification) is [`Registers`]'; FIFO reads are
+//! never retried.
 
+pub use crate::registers::ATTEMPTS;
+use crate::registers::Registers;
 use embedded_hal::delay::DelayNs;
-use embedded_hal::i2c::{Error as _, ErrorKind, I2c, NoAcknowledgeSource};
+use embedded_hal::i2c::I2c;
 use protocol::ErrorCode;
 use protocol::mpu6050::reg::bits::{
     DATA_RDY, DEVICE_RESET, FIFO_EN_ALL, FIFO_OFLOW, FIFO_RESET, SIGNAL_PATH_RESET_ALL,
     USER_FIFO_EN,
 };
 use protocol::mpu6050::{Chip, FIFO_SIZE, SensorSettings, chip, reg};
-
-/// Attempts per idempotent transaction before the error is reported.
-pub const ATTEMPTS: u32 = 3;
 
 /// PWR_MGMT_1 as we run it: awake, temperature sensor on, no cycling, clock from the X
 /// gyro's PLL (CLKSEL = 1), which the register map recommends over the 8 MHz internal
@@ -55,9 +52,7 @@ impl<T: BusClear + ?Sized> BusClear for &mut T {
 /// The MPU-6050 on an I2C bus.
 #[derive(Debug)]
 pub struct Mpu6050<I2C> {
-    i2c: I2C,
-    address: u8,
-    i2c_errors: u32,
+    regs: Registers<I2C>,
     /// FIFO size of the chip that answered the last probe.
     fifo_capacity: usize,
 }
@@ -65,25 +60,23 @@ pub struct Mpu6050<I2C> {
 impl<I2C: I2c> Mpu6050<I2C> {
     pub fn new(i2c: I2C, address: u8) -> Self {
         Mpu6050 {
-            i2c,
-            address,
-            i2c_errors: 0,
+            regs: Registers::new(i2c, address),
             fifo_capacity: FIFO_SIZE,
         }
     }
 
     /// The bus (the virtual board uses it to drive the simulated sensor's clock).
     pub fn i2c_mut(&mut self) -> &mut I2C {
-        &mut self.i2c
+        self.regs.i2c_mut()
     }
 
     pub fn release(self) -> I2C {
-        self.i2c
+        self.regs.release()
     }
 
     /// Failed I2C attempts so far (every failed retry counts).
     pub fn i2c_errors(&self) -> u32 {
-        self.i2c_errors
+        self.regs.i2c_errors()
     }
 
     /// WHO_AM_I, checked: [`ErrorCode::WrongSensor`] unless it names an MPU-6050 or a chip
@@ -226,74 +219,27 @@ impl<I2C: I2c> Mpu6050<I2C> {
 
     /// Pop `buf.len()` bytes from the FIFO in one burst. Not retried (see module docs).
     pub fn read_fifo(&mut self, buf: &mut [u8]) -> Result<(), ErrorCode> {
-        self.i2c
-            .write_read(self.address, &[reg::FIFO_R_W], buf)
-            .map_err(|e| {
-                self.i2c_errors = self.i2c_errors.saturating_add(1);
-                classify(e.kind())
-            })
+        self.regs.read_once(reg::FIFO_R_W, buf)
     }
 
-    pub fn read_reg(&mut self, register: u8) -> Result<u8, ErrorCode> {
-        let mut b = [0u8; 1];
-        self.read_regs(register, &mut b)?;
-        Ok(b[0])
+    fn read_reg(&mut self, register: u8) -> Result<u8, ErrorCode> {
+        self.regs.read_reg(register)
     }
 
-    /// Burst read from `register` on (auto-increment), retried.
-    pub fn read_regs(&mut self, register: u8, buf: &mut [u8]) -> Result<(), ErrorCode> {
-        let address = self.address;
-        self.retry(|i2c| i2c.write_read(address, &[register], buf))
+    fn read_regs(&mut self, register: u8, buf: &mut [u8]) -> Result<(), ErrorCode> {
+        self.regs.read_regs(register, buf)
     }
 
-    pub fn write_reg(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
-        let address = self.address;
-        self.retry(|i2c| i2c.write(address, &[register, value]))
+    fn write_reg(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
+        self.regs.write_reg(register, value)
     }
 
-    /// Write, read back, compare.
-    pub fn write_verified(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
-        self.write_reg(register, value)?;
-        self.verify(register, value)
+    fn write_verified(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
+        self.regs.write_verified(register, value)
     }
 
-    /// Read `register` back: [`ErrorCode::VerifyFailed`] unless it holds `value`.
     fn verify(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
-        let read = self.read_reg(register)?;
-        if read != value {
-            return Err(ErrorCode::VerifyFailed {
-                register,
-                wrote: value,
-                read,
-            });
-        }
-        Ok(())
-    }
-
-    fn retry<E: embedded_hal::i2c::Error>(
-        &mut self,
-        mut op: impl FnMut(&mut I2C) -> Result<(), E>,
-    ) -> Result<(), ErrorCode> {
-        let mut last = ErrorKind::Other;
-        for _ in 0..ATTEMPTS {
-            match op(&mut self.i2c) {
-                Ok(()) => return Ok(()),
-                Err(e) => {
-                    self.i2c_errors = self.i2c_errors.saturating_add(1);
-                    last = e.kind();
-                }
-            }
-        }
-        Err(classify(last))
-    }
-}
-
-/// A sensor that does not acknowledge its address is not there (unplugged, unpowered,
-/// wrong address); any other persistent error is a bus problem.
-fn classify(kind: ErrorKind) -> ErrorCode {
-    match kind {
-        ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address) => ErrorCode::SensorNotResponding,
-        _ => ErrorCode::I2cFailure,
+        self.regs.verify(register, value)
     }
 }
 
@@ -383,6 +329,7 @@ pub(crate) mod mock {
 mod tests {
     use super::mock::MockBus;
     use super::*;
+    use embedded_hal::i2c::ErrorKind;
     use protocol::mpu6050::{AccelRange, DlpfCfg, GyroRange};
 
     struct NoDelay;

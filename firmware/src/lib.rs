@@ -13,6 +13,7 @@ pub mod acquire;
 pub mod control;
 pub mod driver;
 pub mod recovery;
+pub mod registers;
 pub mod timing;
 
 pub use control::{BoardConfig, Firmware};

@@ -27,7 +27,9 @@
 //!   into the DATAX, DATAY and DATAZ registers"), so a burst of six bytes from DATAX0 reads
 //!   one sample; bytes of it not read in that burst are lost, as on the chip.
 //! - INT_SOURCE bit 7 (DATA_READY) is set while a sample waits (in bypass) or the FIFO is not
-//!   empty; reading INT_SOURCE clears OVERRUN.
+//!   empty. OVERRUN, a data-related interrupt, clears as the data registers are read until
+//!   its condition no longer holds (the data sheet's "Interrupts"): in bypass when the data
+//!   registers are read, in the FIFO modes when a read leaves the FIFO below full.
 //! - Faults ([`Faults`]): NACKs, bus errors, a wrong DEVID, a stuck FIFO_STATUS count, the
 //!   oscillator's offset and drift, outages and resets.
 //!
@@ -219,18 +221,19 @@ impl RegisterChip for SimAdxl345 {
             }
             reg::INT_SOURCE => {
                 let ready = if self.fifo.is_empty() { 0 } else { DATA_READY };
-                let value = self.regs[usize::from(r)] | ready;
-                self.regs[usize::from(r)] &= !OVERRUN;
-                value
+                self.regs[usize::from(r)] | ready
             }
             reg::DATAX0 if self.fifo_mode() != 0 => {
                 if let Some(sample) = self.fifo.pop_front() {
                     self.show(sample);
                 }
+                if self.fifo.len() < FIFO_DEPTH {
+                    self.regs[usize::from(reg::INT_SOURCE)] &= !OVERRUN;
+                }
                 self.regs[usize::from(r)]
             }
             reg::DATAX0 => {
-                self.regs[usize::from(reg::INT_SOURCE)] &= !DATA_READY;
+                self.regs[usize::from(reg::INT_SOURCE)] &= !(DATA_READY | OVERRUN);
                 self.regs[usize::from(r)]
             }
             _ => self.regs[usize::from(r)],
