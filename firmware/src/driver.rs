@@ -13,9 +13,10 @@
 
 pub use crate::registers::ATTEMPTS;
 use crate::registers::Registers;
+use crate::sensor::{Sensor, Waiting};
 use embedded_hal::delay::DelayNs;
 use embedded_hal::i2c::I2c;
-use protocol::ErrorCode;
+use protocol::{ErrorCode, RawSample};
 use protocol::mpu6050::reg::bits::{
     DATA_RDY, DEVICE_RESET, FIFO_EN_ALL, FIFO_OFLOW, FIFO_RESET, SIGNAL_PATH_RESET_ALL,
     USER_FIFO_EN,
@@ -240,6 +241,54 @@ impl<I2C: I2c> Mpu6050<I2C> {
 
     fn verify(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
         self.regs.verify(register, value)
+    }
+}
+
+/// The FIFO as the acquisition drains it: whole 14-byte samples (accel, temperature, gyro),
+/// full at the chip's FIFO size, FIFO_OFLOW as the overrun.
+impl<I2C: I2c> Sensor for Mpu6050<I2C> {
+    const SAMPLE_BYTES: usize = RawSample::FIFO_BYTES;
+
+    fn i2c_errors(&self) -> u32 {
+        self.regs.i2c_errors()
+    }
+
+    fn capacity_samples(&self) -> usize {
+        self.fifo_capacity / Self::SAMPLE_BYTES
+    }
+
+    fn restart_timed(&mut self, now: impl FnMut() -> u64) -> Result<(u64, u64), ErrorCode> {
+        self.reset_fifo_timed(now)
+    }
+
+    fn waiting(&mut self) -> Result<Waiting, ErrorCode> {
+        let count = self.fifo_count()?;
+        let bytes = usize::from(count);
+        Ok(Waiting {
+            samples: count / Self::SAMPLE_BYTES as u16,
+            count,
+            full: bytes >= self.fifo_capacity,
+            impossible: bytes > self.fifo_capacity,
+        })
+    }
+
+    fn read_samples(&mut self, buf: &mut [u8]) -> Result<(), ErrorCode> {
+        self.read_fifo(buf)
+    }
+
+    fn overran(&mut self) -> Result<bool, ErrorCode> {
+        Ok(self.int_status()? & FIFO_OFLOW != 0)
+    }
+
+    fn check_awake(&mut self) -> Result<(), ErrorCode> {
+        Mpu6050::check_awake(self)
+    }
+
+    fn decode(bytes: &[u8]) -> RawSample {
+        let mut sample = [0u8; RawSample::FIFO_BYTES];
+        let n = bytes.len().min(sample.len());
+        sample[..n].copy_from_slice(&bytes[..n]);
+        RawSample::from_fifo_bytes(&sample)
     }
 }
 

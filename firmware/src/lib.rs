@@ -14,6 +14,7 @@ pub mod control;
 pub mod driver;
 pub mod recovery;
 pub mod registers;
+pub mod sensor;
 pub mod timing;
 
 pub use control::{BoardConfig, Firmware};
