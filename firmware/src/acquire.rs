@@ -150,6 +150,9 @@ pub struct Acquisition {
     /// When the FIFO's content was last known (a drain that emptied it, or a reset).
     known_at_us: u64,
     last_drain_us: u64,
+    /// When the sensor's buffer was last read successfully (for a sensor that overwrites
+    /// silently: a gap shorter than a period cannot hide a replaced sample).
+    last_seen_us: u64,
     /// The FIFO was reset after a loss: the next drain takes its indices from the grid.
     resync: bool,
     /// A FIFO reset is owed (the last attempt failed).
@@ -195,6 +198,7 @@ impl Acquisition {
             produced: base,
             known_at_us: before,
             last_drain_us: after,
+            last_seen_us: before,
             resync: false,
             reset_owed: false,
             failing_since_us: None,
@@ -259,6 +263,7 @@ impl Acquisition {
             Err(e) => return self.failed(before, e).map(|()| report),
         };
         let after = clock.now_us();
+        let seen_before = core::mem::replace(&mut self.last_seen_us, before);
         let n = u64::from(waiting.samples);
         self.check_count(dev, waiting, after)?;
         if waiting.full {
@@ -302,7 +307,7 @@ impl Acquisition {
             report.lost = first - self.next_index;
             status.samples_lost = status.samples_lost.saturating_add(report.lost);
             first
-        } else if S::OVERWRITES_SILENTLY {
+        } else if S::OVERWRITES_SILENTLY && self.could_replace(seen_before, before) {
             self.replaced_before(before, after, n, status, &mut report)
         } else {
             self.next_index
@@ -321,6 +326,15 @@ impl Acquisition {
         status.samples_acquired = status.samples_acquired.saturating_add(n);
         report.samples = n;
         Ok(report)
+    }
+
+    /// Whether two samples can have been made since the buffer was last read at `seen_us`
+    /// (the sensor's oscillator as fast as it may be): only then can one have been replaced
+    /// unread, and only then is the grid asked. Polls every half period never ask it.
+    fn could_replace(&self, seen_us: u64, now_us: u64) -> bool {
+        let gap = now_us.saturating_sub(seen_us);
+        let shortest_period = u64::from(self.period_us) * (100 - MAX_RATE_ERROR_PERCENT as u64);
+        gap * 100 >= shortest_period
     }
 
     /// For a sensor that replaces unread samples silently, the index of the one it holds

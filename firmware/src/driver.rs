@@ -16,12 +16,12 @@ use crate::registers::Registers;
 use crate::sensor::{Sensor, Waiting};
 use embedded_hal::delay::DelayNs;
 use embedded_hal::i2c::I2c;
-use protocol::{ErrorCode, RawSample};
 use protocol::mpu6050::reg::bits::{
     DATA_RDY, DEVICE_RESET, FIFO_EN_ALL, FIFO_OFLOW, FIFO_RESET, SIGNAL_PATH_RESET_ALL,
     USER_FIFO_EN,
 };
 use protocol::mpu6050::{Chip, FIFO_SIZE, SensorSettings, chip, reg};
+use protocol::{ErrorCode, RawSample};
 
 /// PWR_MGMT_1 as we run it: awake, temperature sensor on, no cycling, clock from the X
 /// gyro's PLL (CLKSEL = 1), which the register map recommends over the 8 MHz internal

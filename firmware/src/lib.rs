@@ -10,8 +10,10 @@
 )]
 
 pub mod acquire;
+pub mod adxl345;
 pub mod control;
 pub mod driver;
+pub mod itg3200;
 pub mod recovery;
 pub mod registers;
 pub mod sensor;

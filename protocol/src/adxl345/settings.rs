@@ -73,6 +73,12 @@ impl Adxl345Settings {
         rate_of_code(self.rate_code)
     }
 
+    /// The sample period in microseconds, `10.24 s / 2^code`: exact except at 3200 Hz
+    /// (312.5 us, given as 312).
+    pub fn period_us(&self) -> u32 {
+        10_240_000 >> (self.rate_code & bits::RATE_MASK)
+    }
+
     /// The bandwidth in Hz: half the output data rate \[AD, table 7\].
     pub fn bandwidth_hz(&self) -> f64 {
         self.output_rate_hz() / 2.0

@@ -18,6 +18,9 @@ fn rate_codes_match_table_7() {
         let s = Adxl345Settings::for_rate(p, false).unwrap();
         assert_eq!(s.rate_code, code, "{p} Hz");
         assert_eq!(s.bandwidth_hz(), s.output_rate_hz() / 2.0);
+        if code < 15 {
+            assert_eq!(f64::from(s.period_us()), 1e6 / s.output_rate_hz());
+        }
         assert_eq!(
             Adxl345Settings::from_registers(s.bw_rate(), s.data_format()),
             s

@@ -35,6 +35,16 @@ impl Itg3200Settings {
         self.dlpf.gyro_internal_rate_hz() / (1.0 + f64::from(self.smplrt_div))
     }
 
+    /// The sample period in microseconds: 125 or 1000 us times (1 + SMPLRT_DIV), exact.
+    pub fn period_us(&self) -> u32 {
+        let internal_us = if self.dlpf.gyro_internal_rate_hz() > 1000.0 {
+            125
+        } else {
+            1000
+        };
+        internal_us * (1 + u32::from(self.smplrt_div))
+    }
+
     /// The DLPF row, or `None` for the reserved DLPF_CFG 7.
     pub fn row(&self) -> Option<&'static DlpfRow> {
         self.dlpf.row()

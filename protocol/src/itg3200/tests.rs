@@ -34,6 +34,7 @@ fn every_row_and_both_internal_rates() {
             "{rate} Hz {bandwidth} Hz"
         );
         assert_eq!(s.output_rate_hz(), rate);
+        assert_eq!(f64::from(s.period_us()), 1e6 / rate);
         assert_eq!(s.bandwidth_hz(), Some(bandwidth));
         assert_eq!(Itg3200Settings::from_registers(div, dlpf_fs), s);
     }
