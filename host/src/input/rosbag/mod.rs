@@ -194,7 +194,9 @@ impl Sink {
     /// One message under `key`, received at `received_ns`.
     fn message(&mut self, key: u64, received_ns: i64, data: &[u8]) -> Result<(), String> {
         let Some(&at) = self.by_key.get(&key) else {
-            return Err(format!("a message on connection {key}, which no record declares"));
+            return Err(format!(
+                "a message on connection {key}, which no record declares"
+            ));
         };
         let topic = &mut self.topics[at];
         topic.messages += 1;
@@ -206,8 +208,8 @@ impl Sink {
             Encoding::Cdr => imu::decode_cdr(data),
             Encoding::Other(name) => Err(format!("message encoding '{name}' is not read")),
         };
-        let message = decoded
-            .map_err(|e| format!("{} message {}: {e}", topic.name, topic.messages))?;
+        let message =
+            decoded.map_err(|e| format!("{} message {}: {e}", topic.name, topic.messages))?;
         topic.samples.push(message);
         topic.received_ns.push(received_ns);
         Ok(())
@@ -270,9 +272,11 @@ impl Sink {
                 }
             },
         };
-        let topic = self.topics.into_iter().nth(at).ok_or_else(|| {
-            InputError::file(path, "the chosen topic vanished while reading")
-        })?;
+        let topic = self
+            .topics
+            .into_iter()
+            .nth(at)
+            .ok_or_else(|| InputError::file(path, "the chosen topic vanished while reading"))?;
         if let Encoding::Other(name) = &topic.encoding {
             return Err(InputError::file(
                 path,
@@ -380,11 +384,7 @@ pub(super) fn table(
 }
 
 /// The fitted time base, or the timing error told by message number.
-fn time_base_of(
-    path: &Path,
-    column: &str,
-    times: &[f64],
-) -> Result<timing::Timing, InputError> {
+fn time_base_of(path: &Path, column: &str, times: &[f64]) -> Result<timing::Timing, InputError> {
     let message = |row: usize| format!("message {}", row + 1);
     match timing::analyse(column, times) {
         Ok(mut t) => {
@@ -405,7 +405,11 @@ fn channels(path: &Path, topic: &Topic) -> Result<Vec<(String, Vec<f64>)>, Input
     let gyro = !topic.samples.iter().all(|s| s.gyro_absent);
     let accel = !topic.samples.iter().all(|s| s.accel_absent);
     for (present, prefix, pick) in [
-        (gyro, 'g', (|s: &ImuMessage| s.gyro) as fn(&ImuMessage) -> [f64; 3]),
+        (
+            gyro,
+            'g',
+            (|s: &ImuMessage| s.gyro) as fn(&ImuMessage) -> [f64; 3],
+        ),
         (accel, 'a', |s: &ImuMessage| s.accel),
     ] {
         if !present {

@@ -146,7 +146,8 @@ pub(super) fn read(path: &Path, sink: &mut Sink) -> Result<(), InputError> {
     let size = left;
     loop {
         let offset = MAGIC.len() as u64 + size - left;
-        let at = |e: String| InputError::file(path, format!("ROS 1 bag, record at byte {offset}: {e}"));
+        let at =
+            |e: String| InputError::file(path, format!("ROS 1 bag, record at byte {offset}: {e}"));
         let Some(record) = next_record(&mut source, &mut left).map_err(at)? else {
             return Ok(());
         };

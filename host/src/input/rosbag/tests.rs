@@ -35,7 +35,8 @@ fn record(n: usize, jitter_ns: i64, seed: u64) -> Vec<ImuSample> {
         })
         .map(|mut s| {
             if jitter_ns > 0 {
-                s.stamp_ns += ChaCha8Rng::seed_from_u64(s.stamp_ns as u64).random_range(-jitter_ns..=jitter_ns);
+                s.stamp_ns += ChaCha8Rng::seed_from_u64(s.stamp_ns as u64)
+                    .random_range(-jitter_ns..=jitter_ns);
             }
             s
         })
@@ -77,14 +78,25 @@ fn the_same_record_reads_alike_from_every_container() {
         assert_eq!(r.names(), ["gx", "gy", "gz", "ax", "ay", "az"], "{name}");
         assert_eq!(r.len(), samples.len(), "{name}");
         assert_eq!(r.channels[1].values[777], samples[777].gyro[1], "{name}");
-        assert_eq!(r.channels[5].values[23_999], samples[23_999].accel[2], "{name}");
+        assert_eq!(
+            r.channels[5].values[23_999], samples[23_999].accel[2],
+            "{name}"
+        );
         // Stamps in whole ns at exactly 5 ms: the rate to rounding, far within 0.1 %.
-        assert!((r.rate_hz / RATE_HZ - 1.0).abs() < 1e-6, "{name}: {}", r.rate_hz);
+        assert!(
+            (r.rate_hz / RATE_HZ - 1.0).abs() < 1e-6,
+            "{name}: {}",
+            r.rate_hz
+        );
         let bag = loaded.report.bag.as_ref().unwrap();
         assert_eq!((bag.topic.as_str(), bag.messages), ("/imu/data", 24_000));
         assert_eq!(bag.time_base, "header.stamp");
         assert!(loaded.report.timing.as_ref().unwrap().uniform);
-        assert!(loaded.report.warnings.is_empty(), "{:?}", loaded.report.warnings);
+        assert!(
+            loaded.report.warnings.is_empty(),
+            "{:?}",
+            loaded.report.warnings
+        );
         if name == "plain.bag" {
             check_white_noise_density(r);
         }
@@ -115,7 +127,12 @@ fn check_white_noise_density(r: &Record) {
 fn jittery_stamps_are_reported_and_accepted() {
     let dir = tempfile::tempdir().unwrap();
     let samples = record(20_000, 500_000, 2);
-    let path = bag(dir.path(), Container::Mcap, "jitter.mcap", &[("/imu", &samples)]);
+    let path = bag(
+        dir.path(),
+        Container::Mcap,
+        "jitter.mcap",
+        &[("/imu", &samples)],
+    );
     let loaded = load(&path, &LoadOptions::default()).unwrap();
     assert!((loaded.record.rate_hz / RATE_HZ - 1.0).abs() < 1e-3);
     let timing = loaded.report.timing.unwrap();
@@ -135,8 +152,15 @@ fn a_dropped_message_gap_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let mut samples = record(12_000, 0, 3);
     samples.drain(5_000..5_003);
-    let path = bag(dir.path(), Container::Ros1(Ros1Compression::None), "gap.bag", &[("/imu", &samples)]);
-    let err = load(&path, &LoadOptions::default()).unwrap_err().to_string();
+    let path = bag(
+        dir.path(),
+        Container::Ros1(Ros1Compression::None),
+        "gap.bag",
+        &[("/imu", &samples)],
+    );
+    let err = load(&path, &LoadOptions::default())
+        .unwrap_err()
+        .to_string();
     assert!(err.starts_with(&path.display().to_string()), "{err}");
     assert!(
         err.contains("3 sample(s) missing in 1 gap(s)")
@@ -163,8 +187,15 @@ fn several_imu_topics_are_listed_until_one_is_chosen() {
     let a = record(3_000, 0, 4);
     let b = record(2_000, 0, 5);
     for (container, name) in CONTAINERS {
-        let path = bag(dir.path(), container, name, &[("/imu/a", &a), ("/imu/b", &b)]);
-        let err = load(&path, &LoadOptions::default()).unwrap_err().to_string();
+        let path = bag(
+            dir.path(),
+            container,
+            name,
+            &[("/imu/a", &a), ("/imu/b", &b)],
+        );
+        let err = load(&path, &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
         assert!(
             err.contains("2 IMU topics: /imu/a (sensor_msgs")
                 && err.contains("3000 messages), /imu/b (")
@@ -175,7 +206,10 @@ fn several_imu_topics_are_listed_until_one_is_chosen() {
         assert_eq!(loaded.record.len(), 2_000, "{name}");
         assert_eq!(loaded.record.channels[0].values[10], b[10].gyro[0]);
         let err = load(&path, &topic("/nope")).unwrap_err().to_string();
-        assert!(err.contains("no topic '/nope'; the bag has /imu/a"), "{err}");
+        assert!(
+            err.contains("no topic '/nope'; the bag has /imu/a"),
+            "{err}"
+        );
     }
 }
 
@@ -197,7 +231,11 @@ fn malformed_bags_are_errors_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let samples = record(2_000, 0, 7);
     let cases: [(Container, &str, &str); 3] = [
-        (Container::Ros1(Ros1Compression::Lz4), "cut.bag", "ROS 1 bag, record at byte"),
+        (
+            Container::Ros1(Ros1Compression::Lz4),
+            "cut.bag",
+            "ROS 1 bag, record at byte",
+        ),
         (Container::Mcap, "cut.mcap", "MCAP"),
         (Container::Db3, "cut", "rosbag2 SQLite3"),
     ];
@@ -207,9 +245,14 @@ fn malformed_bags_are_errors_naming_the_file() {
         let bytes = std::fs::read(&file).unwrap();
         for cut in [bytes.len() / 2, 100, 20] {
             std::fs::write(&file, &bytes[..cut]).unwrap();
-            let err = load(&path, &LoadOptions::default()).unwrap_err().to_string();
+            let err = load(&path, &LoadOptions::default())
+                .unwrap_err()
+                .to_string();
             assert!(err.starts_with(&file.display().to_string()), "{err}");
-            assert!(err.contains(says) || err.contains("no sensor_msgs/Imu"), "{name} cut at {cut}: {err}");
+            assert!(
+                err.contains(says) || err.contains("no sensor_msgs/Imu"),
+                "{name} cut at {cut}: {err}"
+            );
         }
     }
     // A message too short for an Imu, in an otherwise sound bag.
@@ -222,17 +265,32 @@ fn malformed_bags_are_errors_naming_the_file() {
     let at = bytes.windows(8).position(|w| w == b"imu_link").unwrap();
     bytes[at - 4] = 200;
     std::fs::write(&path, &bytes).unwrap();
-    let err = load(&path, &LoadOptions::default()).unwrap_err().to_string();
-    assert!(err.contains("/imu message 1: ROS 1 message ends at byte"), "{err}");
+    let err = load(&path, &LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("/imu message 1: ROS 1 message ends at byte"),
+        "{err}"
+    );
     let split = dir.path().join("split");
     std::fs::create_dir(&split).unwrap();
-    let err = load(&split, &LoadOptions::default()).unwrap_err().to_string();
-    assert!(err.contains("no rosbag2 storage file (.mcap or .db3)"), "{err}");
+    let err = load(&split, &LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("no rosbag2 storage file (.mcap or .db3)"),
+        "{err}"
+    );
     for name in ["b_1.db3", "b_0.db3"] {
         std::fs::write(split.join(name), b"").unwrap();
     }
-    let err = load(&split, &LoadOptions::default()).unwrap_err().to_string();
-    assert!(err.contains("split into 2 storage files (b_0.db3, b_1.db3)"), "{err}");
+    let err = load(&split, &LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("split into 2 storage files (b_0.db3, b_1.db3)"),
+        "{err}"
+    );
 }
 
 #[test]

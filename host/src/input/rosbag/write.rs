@@ -259,9 +259,16 @@ impl BagWriter for Ros1Writer {
         field(&mut header, "op", &[0x02]);
         field(&mut header, "conn", &conn.to_le_bytes());
         field(&mut header, "time", &time(t));
-        record(&mut self.chunk, &header, &encode::ros1(&sample.imu(self.seq)));
+        record(
+            &mut self.chunk,
+            &header,
+            &encode::ros1(&sample.imu(self.seq)),
+        );
         self.seq = self.seq.wrapping_add(1);
-        self.chunk_range = Some(self.chunk_range.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
+        self.chunk_range = Some(
+            self.chunk_range
+                .map_or((t, t), |(a, b)| (a.min(t), b.max(t))),
+        );
         if self.chunk.len() >= CHUNK_BYTES {
             self.flush_chunk()?;
         }
@@ -414,7 +421,13 @@ impl BagWriter for Db3Writer {
         let t = sample.received_ns;
         self.conn
             .prepare_cached("INSERT INTO messages (topic_id, timestamp, data) VALUES (?1, ?2, ?3)")
-            .and_then(|mut s| s.execute(rusqlite::params![topic, t, encode::cdr(&sample.imu(0), true)]))
+            .and_then(|mut s| {
+                s.execute(rusqlite::params![
+                    topic,
+                    t,
+                    encode::cdr(&sample.imu(0), true)
+                ])
+            })
             .map_err(sql_error)?;
         if let Some(entry) = self.topics.get_mut(topic as usize - 1) {
             entry.1 += 1;
