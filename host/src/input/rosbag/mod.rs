@@ -1,10 +1,10 @@
 //! ROS bags: the `sensor_msgs/Imu` messages of one topic as a record. Three containers are
 //! read, each recognised by its magic bytes:
 //!
-//! - ROS 1 bags, format 2.0 ([`ros1`]: uncompressed, bz2 and lz4 chunks);
-//! - MCAP files ([`mcap`](self::mcap), the rosbag2 default since Iron: zstd, lz4 or
+//! - ROS 1 bags, format 2.0 (`ros1.rs`: uncompressed, bz2 and lz4 chunks);
+//! - MCAP files (`mcap.rs`, the rosbag2 default since Iron: zstd, lz4 or
 //!   uncompressed chunks; ROS 2 CDR or ROS 1 messages);
-//! - rosbag2 SQLite3 files, `.db3` ([`db3`]).
+//! - rosbag2 SQLite3 files, `.db3` (`db3.rs`).
 //!
 //! A rosbag2 directory (its `metadata.yaml` beside the storage file) is read through its one
 //! storage file ([`storage_file`]). The angular velocity becomes `gx gy gz` (rad/s) and the

@@ -99,6 +99,15 @@ const CHUNK_BYTES: usize = 768 * 1024;
 /// The bag header record is padded to this many bytes, so that it can be rewritten in place.
 const BAG_HEADER_BYTES: usize = 4096;
 
+/// A written chunk, for its chunk info record in the index.
+struct ChunkInfo {
+    position: u64,
+    start: i64,
+    end: i64,
+    /// (connection, messages) in the chunk.
+    counts: Vec<(u32, u32)>,
+}
+
 struct Ros1Writer {
     file: BufWriter<File>,
     compression: Ros1Compression,
@@ -109,8 +118,7 @@ struct Ros1Writer {
     /// Per connection, the current chunk's (time, offset) index entries.
     index: Vec<Vec<(i64, u32)>>,
     chunk_range: Option<(i64, i64)>,
-    /// (position, start, end, per-connection counts) of each written chunk.
-    chunks: Vec<(u64, i64, i64, Vec<(u32, u32)>)>,
+    chunks: Vec<ChunkInfo>,
     seq: u32,
 }
 
@@ -229,7 +237,12 @@ impl Ros1Writer {
             counts.push((conn as u32, (data.len() / 12) as u32));
         }
         self.file.write_all(&out)?;
-        self.chunks.push((position, start, end, counts));
+        self.chunks.push(ChunkInfo {
+            position,
+            start,
+            end,
+            counts,
+        });
         self.in_chunk.iter_mut().for_each(|c| *c = false);
         Ok(())
     }
@@ -282,7 +295,13 @@ impl BagWriter for Ros1Writer {
         for conn in 0..self.topics.len() as u32 {
             out.extend(self.connection(conn));
         }
-        for (position, start, end, counts) in &self.chunks {
+        for ChunkInfo {
+            position,
+            start,
+            end,
+            counts,
+        } in &self.chunks
+        {
             let mut header = Vec::new();
             field(&mut header, "op", &[0x06]);
             field(&mut header, "ver", &1u32.to_le_bytes());
