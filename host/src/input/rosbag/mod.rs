@@ -311,6 +311,8 @@ pub struct BagRead {
     pub messages: u64,
     /// What gave the times: `header.stamp`, or `receive time` when stamps were unset.
     pub time_base: &'static str,
+    /// Messages whose header stamp is unset (zero); any makes the receive times the time base.
+    pub unset_stamps: usize,
 }
 
 impl std::fmt::Display for BagRead {
@@ -319,7 +321,15 @@ impl std::fmt::Display for BagRead {
             f,
             "{}: topic {} ({}), {} messages, times from {}",
             self.format, self.topic, self.message_type, self.messages, self.time_base
-        )
+        )?;
+        if self.unset_stamps > 0 {
+            write!(
+                f,
+                " (the header stamp is unset in {} of them)",
+                self.unset_stamps
+            )?;
+        }
+        Ok(())
     }
 }
 
@@ -339,7 +349,8 @@ pub(super) fn table(
         Format::Db3 => db3::read(path, &mut sink)?,
     }
     let topic = sink.chosen(path)?;
-    let stamped = topic.samples.iter().all(|s| s.stamp_ns != 0);
+    let unset_stamps = topic.samples.iter().filter(|s| s.stamp_ns == 0).count();
+    let stamped = unset_stamps == 0;
     let time_base = if stamped {
         "header.stamp"
     } else {
@@ -370,6 +381,7 @@ pub(super) fn table(
         message_type: topic.type_name.clone(),
         messages: topic.messages,
         time_base,
+        unset_stamps,
     };
     let channels = channels(path, &topic)?;
     Ok((

@@ -221,8 +221,59 @@ fn zero_stamps_fall_back_to_receive_times() {
     samples.iter_mut().for_each(|s| s.stamp_ns = 0);
     let path = bag(dir.path(), Container::Db3, "bag", &[("/imu", &samples)]);
     let loaded = load(&path, &LoadOptions::default()).unwrap();
-    assert_eq!(loaded.report.bag.unwrap().time_base, "receive time");
+    let bag = loaded.report.bag.unwrap();
+    assert_eq!(bag.time_base, "receive time");
+    assert!(
+        bag.to_string()
+            .ends_with("times from receive time (the header stamp is unset in 2000 of them)"),
+        "{bag}"
+    );
     assert!((loaded.record.rate_hz / RATE_HZ - 1.0).abs() < 1e-6);
+}
+
+/// An MCAP file of ROS 1 messages (`message_encoding` ros1, as `mcap convert` makes from a
+/// ROS 1 bag), uncompressed, read like any other.
+#[test]
+fn mcap_with_ros1_messages_reads() {
+    use super::imu::encode;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ros1.mcap");
+    let samples = record(1_000, 0, 8);
+    let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+    let mut writer = ::mcap::WriteOptions::new()
+        .compression(None)
+        .profile("ros1")
+        .create(file)
+        .unwrap();
+    let schema = writer
+        .add_schema("sensor_msgs/Imu", "ros1msg", b"")
+        .unwrap();
+    let channel = writer
+        .add_channel(schema, "/imu", "ros1", &Default::default())
+        .unwrap();
+    for (i, s) in samples.iter().enumerate() {
+        let imu = encode::Imu {
+            seq: i as u32,
+            stamp_ns: s.stamp_ns,
+            frame_id: "imu",
+            gyro: s.gyro,
+            accel: s.accel,
+        };
+        let header = ::mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: i as u32,
+            log_time: s.received_ns as u64,
+            publish_time: s.received_ns as u64,
+        };
+        writer
+            .write_to_known_channel(&header, &encode::ros1(&imu))
+            .unwrap();
+    }
+    writer.finish().unwrap();
+    let loaded = load(&path, &LoadOptions::default()).unwrap();
+    assert_eq!(loaded.record.len(), 1_000);
+    assert_eq!(loaded.record.channels[2].values[500], samples[500].gyro[2]);
+    assert_eq!(loaded.report.bag.unwrap().message_type, "sensor_msgs/Imu");
 }
 
 /// Damaged bags give an error naming the file and the fault, never a panic.
