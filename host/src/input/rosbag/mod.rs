@@ -231,7 +231,10 @@ impl Sink {
                 let Some(at) = self.topics.iter().position(|t| &t.name == want) else {
                     return Err(InputError::file(
                         path,
-                        format!("no topic '{want}'; the bag has {}", listing(&all)),
+                        format!(
+                            "no topic '{want}'; the bag has {}",
+                            none_if_empty(listing(&all))
+                        ),
                     ));
                 };
                 if !self.topics[at].is_imu() {
@@ -246,13 +249,9 @@ impl Sink {
                 }
                 at
             }
-            None => match imus.len() {
-                1 => self
-                    .topics
-                    .iter()
-                    .position(|t| t.is_imu())
-                    .unwrap_or_default(),
-                0 => {
+            None => match self.topics.iter().position(|t| t.is_imu()) {
+                Some(at) if imus.len() == 1 => at,
+                None => {
                     return Err(InputError::file(
                         path,
                         format!(
@@ -261,11 +260,12 @@ impl Sink {
                         ),
                     ));
                 }
-                n => {
+                Some(_) => {
                     return Err(InputError::file(
                         path,
                         format!(
-                            "{n} IMU topics: {}; choose one with --topic",
+                            "{} IMU topics: {}; choose one with --topic",
+                            imus.len(),
                             listing(&imus)
                         ),
                     ));

@@ -448,7 +448,10 @@ impl BagWriter for Db3Writer {
                 ])
             })
             .map_err(sql_error)?;
-        if let Some(entry) = self.topics.get_mut(topic as usize - 1) {
+        if let Some(entry) = (topic as usize)
+            .checked_sub(1)
+            .and_then(|i| self.topics.get_mut(i))
+        {
             entry.1 += 1;
         }
         self.range = Some(self.range.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
