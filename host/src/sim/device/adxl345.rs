@@ -92,7 +92,7 @@ impl AccelChain {
     }
 
     /// The next output sample in m/s^2.
-    pub fn next(&mut self) -> [f64; 3] {
+    pub fn next_sample(&mut self) -> [f64; 3] {
         let t = self.n as f64 / self.rate_hz;
         let delta = self.model.temperature.profile.at(t) - self.model.temperature.reference;
         let input = TrueInput::at_rest(self.model.gravity, STANDARD_GRAVITY);
@@ -101,6 +101,20 @@ impl AccelChain {
         self.n += 1;
         [0, 1, 2].map(|i| self.axes[i].advance_to(index, signal[i]))
     }
+}
+
+/// m/s^2 to counts at the range and resolution a DATA_FORMAT value sets, clipped to the
+/// range: 256 LSB per g at full resolution, `256 >> range` in 10-bit mode.
+pub fn counts(a: f64, data_format: u8) -> i16 {
+    let range = data_format & RANGE_MASK;
+    let lsb_per_g = if data_format & FULL_RES != 0 {
+        adxl345::LSB_PER_G
+    } else {
+        adxl345::LSB_PER_G / f64::from(1u8 << range)
+    };
+    let full_scale = f64::from(2u16 << range) * lsb_per_g;
+    let c = quantize(a / STANDARD_GRAVITY, 1.0 / lsb_per_g);
+    c.clamp(-(full_scale as i16), full_scale as i16 - 1)
 }
 
 #[derive(Debug, Clone)]
@@ -173,20 +187,6 @@ impl SimAdxl345 {
             let sampler = Sampler::start(self.core.faults.clock, self.core.time_us, chain.rate_hz);
             Run { chain, sampler }
         });
-    }
-
-    /// m/s^2 to counts at the range and resolution DATA_FORMAT holds, clipped to the range.
-    fn counts(&self, a: f64) -> i16 {
-        let format = self.regs[usize::from(reg::DATA_FORMAT)];
-        let range = format & RANGE_MASK;
-        let lsb_per_g = if format & FULL_RES != 0 {
-            adxl345::LSB_PER_G
-        } else {
-            adxl345::LSB_PER_G / f64::from(1u8 << range)
-        };
-        let full_scale = f64::from(2u16 << range) * lsb_per_g;
-        let c = quantize(a / STANDARD_GRAVITY, 1.0 / lsb_per_g);
-        c.clamp(-(full_scale as i16), full_scale as i16 - 1)
     }
 
     fn show(&mut self, sample: [i16; 3]) {
@@ -279,9 +279,10 @@ impl SampledChip for SimAdxl345 {
 
     fn sample(&mut self) {
         let Some(run) = &mut self.run else { return };
-        let si = run.chain.next();
+        let si = run.chain.next_sample();
         self.core.samples_made += 1;
-        let sample = si.map(|a| self.counts(a));
+        let format = self.regs[usize::from(reg::DATA_FORMAT)];
+        let sample = si.map(|a| counts(a, format));
         let mut in_fifo = self.fifo_mode() != 0;
         if in_fifo {
             if self.fifo.len() >= FIFO_DEPTH {

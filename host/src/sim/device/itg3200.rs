@@ -37,6 +37,21 @@ const ITG3200_CHIP: Chip = Chip {
     temp_at_zero_c: 35.0 + 13200.0 / 280.0,
 };
 
+/// The ITG-3200's signal chain at `settings`: the MPU-6050's gyro path with this DLPF row and
+/// divider (its accelerometer half is not read), counted at 14.375 LSB per deg/s, with the
+/// ITG-3200's temperature formula.
+pub fn gyro_chain(model: &ImuModel, settings: &Itg3200Settings, seed: u64, duration_s: f64) -> Imu {
+    let chain = SensorSettings {
+        dlpf: settings.dlpf,
+        smplrt_div: settings.smplrt_div,
+        gyro_range: GyroRange::Dps2000,
+        accel_range: AccelRange::G2,
+    };
+    Imu::new(model, chain, seed, duration_s)
+        .with_gyro_scale(itg3200::rad_s_per_lsb())
+        .with_chip(ITG3200_CHIP)
+}
+
 #[derive(Debug, Clone)]
 struct Run {
     imu: Imu,
@@ -92,18 +107,12 @@ impl SimItg3200 {
     fn restart(&mut self) {
         self.run = self.awake().then(|| {
             let seed = self.core.next_run_seed();
-            let s = self.settings();
-            // The MPU-6050's gyro path with this DLPF row and divider; its accelerometer
-            // half is not read.
-            let chain = SensorSettings {
-                dlpf: s.dlpf,
-                smplrt_div: s.smplrt_div,
-                gyro_range: GyroRange::Dps2000,
-                accel_range: AccelRange::G2,
-            };
-            let imu = Imu::new(&self.model, chain, seed, self.core.duration_hint_s)
-                .with_gyro_scale(itg3200::rad_s_per_lsb())
-                .with_chip(ITG3200_CHIP);
+            let imu = gyro_chain(
+                &self.model,
+                &self.settings(),
+                seed,
+                self.core.duration_hint_s,
+            );
             let sampler = Sampler::start(
                 self.core.faults.clock,
                 self.core.time_us,

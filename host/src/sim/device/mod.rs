@@ -40,13 +40,13 @@
 //! Not modelled: the DMP, the auxiliary I2C master, self-test, interrupt pin configuration,
 //! FIFO_EN's SLV bits, clock source selection, low-power cycle mode.
 
-mod adxl345;
+pub mod adxl345;
 mod bus;
 mod core;
 mod faults;
 #[cfg(test)]
 mod gy85_tests;
-mod itg3200;
+pub mod itg3200;
 mod port;
 mod sampler;
 #[cfg(test)]
