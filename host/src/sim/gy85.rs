@@ -68,7 +68,7 @@ pub struct Gy85 {
 }
 
 impl Gy85 {
-    /// The pair with `model` ([gyro] the ITG-3200's, [accel] the ADXL345's at 100 Hz),
+    /// The pair with `model` (`[gyro]` the ITG-3200's, `[accel]` the ADXL345's at 100 Hz),
     /// seeded by `seed`, for a run of about `duration_s`.
     pub fn new(
         model: &ImuModel,

@@ -30,7 +30,7 @@
 //!   empty. OVERRUN, a data-related interrupt, clears as the data registers are read until
 //!   its condition no longer holds (the data sheet's "Interrupts"): in bypass when the data
 //!   registers are read, in the FIFO modes when a read leaves the FIFO below full.
-//! - Faults ([`Faults`]): NACKs, bus errors, a wrong DEVID, a stuck FIFO_STATUS count, the
+//! - Faults ([`super::Faults`]): NACKs, bus errors, a wrong DEVID, a stuck FIFO_STATUS count, the
 //!   oscillator's offset and drift, outages and resets.
 //!
 //! Not modelled: tap, activity and free-fall detection, offsets (OFSX..OFSZ), self-test,

@@ -90,7 +90,7 @@ pub struct Faults {
     pub i2c_outages: Vec<Outage>,
     /// Device resets (as by PWR_MGMT_1 bit 7), each once when the clock passes its time, us;
     /// any order (they are sorted when the clock moves), removed as they happen. A time
-    /// already past fires at the next clock move. [`super::SimMpu6050::schedule_reset`] adds one.
+    /// already past fires at the next clock move. [`super::SimChip::schedule_reset`] adds one.
     pub resets_at_us: Vec<u64>,
 }
 

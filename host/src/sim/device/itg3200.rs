@@ -15,7 +15,7 @@
 //! - INT_STATUS clears when read, or on any register read with INT_CFG bit 4
 //!   (INT_ANYRD_2CLEAR).
 //! - TEMP_OUT follows the ITG-3200's scale, `35 degC + (counts + 13200) / 280`.
-//! - Faults ([`Faults`]) as the MPU-6050's: NACKs, bus errors, a wrong WHO_AM_I, the
+//! - Faults ([`super::Faults`]) as the MPU-6050's: NACKs, bus errors, a wrong WHO_AM_I, the
 //!   oscillator's offset and drift, outages and resets (the FIFO count is not used).
 //!
 //! Not modelled: ITG_RDY (the PLL's lock), the interrupt pin, clock source selection, the
