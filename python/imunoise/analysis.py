@@ -17,6 +17,7 @@ __all__ = [
     "psd",
     "filter_noise",
     "kalibr",
+    "model",
 ]
 
 
@@ -101,35 +102,42 @@ def load_session(key, *, store=None, rate=None, names=None, ignore_time=False, l
     )
 
 
-def _run(data, rate, names, options):
-    """The extension's analysis of ``data``: (document text, Kalibr YAML, why no YAML)."""
-    settings = input_report = None
-    source = "arrays"
+def _unpack(data, rate, names):
+    """Names, columns, rate and what a Record adds (settings, input report, source) as
+    keywords for the extension."""
+    extra = {"settings": None, "source": "arrays"}
     if isinstance(data, Record):
         if names is not None:
             raise TypeError("names: not with a Record, whose channels are named")
         rate = data.rate if rate is None else rate
-        settings = None if data.settings is None else json.dumps(data.settings)
-        input_report = json.dumps(data.input)
-        source = data.source
+        extra = {
+            "settings": None if data.settings is None else json.dumps(data.settings),
+            "source": data.source,
+        }
         data = data.channels
     if rate is None:
         raise TypeError("rate: the sample rate in Hz is needed for arrays")
     names, columns = channels(data, names)
+    return names, columns, sample_rate(rate), extra
+
+
+def _keywords(options):
+    """The options as the extension takes them: one estimator becomes a list, a bandwidth
+    text ("42", "off")."""
     options = dict(options)
     if isinstance(options.get("estimators"), str):
         options["estimators"] = [options["estimators"]]
     if options.get("bandwidth") is not None:
         options["bandwidth"] = str(options["bandwidth"])
-    return _imunoise.analyze(
-        names,
-        columns,
-        sample_rate(rate),
-        settings=settings,
-        input=input_report,
-        source=source,
-        **options,
-    )
+    return options
+
+
+def _run(data, rate, names, options):
+    """The extension's analysis of ``data``: (document text, Kalibr YAML, why no YAML)."""
+    names, columns, rate, extra = _unpack(data, rate, names)
+    if isinstance(data, Record):
+        extra["input"] = json.dumps(data.input)
+    return _imunoise.analyze(names, columns, rate, **extra, **_keywords(options))
 
 
 _OPTIONS = """
@@ -212,3 +220,29 @@ def kalibr(data, rate=None, names=None, **options):
     if yaml is None:
         raise ValueError(f"no Kalibr YAML: {why}")
     return yaml
+
+
+def model(data, rate=None, names=None, *, column=None, temp_column=None, seed=1, realisations=24, bandwidth=None):
+    """The model workflow on one channel (``imunoise model``, docs/guide/model.md): the
+    standard noise model fitted, simulated ``realisations`` times from ``seed``, every
+    candidate effect tested against the simulated spread, the one the model misses named
+    and added, repeated. Returns the document ``imunoise model --json`` writes.
+
+    ``column`` is the channel to model (default: the first gyro channel), ``temp_column``
+    its temperature (default: a channel named temp, if any); ``bandwidth`` as in
+    :func:`analyze`. Data as in :func:`analyze`. It simulates the record many times over:
+    expect seconds to minutes.
+    """
+    names, columns, rate, extra = _unpack(data, rate, names)
+    text = _imunoise.model(
+        names,
+        columns,
+        rate,
+        column=column,
+        temp_column=temp_column,
+        seed=int(seed),
+        realisations=int(realisations),
+        **extra,
+        **_keywords({"bandwidth": bandwidth}),
+    )
+    return json.loads(text)

@@ -3,7 +3,7 @@
 //! is given and Kalibr's YAML.
 
 use crate::{check_rate, error_chain, samples, value_error};
-use imunoise::analysis::pipeline::{self, Request};
+use imunoise::analysis::pipeline::{self, Bandwidth, Request};
 use imunoise::analysis::{DataType, Estimator, filter};
 use imunoise::record::{Channel, Record};
 use imunoise::report;
@@ -60,17 +60,11 @@ pub fn analyze(
         taus: taus.parse().map_err(value_error)?,
         confidence,
         fit_tau_min,
-        bandwidth: bandwidth
-            .map(|b| b.parse())
-            .transpose()
-            .map_err(|e| value_error(format!("bandwidth {e}")))?,
+        bandwidth: parse_bandwidth(bandwidth)?,
         psd_segment,
         psd_window: psd_window.parse().map_err(value_error)?,
     };
-    let settings: Option<SensorSettings> = settings
-        .map(serde_json::from_str)
-        .transpose()
-        .map_err(|e| value_error(format!("settings: {e}")))?;
+    let settings = sensor_settings(settings)?;
     let input: serde_json::Value = match input {
         Some(text) => serde_json::from_str(text).map_err(|e| value_error(format!("input: {e}")))?,
         None => {
@@ -107,8 +101,24 @@ pub fn analyze(
     .map_err(value_error)
 }
 
+/// The sensor settings a loaded capture states, from their JSON.
+pub fn sensor_settings(settings: Option<&str>) -> PyResult<Option<SensorSettings>> {
+    settings
+        .map(serde_json::from_str)
+        .transpose()
+        .map_err(|e| value_error(format!("settings: {e}")))
+}
+
+/// The `bandwidth` keyword: Hz or "off".
+pub fn parse_bandwidth(bandwidth: Option<String>) -> PyResult<Option<Bandwidth>> {
+    bandwidth
+        .map(|b| b.parse())
+        .transpose()
+        .map_err(|e| value_error(format!("bandwidth {e}")))
+}
+
 /// A record of the named columns (each copied once into its channel), all of one length.
-fn record(
+pub fn record(
     names: Vec<String>,
     columns: &[PyReadonlyArray1<'_, f64>],
     rate: f64,

@@ -9,6 +9,7 @@ use pyo3::prelude::*;
 mod analysis;
 mod deviation;
 mod input;
+mod model;
 mod spectrum;
 
 /// The module's functions; their Python-facing documentation is in python/imunoise/.
@@ -16,6 +17,7 @@ mod spectrum;
 fn _imunoise(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(deviation::deviation, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::analyze, m)?)?;
+    m.add_function(wrap_pyfunction!(model::model, m)?)?;
     m.add_function(wrap_pyfunction!(spectrum::psd, m)?)?;
     m.add_function(wrap_pyfunction!(input::load, m)?)?;
     m.add_function(wrap_pyfunction!(input::load_session, m)?)?;

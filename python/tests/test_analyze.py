@@ -92,3 +92,14 @@ def test_load_a_table_and_analyze_the_record(tmp_path, gyro):
     npy = tmp_path / "x.npy"
     np.save(npy, gyro[:4000])
     assert imunoise.load(npy, rate=50.0).channels["c0"].size == 4000
+
+
+def test_model_fits_the_white_gyro():
+    gyro = white_gyro(DENSITY, RATE, 30_000, seed=11)
+    doc = imunoise.model({"gx": gyro}, rate=RATE, realisations=6)
+    assert doc["channel"] == "gx" and doc["realisations"] == 6
+    n = doc["baseline_fit"]["n"]
+    # The 68.3 % interval of the baseline fit; three half-widths as above.
+    assert abs(n["value"] - DENSITY) < 3 * (n["hi"] - n["lo"]) / 2, n
+    with pytest.raises(ValueError, match="nope"):
+        imunoise.model({"gx": gyro}, rate=RATE, column="nope", realisations=2)
