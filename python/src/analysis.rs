@@ -33,7 +33,7 @@ pub fn analyze(
     confidence: f64,
     fit_tau_min: Option<f64>,
     bandwidth: Option<String>,
-    psd_segment: Option<usize>,
+    psd_segment: Option<i64>,
     psd_window: &str,
     filter_period: Option<f64>,
     settings: Option<&str>,
@@ -41,6 +41,10 @@ pub fn analyze(
     source: &str,
 ) -> PyResult<(String, Option<String>, Option<String>)> {
     check_rate(rate)?;
+    let record = record(names, &columns, rate, source)?;
+    let psd_segment = psd_segment
+        .map(|segment| segment_len(segment, record.len(), "psd_segment"))
+        .transpose()?;
     let request = Request {
         data_type: match data_type {
             "rate" | "freq" => DataType::Rate,
@@ -71,15 +75,6 @@ pub fn analyze(
             serde_json::to_value(imunoise::input::ReadReport::default()).map_err(value_error)?
         }
     };
-    let record = record(names, &columns, rate, source)?;
-    if let Some(segment) = psd_segment
-        && !(2..=record.len()).contains(&segment)
-    {
-        return Err(value_error(format!(
-            "psd_segment {segment}: a segment length in samples, from 2 to the record's length ({})",
-            record.len()
-        )));
-    }
     let options = request.options(settings);
     py.detach(|| -> Result<_, String> {
         let results = pipeline::analyze(&record, &options, &|| {})
@@ -99,6 +94,18 @@ pub fn analyze(
         Ok((text, kalibr, why))
     })
     .map_err(value_error)
+}
+
+/// A Welch segment length (keyword `what`): 2 to the record's `samples`.
+pub fn segment_len(segment: i64, samples: usize, what: &str) -> PyResult<usize> {
+    usize::try_from(segment)
+        .ok()
+        .filter(|s| (2..=samples).contains(s))
+        .ok_or_else(|| {
+            value_error(format!(
+                "{what} {segment}: a segment length in samples, from 2 to the record's length ({samples})"
+            ))
+        })
 }
 
 /// The sensor settings a loaded capture states, from their JSON.

@@ -1,6 +1,7 @@
 //! Welch's one-sided PSD of one array (`analysis::psd::welch`, scipy.signal.welch's
 //! definition).
 
+use crate::analysis::segment_len;
 use crate::{Array, check_rate, samples, value_error};
 use imunoise::analysis::psd::{WelchOptions, Window, welch};
 use numpy::{PyArray1, PyReadonlyArray1};
@@ -14,20 +15,19 @@ pub fn psd<'py>(
     py: Python<'py>,
     data: PyReadonlyArray1<'py, f64>,
     rate: f64,
-    segment: usize,
+    segment: i64,
     window: &str,
 ) -> PyResult<(Array<'py>, Array<'py>)> {
     check_rate(rate)?;
     let window: Window = window.parse().map_err(value_error)?;
     let y = samples(&data, "data")?;
-    if segment == 1 || segment > y.len() {
-        return Err(value_error(format!(
-            "segment {segment}: a segment length in samples, from 2 to the record's length ({})",
-            y.len()
-        )));
-    }
+    // 0 asks for the length chosen from the record's.
+    let segment_len = match segment {
+        0 => 0,
+        _ => segment_len(segment, y.len(), "segment")?,
+    };
     let options = WelchOptions {
-        segment_len: segment,
+        segment_len,
         window,
         ..WelchOptions::default()
     };
