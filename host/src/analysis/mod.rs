@@ -140,11 +140,11 @@ const PHASE_BLOCK: usize = 1024;
 /// [`phase_from_rate`] in place: the rate buffer becomes the phase buffer, so converting a
 /// long record costs no second copy of it.
 ///
-/// The running sum is cut into blocks of [`PHASE_BLOCK`] samples, summed on all cores: each
-/// block's running sum starts from zero in plain arithmetic (its partial sums stay small, so
-/// their rounding error is that of at most 1024 additions of the block's own size), and the
-/// blocks' offsets are the compensated (Neumaier) running sum of the blocks' compensated
-/// totals. A phase point is then one rounding from its exact value plus the block's small
+/// The running sum is cut into blocks of 1024 samples (`PHASE_BLOCK`), summed on all
+/// cores: each block's running sum starts from zero in plain arithmetic (its partial sums
+/// stay small, so their rounding error is that of at most 1024 additions of the block's own
+/// size), and the blocks' offsets are the compensated (Neumaier) running sum of the blocks'
+/// compensated totals. A phase point is then one rounding from its exact value plus the block's small
 /// error, as accurate as one compensated sum over the record, without its serial chain.
 pub fn into_phase(mut y: Vec<f64>, tau0: f64) -> Vec<f64> {
     use rayon::prelude::*;

@@ -537,6 +537,36 @@ mod tests {
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
+    #[test]
+    fn a_request_becomes_the_options() {
+        let defaults = Request::default().options(None);
+        assert_eq!(defaults.estimators, vec![Estimator::Oadev]);
+        assert_eq!(defaults.low_pass, LowPassChoice::Detect);
+        assert_eq!(defaults.taus, Options::default().taus);
+        let request = Request {
+            estimators: vec![Estimator::Mdev, Estimator::Adev, Estimator::Mdev],
+            bandwidth: Some("off".parse().unwrap()),
+            ..Request::default()
+        };
+        let options = request.options(None);
+        assert_eq!(options.estimators, vec![Estimator::Mdev, Estimator::Adev]);
+        assert_eq!(options.low_pass, LowPassChoice::Off);
+        let settings = SensorSettings::default();
+        assert_eq!(
+            Request::default().options(Some(settings)).low_pass,
+            LowPassChoice::Sensor(settings)
+        );
+        let hz = Request {
+            bandwidth: Some("42".parse().unwrap()),
+            ..Request::default()
+        };
+        assert_eq!(
+            hz.options(Some(settings)).low_pass,
+            LowPassChoice::Bandwidth(42.0)
+        );
+        assert!("0".parse::<Bandwidth>().is_err() && "wide".parse::<Bandwidth>().is_err());
+    }
+
     /// A wide line near Nyquist (0.3 to 1 Hz wide, 20 to 50 times the white PSD at its
     /// peak, 40 to 45 % of the rate) on white noise is never read as a roll-off; behind a real
     /// 10 Hz filter, the filter is still found.
