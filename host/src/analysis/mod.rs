@@ -144,8 +144,9 @@ const PHASE_BLOCK: usize = 1024;
 /// cores: each block's running sum starts from zero in plain arithmetic (its partial sums
 /// stay small, so their rounding error is that of at most 1024 additions of the block's own
 /// size), and the blocks' offsets are the compensated (Neumaier) running sum of the blocks'
-/// compensated totals. A phase point is then one rounding from its exact value plus the block's small
-/// error, as accurate as one compensated sum over the record, without its serial chain.
+/// compensated totals. A phase point is then one rounding from its exact value plus the
+/// block's small error, as accurate as one compensated sum over the record, without its
+/// serial chain.
 pub fn into_phase(mut y: Vec<f64>, tau0: f64) -> Vec<f64> {
     use rayon::prelude::*;
     let n = y.len();
