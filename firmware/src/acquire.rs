@@ -47,16 +47,13 @@
 //! index the old run's grid gives for the restart time, so the time lost shows as a gap the
 //! host counts, and it starts from the period the old run measured.
 
-use crate::driver::Mpu6050;
+use crate::sensor::{MAX_DRAIN_BYTES, Sensor};
 use crate::timing::{Clock, MAX_RATE_ERROR_PERCENT, SampleGrid};
-use embedded_hal::i2c::I2c;
-use protocol::mpu6050::reg::bits::FIFO_OFLOW;
 use protocol::mpu6050::{FIFO_SIZE, SensorSettings};
 use protocol::{ErrorCode, MAX_SAMPLES_PER_BATCH, RawSample, SampleBatch, Status};
 
-const SAMPLE_BYTES: usize = RawSample::FIFO_BYTES;
-/// Most whole samples the FIFO can hold.
-pub const FIFO_SAMPLES: usize = FIFO_SIZE / SAMPLE_BYTES;
+/// Most whole samples the MPU-6050's FIFO can hold.
+pub const FIFO_SAMPLES: usize = FIFO_SIZE / RawSample::FIFO_BYTES;
 /// Highest output rate this firmware streams (see the module docs for the I2C ceiling).
 pub const MAX_RATE_HZ: f64 = 1000.0;
 /// Longest gap between drains.
@@ -143,8 +140,8 @@ pub struct Acquisition {
     base: u64,
     /// Whether the resume index is certain (always, for a fresh run).
     resume_certain: bool,
-    /// The chip's FIFO size, bytes: a count this large means the FIFO is full.
-    fifo_capacity: usize,
+    /// Whole samples the sensor's buffer holds.
+    capacity: usize,
     period_us: u32,
     /// Index of the next sample read from the FIFO.
     next_index: u64,
@@ -153,12 +150,15 @@ pub struct Acquisition {
     /// When the FIFO's content was last known (a drain that emptied it, or a reset).
     known_at_us: u64,
     last_drain_us: u64,
+    /// When the sensor's buffer was last read successfully (for a sensor that overwrites
+    /// silently: a gap shorter than a period cannot hide a replaced sample).
+    last_seen_us: u64,
     /// The FIFO was reset after a loss: the next drain takes its indices from the grid.
     resync: bool,
     /// A FIFO reset is owed (the last attempt failed).
     reset_owed: bool,
     failing_since_us: Option<u64>,
-    buf: [u8; FIFO_SAMPLES * SAMPLE_BYTES],
+    buf: [u8; MAX_DRAIN_BYTES],
 }
 
 /// What a drain did.
@@ -170,16 +170,15 @@ pub struct DrainReport {
 }
 
 impl Acquisition {
-    /// Reset the FIFO and start counting from index 0, or from where `resume` says.
-    pub fn start<I2C: I2c>(
-        dev: &mut Mpu6050<I2C>,
+    /// Restart the sensor's buffer and count from index 0, or from where `resume` says;
+    /// `period_us` is the sensor's nominal sample period.
+    pub fn start<S: Sensor>(
+        dev: &mut S,
         clock: &mut impl Clock,
-        settings: &SensorSettings,
+        period_us: u32,
         resume: Option<Resume>,
     ) -> Result<Self, ErrorCode> {
-        check_supported(settings)?;
-        let period_us = period_us(settings);
-        let (before, after) = dev.reset_fifo_timed(|| clock.now_us())?;
+        let (before, after) = dev.restart_timed(|| clock.now_us())?;
         let (grid, base, resume_certain) = match resume {
             Some(r) => {
                 let (first, certain) = r.timeline.index_between(before, after);
@@ -193,22 +192,26 @@ impl Acquisition {
             grid,
             base,
             resume_certain,
-            fifo_capacity: dev.fifo_capacity(),
+            capacity: dev.capacity_samples(),
             period_us,
             next_index: base,
             produced: base,
             known_at_us: before,
             last_drain_us: after,
+            last_seen_us: before,
             resync: false,
             reset_owed: false,
             failing_since_us: None,
-            buf: [0; FIFO_SAMPLES * SAMPLE_BYTES],
+            buf: [0; MAX_DRAIN_BYTES],
         })
     }
 
-    /// Time between drains: 24 sample periods, at most 20 ms.
+    /// Time between drains: 24 sample periods, at most 20 ms, and at most half of what the
+    /// sensor's buffer holds (half a period for a sensor without a FIFO, so that every
+    /// sample is seen).
     pub fn drain_interval_us(&self) -> u64 {
-        (u64::from(self.period_us) * DRAIN_INTERVAL_SAMPLES).min(DRAIN_INTERVAL_MAX_US)
+        let half_buffers = (2 * DRAIN_INTERVAL_SAMPLES).min(self.capacity.max(1) as u64);
+        (u64::from(self.period_us) * half_buffers / 2).min(DRAIN_INTERVAL_MAX_US)
     }
 
     pub fn due(&self, now_us: u64) -> bool {
@@ -239,11 +242,11 @@ impl Acquisition {
         }
     }
 
-    /// Read what the FIFO holds, hand it to `emit` as batches of consecutive samples and
-    /// update `status`. `Err` is a fault that ends the run.
-    pub fn drain<I2C: I2c>(
+    /// Read what the sensor's buffer holds, hand it to `emit` as batches of consecutive
+    /// samples and update `status`. `Err` is a fault that ends the run.
+    pub fn drain<S: Sensor>(
         &mut self,
-        dev: &mut Mpu6050<I2C>,
+        dev: &mut S,
         clock: &mut impl Clock,
         status: &mut Status,
         emit: &mut impl FnMut(SampleBatch),
@@ -255,14 +258,15 @@ impl Acquisition {
             self.reset_fifo(dev, before)?;
             return Ok(report);
         }
-        let count = match dev.fifo_count() {
-            Ok(c) => c,
+        let waiting = match dev.waiting() {
+            Ok(w) => w,
             Err(e) => return self.failed(before, e).map(|()| report),
         };
         let after = clock.now_us();
-        let n = u64::from(count) / SAMPLE_BYTES as u64;
-        self.check_count(dev, count, n, after)?;
-        if usize::from(count) >= self.fifo_capacity {
+        let seen_before = core::mem::replace(&mut self.last_seen_us, before);
+        let n = u64::from(waiting.samples);
+        self.check_count(dev, waiting, after)?;
+        if waiting.full {
             report.overflowed = true;
             status.fifo_overflows = status.fifo_overflows.saturating_add(1);
             self.reset_fifo(dev, before)?;
@@ -274,15 +278,15 @@ impl Acquisition {
             self.failing_since_us = None;
             return Ok(report);
         }
-        let bytes = &mut self.buf[..n as usize * SAMPLE_BYTES];
-        if let Err(e) = dev.read_fifo(bytes) {
+        let bytes = &mut self.buf[..n as usize * S::SAMPLE_BYTES];
+        if let Err(e) = dev.read_samples(bytes) {
             // Some bytes may have been popped: the FIFO is no longer aligned.
             self.reset_fifo(dev, before)?;
             return self.failed(before, e).map(|()| report);
         }
-        match dev.int_status() {
-            Ok(s) if s & FIFO_OFLOW == 0 => {}
-            Ok(_) => {
+        match dev.overran() {
+            Ok(false) => {}
+            Ok(true) => {
                 // Overflowed while we read: the burst may be shifted. Discard it.
                 report.overflowed = true;
                 status.fifo_overflows = status.fifo_overflows.saturating_add(1);
@@ -303,6 +307,8 @@ impl Acquisition {
             report.lost = first - self.next_index;
             status.samples_lost = status.samples_lost.saturating_add(report.lost);
             first
+        } else if S::OVERWRITES_SILENTLY && self.could_replace(seen_before, before) {
+            self.replaced_before(before, after, n, status, &mut report)
         } else {
             self.next_index
         };
@@ -312,40 +318,77 @@ impl Acquisition {
             .observe(before, after, self.produced - self.base)
             .is_err()
         {
-            return Err(self.diagnose(dev, count));
+            return Err(self.diagnose(dev, waiting.count));
         }
         self.known_at_us = before;
-        self.emit_batches(first_index, n, emit);
+        self.emit_batches::<S>(first_index, n, emit);
         self.next_index = first_index + n;
         status.samples_acquired = status.samples_acquired.saturating_add(n);
         report.samples = n;
         Ok(report)
     }
 
-    /// A count the clock rules out: more samples than the sensor can have made since the
-    /// FIFO was last known, or (outside a resync) far fewer.
-    fn check_count<I2C: I2c>(
+    /// Whether two samples can have been made since the buffer was last read at `seen_us`
+    /// (the sensor's oscillator as fast as it may be): only then can one have been replaced
+    /// unread, and only then is the grid asked. Polls every half period never ask it.
+    fn could_replace(&self, seen_us: u64, now_us: u64) -> bool {
+        let gap = now_us.saturating_sub(seen_us);
+        let shortest_period = u64::from(self.period_us) * (100 - MAX_RATE_ERROR_PERCENT as u64);
+        gap * 100 >= shortest_period
+    }
+
+    /// For a sensor that replaces unread samples silently, the index of the one it holds
+    /// (`n` is 0 or 1): the newest the grid says was made by the read, and the samples
+    /// between the last one delivered and it are counted lost. Only a loss the grid makes
+    /// certain counts; otherwise the sample is the next one.
+    fn replaced_before(
         &mut self,
-        dev: &mut Mpu6050<I2C>,
-        count: u16,
+        before: u64,
+        after: u64,
         n: u64,
+        status: &mut Status,
+        report: &mut DrainReport,
+    ) -> u64 {
+        let delivered = self.next_index - self.base;
+        let (made, certain) = self.grid.produced(before, after);
+        // An uncertain grid may count one sample that was not yet made.
+        let margin = u64::from(!certain);
+        if n == 0 || made <= delivered + n + margin {
+            return self.next_index;
+        }
+        status.loss_certain &= certain;
+        let first = (self.base + made).saturating_sub(n).max(self.next_index);
+        report.lost = first - self.next_index;
+        status.samples_lost = status.samples_lost.saturating_add(report.lost);
+        first
+    }
+
+    /// A count the clock rules out: more samples than the sensor can have made since the
+    /// buffer was last known, or (outside a resync, and as far as the buffer can hold) far
+    /// fewer.
+    fn check_count<S: Sensor>(
+        &mut self,
+        dev: &mut S,
+        waiting: crate::sensor::Waiting,
         after: u64,
     ) -> Result<(), ErrorCode> {
+        let n = u64::from(waiting.samples);
         let elapsed = after.saturating_sub(self.known_at_us);
-        let capacity = self.fifo_capacity;
         let period = u64::from(self.period_us);
         let pct = MAX_RATE_ERROR_PERCENT as u64;
         let most = elapsed * (100 + pct) / (100 * period) + COUNT_SLACK;
-        let fewest = (elapsed * (100 - pct) / (100 * period)).saturating_sub(COUNT_SLACK);
-        let full = usize::from(count) >= capacity;
-        if usize::from(count) > capacity || (n > most && !full) || (n < fewest && !full) {
-            return Err(self.diagnose(dev, count));
+        let fewest = (elapsed * (100 - pct) / (100 * period))
+            .saturating_sub(COUNT_SLACK)
+            .min(self.capacity as u64);
+        let full = waiting.full;
+        if waiting.impossible || (n > most && !full) || (n < fewest && !full) {
+            return Err(self.diagnose(dev, waiting.count));
         }
         Ok(())
     }
 
     /// Why the count disagrees with the clock: a sensor that reset itself, or a bad count.
-    fn diagnose<I2C: I2c>(&mut self, dev: &mut Mpu6050<I2C>, count: u16) -> ErrorCode {
+    fn diagnose<S: Sensor>(&mut self, dev: &mut S, count: u16) -> ErrorCode {
         match dev.check_awake() {
             Err(ErrorCode::VerifyFailed { .. }) => ErrorCode::SensorReset,
             Err(e) => e,
@@ -354,13 +397,9 @@ impl Acquisition {
     }
 
     /// Reset the FIFO after a loss; the next drain resynchronises from the grid.
-    fn reset_fifo<I2C: I2c>(
-        &mut self,
-        dev: &mut Mpu6050<I2C>,
-        now_us: u64,
-    ) -> Result<(), ErrorCode> {
-        match dev.reset_fifo() {
-            Ok(()) => {
+    fn reset_fifo<S: Sensor>(&mut self, dev: &mut S, now_us: u64) -> Result<(), ErrorCode> {
+        match dev.restart_timed(|| now_us) {
+            Ok(_) => {
                 self.reset_owed = false;
                 self.resync = true;
                 self.known_at_us = now_us;
@@ -383,9 +422,14 @@ impl Acquisition {
         Ok(())
     }
 
-    fn emit_batches(&self, first_index: u64, n: u64, emit: &mut impl FnMut(SampleBatch)) {
-        let chunks =
-            self.buf[..n as usize * SAMPLE_BYTES].chunks(MAX_SAMPLES_PER_BATCH * SAMPLE_BYTES);
+    fn emit_batches<S: Sensor>(
+        &self,
+        first_index: u64,
+        n: u64,
+        emit: &mut impl FnMut(SampleBatch),
+    ) {
+        let chunks = self.buf[..n as usize * S::SAMPLE_BYTES]
+            .chunks(MAX_SAMPLES_PER_BATCH * S::SAMPLE_BYTES);
         let mut index = first_index;
         for chunk in chunks {
             let mut batch = SampleBatch {
@@ -393,11 +437,9 @@ impl Acquisition {
                 first_timestamp_us: self.grid.time_of(index - self.base),
                 samples: heapless::Vec::new(),
             };
-            for bytes in chunk.chunks_exact(SAMPLE_BYTES) {
-                let mut sample = [0u8; SAMPLE_BYTES];
-                sample.copy_from_slice(bytes);
+            for bytes in chunk.chunks_exact(S::SAMPLE_BYTES) {
                 // Cannot fail: a chunk holds at most MAX_SAMPLES_PER_BATCH samples.
-                let _ = batch.samples.push(RawSample::from_fifo_bytes(&sample));
+                let _ = batch.samples.push(S::decode(bytes));
             }
             index += batch.samples.len() as u64;
             emit(batch);

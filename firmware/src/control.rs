@@ -27,7 +27,7 @@
 //! A reply that finds the reply queue full is dropped and counted
 //! ([`Status::replies_dropped`]).
 
-use crate::acquire::{Acquisition, Resume, Timeline, check_supported};
+use crate::acquire::{Acquisition, Resume, Timeline, check_supported, period_us};
 use crate::driver::{BusClear, Mpu6050};
 use crate::recovery::{Recovery, STABLE_RUN_US};
 use crate::timing::Clock;
@@ -325,7 +325,9 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
                 let resume = Resume {
                     timeline: recovery.timeline.clone(),
                 };
-                Acquisition::start(&mut self.dev, &mut self.clock, &settings, Some(resume))
+                check_supported(&settings)?;
+                let period = period_us(&settings);
+                Acquisition::start(&mut self.dev, &mut self.clock, period, Some(resume))
             });
         let now = self.clock.now_us();
         match started {
@@ -429,7 +431,9 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
             self.set_up(self.settings)?;
         }
         self.dev.check_awake()?;
-        let run = Acquisition::start(&mut self.dev, &mut self.clock, &self.settings, None);
+        check_supported(&self.settings)?;
+        let period = period_us(&self.settings);
+        let run = Acquisition::start(&mut self.dev, &mut self.clock, period, None);
         self.run = Some(run?);
         self.next_health_us = self.clock.now_us().saturating_add(HEALTH_INTERVAL_US);
         Ok(())

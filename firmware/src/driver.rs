@@ -8,22 +8,20 @@
 //! what was written is an error the host sees ([`ErrorCode::VerifyFailed`]), never a silent
 //! difference between the settings the host asked for and the ones the sensor uses.
 //!
-//! Errors are [`ErrorCode`]s, the values the host receives. Every failed I2C attempt is
-//! counted ([`Mpu6050::i2c_errors`]); idempotent transactions (register reads and writes)
-//! are retried up to [`ATTEMPTS`] times, FIFO reads never (a failed burst may already have
-//! popped bytes, so repeating it would silently misalign samples).
+//! Register access (retries, counting, verification) is [`Registers`]'; FIFO reads are
+//! never retried.
 
+pub use crate::registers::ATTEMPTS;
+use crate::registers::Registers;
+use crate::sensor::{Sensor, Waiting};
 use embedded_hal::delay::DelayNs;
-use embedded_hal::i2c::{Error as _, ErrorKind, I2c, NoAcknowledgeSource};
-use protocol::ErrorCode;
+use embedded_hal::i2c::I2c;
 use protocol::mpu6050::reg::bits::{
     DATA_RDY, DEVICE_RESET, FIFO_EN_ALL, FIFO_OFLOW, FIFO_RESET, SIGNAL_PATH_RESET_ALL,
     USER_FIFO_EN,
 };
 use protocol::mpu6050::{Chip, FIFO_SIZE, SensorSettings, chip, reg};
-
-/// Attempts per idempotent transaction before the error is reported.
-pub const ATTEMPTS: u32 = 3;
+use protocol::{ErrorCode, RawSample};
 
 /// PWR_MGMT_1 as we run it: awake, temperature sensor on, no cycling, clock from the X
 /// gyro's PLL (CLKSEL = 1), which the register map recommends over the 8 MHz internal
@@ -55,9 +53,7 @@ impl<T: BusClear + ?Sized> BusClear for &mut T {
 /// The MPU-6050 on an I2C bus.
 #[derive(Debug)]
 pub struct Mpu6050<I2C> {
-    i2c: I2C,
-    address: u8,
-    i2c_errors: u32,
+    regs: Registers<I2C>,
     /// FIFO size of the chip that answered the last probe.
     fifo_capacity: usize,
 }
@@ -65,25 +61,23 @@ pub struct Mpu6050<I2C> {
 impl<I2C: I2c> Mpu6050<I2C> {
     pub fn new(i2c: I2C, address: u8) -> Self {
         Mpu6050 {
-            i2c,
-            address,
-            i2c_errors: 0,
+            regs: Registers::new(i2c, address),
             fifo_capacity: FIFO_SIZE,
         }
     }
 
     /// The bus (the virtual board uses it to drive the simulated sensor's clock).
     pub fn i2c_mut(&mut self) -> &mut I2C {
-        &mut self.i2c
+        self.regs.i2c_mut()
     }
 
     pub fn release(self) -> I2C {
-        self.i2c
+        self.regs.release()
     }
 
     /// Failed I2C attempts so far (every failed retry counts).
     pub fn i2c_errors(&self) -> u32 {
-        self.i2c_errors
+        self.regs.i2c_errors()
     }
 
     /// WHO_AM_I, checked: [`ErrorCode::WrongSensor`] unless it names an MPU-6050 or a chip
@@ -226,74 +220,75 @@ impl<I2C: I2c> Mpu6050<I2C> {
 
     /// Pop `buf.len()` bytes from the FIFO in one burst. Not retried (see module docs).
     pub fn read_fifo(&mut self, buf: &mut [u8]) -> Result<(), ErrorCode> {
-        self.i2c
-            .write_read(self.address, &[reg::FIFO_R_W], buf)
-            .map_err(|e| {
-                self.i2c_errors = self.i2c_errors.saturating_add(1);
-                classify(e.kind())
-            })
+        self.regs.read_once(reg::FIFO_R_W, buf)
     }
 
-    pub fn read_reg(&mut self, register: u8) -> Result<u8, ErrorCode> {
-        let mut b = [0u8; 1];
-        self.read_regs(register, &mut b)?;
-        Ok(b[0])
+    fn read_reg(&mut self, register: u8) -> Result<u8, ErrorCode> {
+        self.regs.read_reg(register)
     }
 
-    /// Burst read from `register` on (auto-increment), retried.
-    pub fn read_regs(&mut self, register: u8, buf: &mut [u8]) -> Result<(), ErrorCode> {
-        let address = self.address;
-        self.retry(|i2c| i2c.write_read(address, &[register], buf))
+    fn read_regs(&mut self, register: u8, buf: &mut [u8]) -> Result<(), ErrorCode> {
+        self.regs.read_regs(register, buf)
     }
 
-    pub fn write_reg(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
-        let address = self.address;
-        self.retry(|i2c| i2c.write(address, &[register, value]))
+    fn write_reg(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
+        self.regs.write_reg(register, value)
     }
 
-    /// Write, read back, compare.
-    pub fn write_verified(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
-        self.write_reg(register, value)?;
-        self.verify(register, value)
+    fn write_verified(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
+        self.regs.write_verified(register, value)
     }
 
-    /// Read `register` back: [`ErrorCode::VerifyFailed`] unless it holds `value`.
     fn verify(&mut self, register: u8, value: u8) -> Result<(), ErrorCode> {
-        let read = self.read_reg(register)?;
-        if read != value {
-            return Err(ErrorCode::VerifyFailed {
-                register,
-                wrote: value,
-                read,
-            });
-        }
-        Ok(())
-    }
-
-    fn retry<E: embedded_hal::i2c::Error>(
-        &mut self,
-        mut op: impl FnMut(&mut I2C) -> Result<(), E>,
-    ) -> Result<(), ErrorCode> {
-        let mut last = ErrorKind::Other;
-        for _ in 0..ATTEMPTS {
-            match op(&mut self.i2c) {
-                Ok(()) => return Ok(()),
-                Err(e) => {
-                    self.i2c_errors = self.i2c_errors.saturating_add(1);
-                    last = e.kind();
-                }
-            }
-        }
-        Err(classify(last))
+        self.regs.verify(register, value)
     }
 }
 
-/// A sensor that does not acknowledge its address is not there (unplugged, unpowered,
-/// wrong address); any other persistent error is a bus problem.
-fn classify(kind: ErrorKind) -> ErrorCode {
-    match kind {
-        ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address) => ErrorCode::SensorNotResponding,
-        _ => ErrorCode::I2cFailure,
+/// The FIFO as the acquisition drains it: whole 14-byte samples (accel, temperature, gyro),
+/// full at the chip's FIFO size, FIFO_OFLOW as the overrun.
+impl<I2C: I2c> Sensor for Mpu6050<I2C> {
+    const SAMPLE_BYTES: usize = RawSample::FIFO_BYTES;
+
+    fn i2c_errors(&self) -> u32 {
+        self.regs.i2c_errors()
+    }
+
+    fn capacity_samples(&self) -> usize {
+        self.fifo_capacity / Self::SAMPLE_BYTES
+    }
+
+    fn restart_timed(&mut self, now: impl FnMut() -> u64) -> Result<(u64, u64), ErrorCode> {
+        self.reset_fifo_timed(now)
+    }
+
+    fn waiting(&mut self) -> Result<Waiting, ErrorCode> {
+        let count = self.fifo_count()?;
+        let bytes = usize::from(count);
+        Ok(Waiting {
+            samples: count / Self::SAMPLE_BYTES as u16,
+            count,
+            full: bytes >= self.fifo_capacity,
+            impossible: bytes > self.fifo_capacity,
+        })
+    }
+
+    fn read_samples(&mut self, buf: &mut [u8]) -> Result<(), ErrorCode> {
+        self.read_fifo(buf)
+    }
+
+    fn overran(&mut self) -> Result<bool, ErrorCode> {
+        Ok(self.int_status()? & FIFO_OFLOW != 0)
+    }
+
+    fn check_awake(&mut self) -> Result<(), ErrorCode> {
+        Mpu6050::check_awake(self)
+    }
+
+    fn decode(bytes: &[u8]) -> RawSample {
+        let mut sample = [0u8; RawSample::FIFO_BYTES];
+        let n = bytes.len().min(sample.len());
+        sample[..n].copy_from_slice(&bytes[..n]);
+        RawSample::from_fifo_bytes(&sample)
     }
 }
 
@@ -383,6 +378,7 @@ pub(crate) mod mock {
 mod tests {
     use super::mock::MockBus;
     use super::*;
+    use embedded_hal::i2c::ErrorKind;
     use protocol::mpu6050::{AccelRange, DlpfCfg, GyroRange};
 
     struct NoDelay;

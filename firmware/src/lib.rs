@@ -10,9 +10,13 @@
 )]
 
 pub mod acquire;
+pub mod adxl345;
 pub mod control;
 pub mod driver;
+pub mod itg3200;
 pub mod recovery;
+pub mod registers;
+pub mod sensor;
 pub mod timing;
 
 pub use control::{BoardConfig, Firmware};

@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{run, scratch, sim_capture, stderr, stdout};
+use common::{json, run, scratch, sim_capture, stderr, stdout};
 use std::path::Path;
 
 #[test]
@@ -87,9 +87,67 @@ fn unreachable_settings_fail_with_the_nearest_choices() {
         stderr(&out)
     );
 
-    // A rate without a bandwidth is a usage error (clap's exit code 2).
+    // A rate without a bandwidth is refused, naming the bandwidths there are.
     let out = run(&["settings", "--rate", "100"]);
-    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains("needs --bandwidth with --sensor mpu6050: one of 256 188 98 42"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+/// The GY-85's two sensors resolve to their datasheet registers, by their datasheet names.
+#[test]
+fn settings_resolve_the_gy85_sensors() {
+    let out = run(&[
+        "settings",
+        "--sensor",
+        "itg3200",
+        "--rate",
+        "50",
+        "--bandwidth",
+        "20",
+        "--json",
+    ]);
+    let v = json(&out);
+    assert_eq!(v["registers"]["SMPLRT_DIV"], 19);
+    assert_eq!(v["registers"]["DLPF_FS"], 0x1C);
+    assert_eq!(v["output_rate_hz"], 50.0);
+    let v = json(&run(&[
+        "settings", "--sensor", "adxl345", "--rate", "50", "--json",
+    ]));
+    assert_eq!(v["registers"]["BW_RATE"], 0x09);
+    assert_eq!(v["registers"]["DATA_FORMAT"], 0x08);
+    assert_eq!(v["bandwidth_hz"], 25.0);
+    // The nearest choices when there is no exact one.
+    let out = run(&["settings", "--sensor", "adxl345", "--rate", "60"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains("nearest: 50 Hz (BW_RATE 0x09)"),
+        "{}",
+        stderr(&out)
+    );
+    let out = run(&[
+        "settings",
+        "--sensor",
+        "itg3200",
+        "--rate",
+        "300",
+        "--bandwidth",
+        "42",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains("333.333 Hz (SMPLRT_DIV 2)"),
+        "{}",
+        stderr(&out)
+    );
+    // The tables.
+    let v = json(&run(&["settings", "--sensor", "adxl345", "--json"]));
+    assert_eq!(v["rates"].as_array().map(Vec::len), Some(16));
+    let v = json(&run(&["settings", "--sensor", "itg3200", "--json"]));
+    assert_eq!(v["dlpf"].as_array().map(Vec::len), Some(7));
 }
 
 #[test]

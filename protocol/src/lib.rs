@@ -34,8 +34,10 @@
     deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
 )]
 
+pub mod adxl345;
 pub mod cobs;
 pub mod frame;
+pub mod itg3200;
 pub mod mpu6050;
 
 use serde::{Deserialize, Serialize};

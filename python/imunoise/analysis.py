@@ -64,10 +64,12 @@ def _record(parts):
     )
 
 
-def load(path, *, rate=None, names=None, ignore_time=False, longest_run=False):
+def load(path, *, rate=None, names=None, ignore_time=False, longest_run=False, topic=None):
     """Read a record from a file: a capture (``.imucap``), a text or CSV table (optional
-    header, optional time column), or a NumPy ``.npy``, any of them gzipped; the same
-    readers and options as ``imunoise analyze FILE``.
+    header, optional time column), or a NumPy ``.npy``, any of them gzipped, or a ROS bag
+    (``.bag``, ``.mcap``, a rosbag2 directory or its ``.db3``; ``topic`` names its
+    sensor_msgs/Imu topic when it has several); the same readers and options as
+    ``imunoise analyze FILE``.
 
     ``rate`` (Hz) is needed when the file has no time column and no rate in its header;
     ``names`` names the channels of a headerless file; ``ignore_time`` treats a time column
@@ -82,11 +84,14 @@ def load(path, *, rate=None, names=None, ignore_time=False, longest_run=False):
             names=names,
             ignore_time=ignore_time,
             longest_run=longest_run,
+            topic=topic,
         )
     )
 
 
-def load_session(key, *, store=None, rate=None, names=None, ignore_time=False, longest_run=False):
+def load_session(
+    key, *, store=None, rate=None, names=None, ignore_time=False, longest_run=False, topic=None
+):
     """Read a stored session by id or name from the store at ``store`` (default:
     ``$IMUNOISE_STORE``, else the platform data directory), as ``imunoise analyze ID``
     does. Raises ``ValueError`` for a missing store or session."""
@@ -98,6 +103,7 @@ def load_session(key, *, store=None, rate=None, names=None, ignore_time=False, l
             names=names,
             ignore_time=ignore_time,
             longest_run=longest_run,
+            topic=topic,
         )
     )
 

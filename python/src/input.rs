@@ -1,5 +1,5 @@
-//! Records from files (`input::load`: captures, text tables, NumPy arrays, gzipped or not)
-//! and from a session store (`store::load_session`).
+//! Records from files (`input::load`: captures, text tables, NumPy arrays, gzipped or not,
+//! ROS bags) and from a session store (`store::load_session`).
 
 use crate::error_chain;
 use imunoise::input::{self, LoadOptions, Loaded};
@@ -23,7 +23,9 @@ type Loaded4Py<'py> = (
 
 /// The record in the file at `path`.
 #[pyfunction]
-#[pyo3(signature = (path, *, rate=None, names=None, ignore_time=false, longest_run=false))]
+#[pyo3(signature = (
+    path, *, rate=None, names=None, ignore_time=false, longest_run=false, topic=None
+))]
 pub fn load<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -31,8 +33,9 @@ pub fn load<'py>(
     names: Option<Vec<String>>,
     ignore_time: bool,
     longest_run: bool,
+    topic: Option<String>,
 ) -> PyResult<Loaded4Py<'py>> {
-    let options = load_options(rate, names, ignore_time, longest_run);
+    let options = load_options(rate, names, ignore_time, longest_run, topic);
     let loaded = py
         .detach(|| input::load(&path, &options))
         .map_err(|e| os_or_value_error(&e))?;
@@ -42,7 +45,10 @@ pub fn load<'py>(
 /// The record of the stored session `key` (its id or name) in the store at `store` (default:
 /// `$IMUNOISE_STORE`, else the platform data directory).
 #[pyfunction]
-#[pyo3(signature = (key, *, store=None, rate=None, names=None, ignore_time=false, longest_run=false))]
+#[pyo3(signature = (
+    key, *, store=None, rate=None, names=None, ignore_time=false, longest_run=false, topic=None
+))]
+#[allow(clippy::too_many_arguments)] // the keywords of `imunoise analyze SESSION`
 pub fn load_session<'py>(
     py: Python<'py>,
     key: &str,
@@ -51,8 +57,9 @@ pub fn load_session<'py>(
     names: Option<Vec<String>>,
     ignore_time: bool,
     longest_run: bool,
+    topic: Option<String>,
 ) -> PyResult<Loaded4Py<'py>> {
-    let options = load_options(rate, names, ignore_time, longest_run);
+    let options = load_options(rate, names, ignore_time, longest_run, topic);
     let loaded = py
         .detach(|| -> Result<Loaded, String> {
             let dir = store::locate(store.as_deref()).map_err(|e| error_chain(&e))?;
@@ -69,12 +76,14 @@ fn load_options(
     names: Option<Vec<String>>,
     ignore_time: bool,
     longest_run: bool,
+    topic: Option<String>,
 ) -> LoadOptions {
     LoadOptions {
         rate_hz: rate,
         ignore_time,
         names: names.unwrap_or_default(),
         longest_run,
+        topic,
         ..LoadOptions::default()
     }
 }

@@ -7,7 +7,7 @@ use firmware::acquire::FIFO_SAMPLES;
 use firmware::{BoardConfig, Firmware};
 use imunoise::link::accounting::SampleAccounting;
 use imunoise::link::virtual_board::SharedSensor;
-use imunoise::sim::device::SimMpu6050;
+use imunoise::sim::device::{SimChip, SimMpu6050};
 use imunoise::sim::imu::ImuModel;
 use imunoise::sim::noise::NoiseTerms;
 use protocol::frame::{FrameDecoder, MAX_WIRE_LEN, encode};

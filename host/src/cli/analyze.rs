@@ -21,8 +21,8 @@ use std::path::{Path, PathBuf};
 #[derive(clap::Args, Debug)]
 pub struct AnalyzeArgs {
     /// A capture file, a text/CSV table (optional header, `#` comments, optional time column)
-    /// or a NumPy .npy, either gzipped; or a stored session's id or name (an existing path
-    /// wins)
+    /// or a NumPy .npy, either gzipped; a ROS bag (.bag, .mcap, a rosbag2 directory or its
+    /// .db3; see --topic); or a stored session's id or name (an existing path wins)
     pub input: PathBuf,
     /// Correct a stored session with its board's newest calibrations first (in memory; the
     /// stored data are not altered)
@@ -275,6 +275,9 @@ pub struct ReadArgs {
     /// A capture with gaps: analyse its longest gap-free run (the losses are reported)
     #[arg(long)]
     pub longest_run: bool,
+    /// A ROS bag's sensor_msgs/Imu topic (needed when the bag has several)
+    #[arg(long)]
+    pub topic: Option<String>,
 }
 
 impl ReadArgs {
@@ -295,6 +298,7 @@ impl ReadArgs {
             counts,
             scales: self.scale.clone(),
             longest_run: self.longest_run,
+            topic: self.topic.clone(),
         })
     }
 }

@@ -15,6 +15,10 @@
 //! 6. The streamed analysis (`analyze` of an .npy beyond `--memory-budget`: streaming Allan
 //!    accumulators, a streamed Welch PSD, the noise fit) over 24 h of six axes at 1 kHz, fed
 //!    in blocks: throughput and peak memory, against the memory the record read whole needs.
+//! 7. A ROS 1 bag of 8 hours of `sensor_msgs/Imu` at 200 Hz, generated: `imunoise import`
+//!    and `imunoise analyze` of the session timed, beside the 215 s that allan_variance_ros
+//!    is reported to take for an 8-hour bag on a 16-core Ryzen 9 3950X (its GitHub issue #15,
+//!    "How long should this take to run?", a Release build).
 
 use anyhow::{Context, Result, bail};
 use imunoise::analysis::pipeline::{self, Options};
@@ -58,6 +62,9 @@ pub struct BenchArgs {
     /// Hours of 1 kHz six-axis data for the streaming benchmark
     #[arg(long, default_value_t = 24.0)]
     pub stream_hours: f64,
+    /// Hours of 200 Hz Imu messages in the ROS bag benchmark
+    #[arg(long, default_value_t = 8.0)]
+    pub bag_hours: f64,
 }
 
 pub fn run(args: &BenchArgs) -> Result<()> {
@@ -77,7 +84,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     simulator_terms();
     decode_throughput(args.capture_mb);
     model_workflow()?;
-    streaming(args.stream_hours)
+    streaming(args.stream_hours)?;
+    crate::cli::bench_rosbag::run(args.bag_hours)
 }
 
 /// The rate of section 1's record, Hz.

@@ -4,19 +4,26 @@
 //! needed to read it again (rate, names, scales), not converted: converting SI values back
 //! to counts would invent a quantisation, and a copy keeps every digit. It is read anew
 //! through `input::load` whenever it is analysed or exported. A capture file (the board's
-//! bytes) is stored as a capture session, exactly as if it had been recorded.
+//! bytes) is stored as a capture session, exactly as if it had been recorded. A ROS bag is
+//! stored as its one storage file (a rosbag2 directory's `.mcap` or `.db3`), with the topic
+//! read, so that every later reading takes the same topic.
 
 use crate::cli::stored::open_store;
 use anyhow::{Context, Result};
 use imunoise::capture::{Capture, looks_like_capture};
 use imunoise::input::{self, LoadOptions};
 use imunoise::store::{Counts, End, ImportSpec, Store};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct ImportArgs {
-    /// A text/CSV table, a NumPy .npy (either gzipped) or a capture file
+    /// A text/CSV table, a NumPy .npy (either gzipped), a capture file, or a ROS bag (ROS 1
+    /// .bag, MCAP, a rosbag2 directory or its .db3)
     pub file: PathBuf,
+    /// A ROS bag's sensor_msgs/Imu topic (needed when the bag has several)
+    #[arg(long)]
+    pub topic: Option<String>,
     /// Sample rate in Hz (needed when the file has no time column and no rate in its header;
     /// overrides a time column)
     #[arg(long)]
@@ -36,27 +43,37 @@ pub struct ImportArgs {
 }
 
 pub fn run(args: &ImportArgs, store: Option<&Path>) -> Result<()> {
-    let file = &args.file;
-    let bytes = std::fs::read(file).with_context(|| format!("{}", file.display()))?;
+    let file = &input::rosbag::storage_file(&args.file)?;
+    let mut first = Vec::new();
+    std::fs::File::open(file)
+        .and_then(|f| f.take(1).read_to_end(&mut first))
+        .with_context(|| format!("{}", file.display()))?;
     let store = open_store(store)?;
-    let id = if looks_like_capture(&bytes) {
+    let id = if looks_like_capture(&first) {
+        let bytes = std::fs::read(file).with_context(|| format!("{}", file.display()))?;
         import_capture(&store, args, &bytes)?
     } else {
-        let spec = ImportSpec {
+        let mut spec = ImportSpec {
             rate_hz: args.rate,
             ignore_time: args.ignore_time,
             names: args.names.clone(),
             scales: Vec::new(),
+            topic: args.topic.clone(),
         };
         let options = LoadOptions {
             rate_hz: spec.rate_hz,
             ignore_time: spec.ignore_time,
             names: spec.names.clone(),
+            topic: spec.topic.clone(),
             ..LoadOptions::default()
         };
         // Read it once now: a file that cannot be read must not become a session.
         let loaded = input::load(file, &options)?;
         crate::cli::stored::print_warnings(&loaded.report.warnings);
+        if let Some(bag) = &loaded.report.bag {
+            eprintln!("note: {bag}");
+            spec.topic = Some(bag.topic.clone());
+        }
         let r = &loaded.record;
         store
             .import(

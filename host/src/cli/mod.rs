@@ -2,6 +2,7 @@
 
 mod analyze;
 mod bench;
+mod bench_rosbag;
 mod calibrate;
 mod calibrations;
 mod capture;

@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result, bail};
 use imunoise::sim::bus_server;
-use imunoise::sim::device::SimMpu6050;
+use imunoise::sim::device::{SimChip, SimMpu6050};
 use imunoise::sim::model_file;
 use std::io::{BufReader, BufWriter, Write};
 use std::path::PathBuf;

@@ -1,11 +1,13 @@
-//! `imunoise simulate`: a simulated MPU-6050 at rest, through the chip's signal chain
-//! (DLPF, decimation without anti-aliasing, LSB quantization), written as CSV in SI units.
+//! `imunoise simulate`: a simulated MPU-6050 (or the GY-85's ITG-3200 and ADXL345) at rest,
+//! through the chips' signal chains (DLPF, decimation without anti-aliasing, LSB
+//! quantization), written as CSV in SI units.
 
 use crate::cli::settings::{accel_range, gyro_range};
 use anyhow::{Context, Result, bail};
 use imunoise::capture::CaptureWriter;
 use imunoise::link::setup::SIMULATED_BOARD_ID;
-use imunoise::sim::{imu::Imu, model_file};
+use imunoise::sim::imu::{Imu, SiSample};
+use imunoise::sim::{gy85, model_file};
 use indicatif::ProgressBar;
 use protocol::mpu6050::SensorSettings;
 use protocol::{
@@ -14,8 +16,21 @@ use protocol::{
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
+/// The boards the simulator has.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Board {
+    /// An MPU-6050 breakout (GY-521)
+    Mpu6050,
+    /// A GY-85: ITG-3200 gyro and ADXL345 accelerometer
+    Gy85,
+}
+
 #[derive(clap::Args, Debug)]
 pub struct SimulateArgs {
+    /// The board: an MPU-6050, or a GY-85 whose gyro takes --rate and --bandwidth and whose
+    /// accelerometer runs at the same rate
+    #[arg(long, value_enum, default_value_t = Board::Mpu6050)]
+    pub board: Board,
     /// The noise model (TOML; see examples/mpu6050.toml)
     #[arg(long)]
     pub model: PathBuf,
@@ -46,6 +61,23 @@ pub struct SimulateArgs {
     pub accel_range: u32,
 }
 
+/// One board's samples, one at a time.
+trait Source {
+    fn next_si(&mut self) -> SiSample;
+}
+
+impl Source for Imu {
+    fn next_si(&mut self) -> SiSample {
+        Imu::next_si(self)
+    }
+}
+
+impl Source for gy85::Gy85 {
+    fn next_si(&mut self) -> SiSample {
+        gy85::Gy85::next_si(self)
+    }
+}
+
 /// "2h", "30m", "90s", "1.5h", "250ms" or a bare number of seconds, to seconds.
 pub fn parse_duration(text: &str) -> Result<f64, String> {
     let t = text.trim();
@@ -68,6 +100,9 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
         other => bail!("--format {other}: unknown format; available: csv, capture"),
     };
     let seconds = parse_duration(&args.duration).map_err(|e| anyhow::anyhow!("--duration: {e}"))?;
+    if args.board == Board::Gy85 {
+        return run_gy85(args, format, seconds);
+    }
     let settings = SensorSettings::for_rate_and_bandwidth(args.rate, args.bandwidth)
         .map_err(|e| anyhow::anyhow!("--rate {} --bandwidth {}: {e}", args.rate, args.bandwidth))?
         .with_ranges(gyro_range(args.gyro_range)?, accel_range(args.accel_range)?);
@@ -75,23 +110,65 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     let rate = settings.output_rate_hz();
     // Rows = rate x duration, rounded down (with a little slack for decimal input).
     let rows = (rate * seconds + 1e-6).floor() as u64;
-    let file = std::fs::File::create(&args.out)
-        .with_context(|| format!("--out {}: cannot create", args.out.display()))?;
-    let mut w = BufWriter::with_capacity(1 << 20, file);
     let mut imu = Imu::new(&model, settings, args.seed, seconds);
-    let bar = crate::cli::progress::bar(rows, "simulating");
-    let write_err = || format!("--out {}: write failed", args.out.display());
-    match format {
-        Format::Csv => write_csv(&mut w, &mut imu, rows, &bar).with_context(write_err)?,
-        Format::Capture => {
-            write_capture(&mut w, &mut imu, rows, args.seed, &bar).with_context(write_err)?
-        }
-    }
-    w.flush().with_context(write_err)?;
-    bar.finish_and_clear();
+    write_out(&args.out, rows, |w, bar| match format {
+        Format::Csv => write_csv(w, &mut imu, rows, bar),
+        Format::Capture => write_capture(w, &mut imu, rows, args.seed, bar),
+    })?;
     eprintln!(
         "wrote {rows} samples ({seconds} s at {} Hz, {settings}) to {}",
         protocol::mpu6050::Hz(rate),
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Create `out`, write `rows` samples into it with `write` under a progress bar, flush.
+fn write_out(
+    out: &std::path::Path,
+    rows: u64,
+    write: impl FnOnce(&mut BufWriter<std::fs::File>, &ProgressBar) -> std::io::Result<()>,
+) -> Result<()> {
+    let file = std::fs::File::create(out)
+        .with_context(|| format!("--out {}: cannot create", out.display()))?;
+    let mut w = BufWriter::with_capacity(1 << 20, file);
+    let bar = crate::cli::progress::bar(rows, "simulating");
+    let write_err = || format!("--out {}: write failed", out.display());
+    write(&mut w, &bar).with_context(write_err)?;
+    w.flush().with_context(write_err)?;
+    bar.finish_and_clear();
+    Ok(())
+}
+
+/// `--board gy85`: the pair from its data-sheet settings, as CSV.
+fn run_gy85(args: &SimulateArgs, format: Format, seconds: f64) -> Result<()> {
+    if matches!(format, Format::Capture) {
+        bail!(
+            "--board gy85 --format capture: the board protocol carries the MPU-6050's samples only; use --format csv"
+        );
+    }
+    let (gyro, mut accel) = gy85::settings(args.rate, args.bandwidth).map_err(|e| {
+        anyhow::anyhow!(
+            "--board gy85 --rate {} --bandwidth {}: {e}",
+            args.rate,
+            args.bandwidth
+        )
+    })?;
+    accel.range = protocol::adxl345::Adxl345Range::ALL
+        .into_iter()
+        .find(|r| r.full_scale_g() == args.accel_range)
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "--accel-range {}: the ADXL345's ranges are 2, 4, 8 and 16 g",
+                args.accel_range
+            )
+        })?;
+    let model = model_file::load(&args.model)?;
+    let mut pair = gy85::Gy85::new(&model, &gyro, &accel, args.seed, seconds);
+    let rows = (pair.output_rate_hz() * seconds + 1e-6).floor() as u64;
+    write_out(&args.out, rows, |w, bar| write_csv(w, &mut pair, rows, bar))?;
+    eprintln!(
+        "wrote {rows} samples ({seconds} s; {gyro}; {accel}) to {}",
         args.out.display()
     );
     Ok(())
@@ -104,7 +181,7 @@ enum Format {
 
 fn write_csv(
     w: &mut impl Write,
-    imu: &mut Imu,
+    imu: &mut impl Source,
     rows: u64,
     bar: &ProgressBar,
 ) -> std::io::Result<()> {

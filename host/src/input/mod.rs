@@ -1,11 +1,12 @@
 //! Reading records from files: text/CSV tables and NumPy `.npy` arrays, either of them
-//! gzip-compressed, with the conversions a user may ask for on the way (raw MPU-6050 counts
+//! gzip-compressed, and the IMU topics of ROS bags ([`rosbag`]), with the conversions a user may ask for on the way (raw MPU-6050 counts
 //! to SI, units from column-name suffixes, a factor per column) and the time base a time
 //! column gives ([`timing`]).
 //!
 //! Every error names the file and, where there is one, the line and column at fault.
 
 mod npy;
+pub mod rosbag;
 mod text;
 pub mod timing;
 mod units;
@@ -41,6 +42,8 @@ pub struct LoadOptions {
     pub scales: Vec<(String, f64)>,
     /// A capture with gaps: analyse its longest gap-free run instead of refusing.
     pub longest_run: bool,
+    /// The topic to read from a ROS bag (needed when it has several IMU topics).
+    pub topic: Option<String>,
 }
 
 /// A record and what the reader has to say about where it came from (losses in a capture,
@@ -59,6 +62,9 @@ pub struct Loaded {
 /// What reading a file involved, for the analysis output and its JSON document.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct ReadReport {
+    /// The bag, topic and time base, when the input is a ROS bag.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bag: Option<rosbag::BagRead>,
     /// `gzip` when the file was compressed.
     pub compression: Option<&'static str>,
     /// The time column's rate and jitter, when one was used.
@@ -75,6 +81,9 @@ impl ReadReport {
     /// The report as lines of text (empty for a plain file read as it is).
     pub fn lines(&self) -> Vec<String> {
         let mut lines = Vec::new();
+        if let Some(b) = &self.bag {
+            lines.push(b.to_string());
+        }
         if let Some(c) = self.compression {
             lines.push(format!("input: {c}-compressed"));
         }
@@ -160,24 +169,44 @@ struct RateSource {
 /// The two bytes every gzip member starts with (RFC 1952, 2.3.1).
 const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 
-/// Read a record from `path`, gunzipped first if it starts with gzip's magic bytes: a capture
-/// (the board's framed bytes, recognised by its leading frame delimiter), a NumPy array (its
-/// magic bytes, or a name ending `.npy`), anything else as a text table.
+/// Read a record from `path`, gunzipped first if it starts with gzip's magic bytes: a ROS bag
+/// or a rosbag2 directory (the Imu topic `options.topic`, [`rosbag`]), a capture (the board's
+/// framed bytes, recognised by its leading frame delimiter), a NumPy array (its magic bytes,
+/// or a name ending `.npy`), anything else as a text table.
 pub fn load(path: &Path, options: &LoadOptions) -> Result<Loaded, InputError> {
+    let path = &rosbag::storage_file(path)?;
     let io = |source| InputError::Io {
         path: path.to_owned(),
         source,
     };
     let mut file = std::fs::File::open(path).map_err(io)?;
     let mut report = ReadReport::default();
-    let mut magic = [0u8; 6];
-    let is_raw_npy = match file.read_exact(&mut magic) {
-        Ok(()) => magic == npy::MAGIC,
-        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => false,
-        Err(e) => return Err(io(e)),
-    };
+    let mut magic = Vec::with_capacity(rosbag::MAGIC_LEN);
+    (&mut file)
+        .take(rosbag::MAGIC_LEN as u64)
+        .read_to_end(&mut magic)
+        .map_err(io)?;
     file.seek(SeekFrom::Start(0)).map_err(io)?;
-    if is_raw_npy {
+    if let Some(format) = rosbag::Format::of(&magic) {
+        drop(file);
+        let (table, bag) =
+            rosbag::table(path, format, options.topic.as_deref(), options.ignore_time)?;
+        report.bag = Some(bag);
+        let record = build_record(path, table, options, &mut report)?;
+        return Ok(Loaded {
+            record,
+            notes: Vec::new(),
+            settings: None,
+            report,
+        });
+    }
+    if let Some(topic) = &options.topic {
+        return Err(InputError::file(
+            path,
+            format!("--topic {topic}: not a ROS bag (ROS 1 .bag, MCAP or rosbag2 .db3)"),
+        ));
+    }
+    if magic.starts_with(npy::MAGIC) {
         // An uncompressed array is read straight into its channels.
         let len = file.metadata().map_err(io)?.len();
         let table = npy::parse_reader(path, std::io::BufReader::new(file), len)?;

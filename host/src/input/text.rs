@@ -19,9 +19,6 @@ type Chunk = (usize, Result<Vec<Vec<f64>>, (usize, String)>);
 /// Chunk size for parallel parsing; each chunk ends at a line end.
 const CHUNK_BYTES: usize = 1 << 20;
 
-/// Gaps listed by line in an error; the rest are counted.
-const GAPS_LISTED: usize = 10;
-
 /// The table in `bytes`; a time column is fitted unless `ignore_time` sets it aside.
 pub(super) fn parse(path: &Path, bytes: &[u8], ignore_time: bool) -> Result<Table, InputError> {
     let mut preamble = read_preamble(path, bytes)?;
@@ -64,59 +61,18 @@ fn time_base(
     name: &str,
     times: &[f64],
 ) -> Result<Timing, InputError> {
-    let line_of = |rows: &[usize]| row_lines(bytes, pre, rows);
     match timing::analyse(name, times) {
         Ok(mut t) => {
-            t.worst_step.line = line_of(&[t.worst_step.row])(t.worst_step.row);
+            t.worst_step.line = row_lines(bytes, pre, &[t.worst_step.row])(t.worst_step.row);
             Ok(t)
         }
-        Err(TimingError::TooShort) => Err(InputError::file(
-            path,
-            format!("time column '{name}' needs at least two rows"),
-        )),
-        Err(TimingError::NotIncreasing) => Err(InputError::file(
-            path,
-            format!("time column '{name}' does not increase"),
-        )),
-        Err(TimingError::Backwards { row, step_s }) => Err(InputError::line(
-            path,
-            line_of(&[row])(row),
-            format!(
-                "time column '{name}' steps back by {} s (a clock reset or wrap-around?): \
-                 split the file here, or give --ignore-time --rate HZ",
-                -step_s
-            ),
-        )),
-        Err(TimingError::Gaps { gaps, period_s }) => {
-            let rows: Vec<usize> = gaps.iter().map(|g| g.row).collect();
-            let lines = line_of(&rows);
-            let mut listed: Vec<String> = gaps
-                .iter()
-                .take(GAPS_LISTED)
-                .map(|g| {
-                    format!(
-                        "line {} (t = {} s): {} sample(s) missing",
-                        lines(g.row),
-                        g.time_s,
-                        g.missing
-                    )
-                })
-                .collect();
-            if gaps.len() > GAPS_LISTED {
-                listed.push(format!("and {} more", gaps.len() - GAPS_LISTED));
-            }
-            let missing: u64 = gaps.iter().map(|g| g.missing).sum();
-            Err(InputError::file(
-                path,
-                format!(
-                    "time column '{name}': {missing} sample(s) missing in {} gap(s) that the fitted \
-                     period ({:.4} ms) cannot absorb: {}; split the file at the gaps, or give \
-                     --ignore-time --rate HZ to take the rows as contiguous",
-                    gaps.len(),
-                    period_s * 1e3,
-                    listed.join("; ")
-                ),
-            ))
+        Err(e) => {
+            let lines = row_lines(bytes, pre, &e.rows());
+            let message = e.explain(name, &|row| format!("line {}", lines(row)));
+            Err(match e {
+                TimingError::Backwards { row, .. } => InputError::line(path, lines(row), message),
+                _ => InputError::file(path, message),
+            })
         }
     }
 }

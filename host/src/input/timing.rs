@@ -130,6 +130,60 @@ pub enum TimingError {
     },
 }
 
+/// Gaps listed one by one in an explanation; the rest are counted.
+const GAPS_LISTED: usize = 10;
+
+impl TimingError {
+    /// The rows the error is about: the row that steps back, or the first row after each gap.
+    pub fn rows(&self) -> Vec<usize> {
+        match self {
+            TimingError::Backwards { row, .. } => vec![*row],
+            TimingError::Gaps { gaps, .. } => gaps.iter().map(|g| g.row).collect(),
+            TimingError::TooShort | TimingError::NotIncreasing => Vec::new(),
+        }
+    }
+
+    /// The error in words, for the time column `name`, with the remedy; `place` names where a
+    /// row is in the input (`line 12` of a table, `message 12` of a bag).
+    pub fn explain(&self, name: &str, place: &dyn Fn(usize) -> String) -> String {
+        match self {
+            TimingError::TooShort => format!("time column '{name}' needs at least two rows"),
+            TimingError::NotIncreasing => format!("time column '{name}' does not increase"),
+            TimingError::Backwards { step_s, .. } => format!(
+                "time column '{name}' steps back by {} s (a clock reset or wrap-around?): \
+                 split the file here, or give --ignore-time --rate HZ",
+                -step_s
+            ),
+            TimingError::Gaps { gaps, period_s } => {
+                let mut listed: Vec<String> = gaps
+                    .iter()
+                    .take(GAPS_LISTED)
+                    .map(|g| {
+                        format!(
+                            "{} (t = {} s): {} sample(s) missing",
+                            place(g.row),
+                            g.time_s,
+                            g.missing
+                        )
+                    })
+                    .collect();
+                if gaps.len() > GAPS_LISTED {
+                    listed.push(format!("and {} more", gaps.len() - GAPS_LISTED));
+                }
+                let missing: u64 = gaps.iter().map(|g| g.missing).sum();
+                format!(
+                    "time column '{name}': {missing} sample(s) missing in {} gap(s) that the fitted \
+                     period ({:.4} ms) cannot absorb: {}; split the file at the gaps, or give \
+                     --ignore-time --rate HZ to take the rows as contiguous",
+                    gaps.len(),
+                    period_s * 1e3,
+                    listed.join("; ")
+                )
+            }
+        }
+    }
+}
+
 /// Fit a time column (seconds) and judge it; `column` names it in the result. Line numbers are
 /// left 0 for the caller to fill in.
 pub fn analyse(column: &str, times: &[f64]) -> Result<Timing, TimingError> {

@@ -14,7 +14,7 @@
 //! start-up is not fatal, as on the board: the firmware logs it ([`VirtualBoard::boot_error`])
 //! and reports it on the next Configure or Start.
 
-use crate::sim::device::{SimI2cError, SimMpu6050};
+use crate::sim::device::{RegisterChip, SimChip, SimI2cError, SimMpu6050};
 use crate::sim::imu::ImuModel;
 use crate::sim::model_file::FaultPlan;
 use embedded_hal::i2c::{ErrorType, I2c, Operation};

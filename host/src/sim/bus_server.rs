@@ -25,7 +25,7 @@
 //! the host received: `reset,T` for a FIFO reset, `sample,T,F,ax,ay,az,temp,gx,gy,gz` for
 //! a sample made at `T` (raw counts; `F` = 1 if it went into the FIFO).
 
-use super::device::{JournalEntry, Outage, SimI2cError, SimMpu6050};
+use super::device::{JournalEntry, Outage, RegisterChip, SimChip, SimI2cError, SimMpu6050};
 use std::io::{self, BufRead, Write};
 
 /// Serve `device` on `input`/`output` until `input` ends; the journal, if kept, is written

@@ -182,6 +182,8 @@ pub struct Imu {
     n: u64,
     /// The chip whose TEMP_OUT scale the counts follow (the MPU-6050's unless told).
     chip: Chip,
+    /// rad/s per gyro count: the range's unless told ([`Imu::with_gyro_scale`]).
+    gyro_lsb: f64,
 }
 
 impl Imu {
@@ -215,7 +217,15 @@ impl Imu {
             input: None,
             n: 0,
             chip: chip_or_mpu6050(WHO_AM_I_VALUE),
+            gyro_lsb: settings.gyro_range.rad_s_per_lsb(),
         }
+    }
+
+    /// The same sensor with another gyro sensitivity, rad/s per count (a chip whose scale is
+    /// not one of the MPU-6050's ranges: the ITG-3200's 14.375 LSB per deg/s).
+    pub fn with_gyro_scale(mut self, rad_s_per_lsb: f64) -> Self {
+        self.gyro_lsb = rad_s_per_lsb;
+        self
     }
 
     /// The same sensor answering as `chip`: its TEMP_OUT follows that chip's scale.
@@ -260,7 +270,7 @@ impl Imu {
             .unwrap_or_else(|| TrueInput::at_rest(self.model.gravity, STANDARD_GRAVITY));
         let gyro_signal = deterministic(&self.model.gyro, input.angular_rate, delta);
         let accel_signal = deterministic(&self.model.accel, input.specific_force, delta);
-        let gyro_lsb = s.gyro_range.rad_s_per_lsb();
+        let gyro_lsb = self.gyro_lsb;
         let accel_lsb = s.accel_range.m_s2_per_lsb();
         let gyro = [0, 1, 2].map(|i| {
             quantize(
@@ -287,13 +297,16 @@ impl Imu {
     pub fn next_si(&mut self) -> SiSample {
         let t = self.next_time();
         let raw = self.next_raw();
-        SiSample::from_raw(&raw, &self.settings, &self.chip, t)
+        SiSample {
+            gyro: raw.gyro.map(|c| f64::from(c) * self.gyro_lsb),
+            ..SiSample::from_raw(&raw, &self.settings, &self.chip, t)
+        }
     }
 }
 
 /// The deterministic part of one group's three axes at temperature offset `delta` for true
 /// input `u` (module documentation).
-fn deterministic(m: &SensorModel, u: [f64; 3], delta: f64) -> [f64; 3] {
+pub(crate) fn deterministic(m: &SensorModel, u: [f64; 3], delta: f64) -> [f64; 3] {
     let (tbias, tscale) = m.temperature.at(delta);
     let scaled: [f64; 3] = [0, 1, 2].map(|j| (1.0 + m.scale_factor[j]) * tscale * u[j]);
     [0, 1, 2].map(|i| {

@@ -38,7 +38,7 @@
 //! Unknown keys, keys in the wrong group, negative or non-finite values are errors naming the
 //! file and the field.
 
-use super::device::{Outage, SensorClock, SimMpu6050};
+use super::device::{Outage, SensorClock, SimChip, SimMpu6050};
 use super::imu::{GravityAxis, ImuModel, SensorModel, TemperatureModel};
 use super::noise::{GaussMarkov, NoiseTerms, Sinusoid};
 use super::temperature::{Cycle, TempCoupling, TemperatureProfile, Warmup};

@@ -26,6 +26,7 @@ pub fn load_session(session: &Session, options: &LoadOptions) -> Result<Loaded, 
             options.names = spec.names.clone();
         }
         options.scales.splice(0..0, spec.scales.iter().cloned());
+        options.topic = options.topic.or_else(|| spec.topic.clone());
     }
     let source = format!("session {} '{}'", session.id, session.name);
     let mut loaded = input::load(&session.file, &options).map_err(|source| LoadError {

@@ -118,6 +118,9 @@ pub struct ImportSpec {
     pub ignore_time: bool,
     pub names: Vec<String>,
     pub scales: Vec<(String, f64)>,
+    /// A ROS bag's topic read (the one chosen at import, so that every reading takes it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub topic: Option<String>,
 }
 
 /// One row of the catalog.

@@ -112,21 +112,11 @@ impl SensorSettings {
             })
             .ok_or(SettingsError::UnknownBandwidth {
                 requested_hz: bandwidth_hz,
+                gyro_only: false,
             })?;
-        if !(rate_hz.is_finite() && rate_hz > 0.0) {
-            return Err(SettingsError::InvalidRate {
-                requested_hz: rate_hz,
-            });
-        }
-        let smplrt_div = exact_divider(row.gyro_internal_rate_hz, rate_hz).ok_or(
-            SettingsError::RateNotReachable {
-                requested_hz: rate_hz,
-                dlpf: row.cfg,
-            },
-        )?;
         Ok(SensorSettings {
             dlpf: row.cfg,
-            smplrt_div,
+            smplrt_div: divider_for(row, rate_hz)?,
             ..SensorSettings::default()
         })
     }
@@ -192,8 +182,22 @@ pub(crate) fn abs(x: f64) -> f64 {
     if x < 0.0 { -x } else { x }
 }
 
-fn same(a: f64, b: f64) -> bool {
+pub(crate) fn same(a: f64, b: f64) -> bool {
     abs(a - b) <= REL_TOL * abs(a)
+}
+
+/// SMPLRT_DIV giving `rate_hz` exactly at `row`'s internal rate, or the error naming the
+/// nearest rates that exist.
+pub(crate) fn divider_for(row: &DlpfRow, rate_hz: f64) -> Result<u8, SettingsError> {
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        return Err(SettingsError::InvalidRate {
+            requested_hz: rate_hz,
+        });
+    }
+    exact_divider(row.gyro_internal_rate_hz, rate_hz).ok_or(SettingsError::RateNotReachable {
+        requested_hz: rate_hz,
+        dlpf: row.cfg,
+    })
 }
 
 /// SMPLRT_DIV with `internal / (1 + div) == rate`, if one exists in 0..=255.
@@ -226,8 +230,9 @@ pub fn neighbouring_rates(internal_hz: f64, rate_hz: f64) -> [Option<(f64, u8)>;
 /// A (rate, bandwidth) request the sensor cannot honour exactly.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SettingsError {
-    /// No DLPF row has this bandwidth.
-    UnknownBandwidth { requested_hz: f64 },
+    /// No DLPF row has this bandwidth; `gyro_only` for a chip without the accelerometer's
+    /// column (the ITG-3200).
+    UnknownBandwidth { requested_hz: f64, gyro_only: bool },
     /// Not a positive, finite rate.
     InvalidRate { requested_hz: f64 },
     /// No SMPLRT_DIV gives this rate with this DLPF row.
@@ -237,7 +242,7 @@ pub enum SettingsError {
 impl SettingsError {
     /// For an unknown bandwidth, the table's gyro bandwidth closest to it.
     pub fn nearest_bandwidth(&self) -> Option<&'static DlpfRow> {
-        let SettingsError::UnknownBandwidth { requested_hz } = *self else {
+        let SettingsError::UnknownBandwidth { requested_hz, .. } = *self else {
             return None;
         };
         DLPF_TABLE.iter().min_by(|a, b| {
@@ -262,7 +267,10 @@ impl SettingsError {
 impl fmt::Display for SettingsError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
-            SettingsError::UnknownBandwidth { requested_hz } => {
+            SettingsError::UnknownBandwidth {
+                requested_hz,
+                gyro_only,
+            } => {
                 write!(
                     f,
                     "no DLPF setting has a {requested_hz} Hz bandwidth; gyro bandwidths are"
@@ -270,11 +278,14 @@ impl fmt::Display for SettingsError {
                 for r in &DLPF_TABLE {
                     write!(f, " {}", r.gyro_bandwidth_hz)?;
                 }
-                f.write_str(" Hz (accel:")?;
-                for r in &DLPF_TABLE {
-                    write!(f, " {}", r.accel_bandwidth_hz)?;
+                f.write_str(" Hz")?;
+                if !gyro_only {
+                    f.write_str(" (accel:")?;
+                    for r in &DLPF_TABLE {
+                        write!(f, " {}", r.accel_bandwidth_hz)?;
+                    }
+                    f.write_str(" Hz)")?;
                 }
-                f.write_str(" Hz)")?;
                 if let Some(r) = self.nearest_bandwidth() {
                     write!(
                         f,

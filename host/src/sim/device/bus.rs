@@ -1,122 +1,129 @@
-//! The device on the bus: the `embedded_hal` I2C transaction, and the same bus seen byte by
-//! byte (start, write, read, stop) for a bus model that reports each event.
+//! The chips on the bus: each alone as an `embedded_hal` I2C bus (a board with one sensor),
+//! and [`SimBus`], several chips at their own addresses on one bus (a GY-85's ITG-3200 and
+//! ADXL345). A transaction's bus events ([`super::RegisterChip`]) go to the chip addressed;
+//! an address no chip has is not acknowledged.
 
-use super::SimMpu6050;
-use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
+use super::{
+    RegisterChip, SampledChip, SimAdxl345, SimI2cError, SimItg3200, SimMpu6050, transaction,
+};
+use embedded_hal::i2c::{ErrorType, I2c, NoAcknowledgeSource, Operation};
 
-/// The bus errors the simulated device produces.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-pub enum SimI2cError {
-    #[error("simulated MPU-6050: no acknowledge ({0:?})")]
-    NoAcknowledge(NoAcknowledgeSource),
-    #[error("simulated MPU-6050: bus error")]
-    Bus,
+macro_rules! alone_on_the_bus {
+    ($($chip:ty),*) => {$(
+        impl ErrorType for $chip {
+            type Error = SimI2cError;
+        }
+
+        impl I2c for $chip {
+            fn transaction(
+                &mut self,
+                address: u8,
+                operations: &mut [Operation<'_>],
+            ) -> Result<(), Self::Error> {
+                transaction(self, address, operations)
+            }
+        }
+    )*};
 }
 
-impl embedded_hal::i2c::Error for SimI2cError {
-    fn kind(&self) -> ErrorKind {
-        match *self {
-            SimI2cError::NoAcknowledge(s) => ErrorKind::NoAcknowledge(s),
-            SimI2cError::Bus => ErrorKind::Bus,
+alone_on_the_bus!(SimMpu6050, SimItg3200, SimAdxl345);
+
+/// One simulated chip on a shared bus.
+#[derive(Debug, Clone)]
+pub enum BusChip {
+    Mpu6050(SimMpu6050),
+    Itg3200(SimItg3200),
+    Adxl345(SimAdxl345),
+}
+
+impl BusChip {
+    fn chip(&mut self) -> &mut dyn RegisterChip {
+        match self {
+            BusChip::Mpu6050(c) => c,
+            BusChip::Itg3200(c) => c,
+            BusChip::Adxl345(c) => c,
+        }
+    }
+
+    fn advance_to_us(&mut self, t_us: u64) {
+        match self {
+            BusChip::Mpu6050(c) => c.advance_to_us(t_us),
+            BusChip::Itg3200(c) => c.advance_to_us(t_us),
+            BusChip::Adxl345(c) => c.advance_to_us(t_us),
         }
     }
 }
 
-impl ErrorType for SimMpu6050 {
+/// Several chips on one bus, sharing its clock.
+#[derive(Debug, Clone, Default)]
+pub struct SimBus {
+    chips: Vec<BusChip>,
+    time_us: u64,
+}
+
+impl SimBus {
+    pub fn new(chips: Vec<BusChip>) -> Self {
+        SimBus { chips, time_us: 0 }
+    }
+
+    /// The bus's time, us.
+    pub fn time_us(&self) -> u64 {
+        self.time_us
+    }
+
+    /// Move every chip's clock to `t_us`, making the samples due.
+    pub fn set_time_us(&mut self, t_us: u64) {
+        self.time_us = self.time_us.max(t_us);
+        for chip in &mut self.chips {
+            chip.advance_to_us(t_us);
+        }
+    }
+
+    pub fn chips_mut(&mut self) -> &mut [BusChip] {
+        &mut self.chips
+    }
+
+    /// The first ITG-3200 on the bus.
+    pub fn itg3200_mut(&mut self) -> Option<&mut SimItg3200> {
+        self.chips.iter_mut().find_map(|c| match c {
+            BusChip::Itg3200(c) => Some(c),
+            _ => None,
+        })
+    }
+
+    /// The first ADXL345 on the bus.
+    pub fn adxl345_mut(&mut self) -> Option<&mut SimAdxl345> {
+        self.chips.iter_mut().find_map(|c| match c {
+            BusChip::Adxl345(c) => Some(c),
+            _ => None,
+        })
+    }
+
+    /// The first MPU-6050 on the bus.
+    pub fn mpu6050_mut(&mut self) -> Option<&mut SimMpu6050> {
+        self.chips.iter_mut().find_map(|c| match c {
+            BusChip::Mpu6050(c) => Some(c),
+            _ => None,
+        })
+    }
+}
+
+impl ErrorType for SimBus {
     type Error = SimI2cError;
 }
 
-impl I2c for SimMpu6050 {
-    /// A transaction is its bus events in order ([`SimMpu6050::bus_start`] ...): a write
-    /// after a read is a repeated start, so its first byte is a new register pointer;
-    /// adjacent writes (or reads) continue one another.
+impl I2c for SimBus {
     fn transaction(
         &mut self,
         address: u8,
         operations: &mut [Operation<'_>],
     ) -> Result<(), Self::Error> {
-        self.bus_start(address, false)?;
-        for op in operations {
-            match op {
-                Operation::Write(bytes) => {
-                    for &b in bytes.iter() {
-                        self.bus_write(b)?;
-                    }
-                }
-                // A read phase clocks at least one byte (the master ends it with a NACK on
-                // the last byte), so a zero-byte read cannot happen on a bus; rp2040-hal
-                // refuses one with an abort. Failing it here finds drivers that ask for it.
-                Operation::Read([]) => {
-                    self.bus_stop();
-                    return Err(SimI2cError::Bus);
-                }
-                Operation::Read(buf) => {
-                    for b in buf.iter_mut() {
-                        *b = self.bus_read();
-                    }
-                }
-            }
-        }
-        self.bus_stop();
-        Ok(())
-    }
-}
-
-/// The bus seen byte by byte, as a bus model that reports each event drives it (the
-/// emulated RP2040's I2C controller through `imunoise sim-device`). [`I2c::transaction`] is
-/// these events in order, so both paths are one device.
-impl SimMpu6050 {
-    /// A start (or, with `repeated`, a repeated start) addressed to `address`: acknowledged
-    /// if it is this device's, unless the time is in an outage or an address NACK or a bus
-    /// error is injected (those are counted per transaction, so a repeated start does not
-    /// consume them).
-    pub fn bus_start(&mut self, address: u8, repeated: bool) -> Result<(), SimI2cError> {
-        if address != self.address
-            || self.faults.in_outage(self.time_us)
-            || (!repeated && Self::take(&mut self.faults.nack_address))
-        {
-            return Err(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Address));
-        }
-        if !repeated {
-            if Self::take(&mut self.faults.bus_error) {
-                return Err(SimI2cError::Bus);
-            }
-            self.written_since_start = false;
-        }
-        self.expect_pointer = true;
-        Ok(())
-    }
-
-    /// A written byte: the register pointer if it is the first since a start or a read,
-    /// else a register write (the pointer then advances). The first written byte of a
-    /// transaction is refused, without effect, while a data NACK is injected.
-    pub fn bus_write(&mut self, byte: u8) -> Result<(), SimI2cError> {
-        if !self.written_since_start && Self::take(&mut self.faults.nack_data) {
-            return Err(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Data));
-        }
-        self.written_since_start = true;
-        if self.expect_pointer {
-            self.pointer = byte & 0x7F;
-            self.expect_pointer = false;
-        } else {
-            self.write_register(self.pointer, byte);
-            self.step_pointer();
-        }
-        Ok(())
-    }
-
-    /// A read byte: the register at the pointer (which then advances). A write after reads
-    /// starts with a new pointer, as after a repeated start.
-    pub fn bus_read(&mut self) -> u8 {
-        let b = self.read_register(self.pointer);
-        self.step_pointer();
-        self.expect_pointer = true;
-        b
-    }
-
-    /// A stop: the transaction ends.
-    pub fn bus_stop(&mut self) {
-        self.expect_pointer = true;
-        self.written_since_start = false;
+        let chip = self
+            .chips
+            .iter_mut()
+            .map(BusChip::chip)
+            .find(|c| c.address() == address)
+            .ok_or(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Address))?;
+        transaction(chip, address, operations)
     }
 }

@@ -100,3 +100,14 @@ impl Faults {
         self.i2c_outages.iter().any(|o| o.contains(t_us))
     }
 }
+
+/// Consume one count of a fault, if set (`u32::MAX` is never used up).
+pub fn take(count: &mut u32) -> bool {
+    if *count == 0 {
+        return false;
+    }
+    if *count != u32::MAX {
+        *count -= 1;
+    }
+    true
+}

@@ -40,13 +40,25 @@
 //! Not modelled: the DMP, the auxiliary I2C master, self-test, interrupt pin configuration,
 //! FIFO_EN's SLV bits, clock source selection, low-power cycle mode.
 
+pub mod adxl345;
 mod bus;
+mod core;
 mod faults;
+#[cfg(test)]
+mod gy85_tests;
+pub mod itg3200;
+mod port;
+mod sampler;
 #[cfg(test)]
 mod tests;
 
-pub use bus::SimI2cError;
+pub use adxl345::SimAdxl345;
+pub use bus::{BusChip, SimBus};
+pub use core::{ChipCore, SimChip};
 pub use faults::{Faults, Outage, SensorClock};
+pub use itg3200::SimItg3200;
+pub use port::{Port, RegisterChip, SimI2cError, transaction};
+pub use sampler::{SampledChip, Sampler};
 
 use super::imu::{Imu, ImuModel, RawSample, TrueInput};
 use protocol::mpu6050::reg::bits::{
@@ -62,30 +74,15 @@ use std::time::Duration;
 
 #[derive(Debug, Clone)]
 pub struct SimMpu6050 {
-    address: u8,
+    core: ChipCore,
     regs: [u8; 128],
-    pointer: u8,
     fifo: VecDeque<u8>,
     fifo_last_read: u8,
     model: ImuModel,
-    seed: u64,
-    /// Run length the noise processes are built for (their flicker band), s.
-    duration_hint_s: f64,
     /// Sampling state while awake.
     run: Option<Run>,
-    runs_started: u64,
-    samples_made: u64,
-    time_us: u64,
-    faults: Faults,
-    resets: u32,
     /// The scripted input ([`Imu::set_input`]), kept across runs.
     input: Option<TrueInput>,
-    /// Byte-level bus state: the next written byte is a register pointer.
-    expect_pointer: bool,
-    /// Byte-level bus state: a byte was written since the last (non-repeated) start.
-    written_since_start: bool,
-    /// What the device did, when asked to keep a journal ([`SimMpu6050::keep_journal`]).
-    journal: Option<Vec<JournalEntry>>,
 }
 
 /// An event in the device's journal: the truth a test compares a capture with.
@@ -104,30 +101,7 @@ pub enum JournalEntry {
 #[derive(Debug, Clone)]
 struct Run {
     imu: Imu,
-    /// The oscillator's phase at which the run's sample 0 would be (its start), us, under
-    /// `clock`.
-    phase_origin_us: f64,
-    clock: SensorClock,
-    samples: u64,
-}
-
-impl Run {
-    /// Board time of the next sample, us (fractional): where the oscillator's phase reaches
-    /// the origin plus (k + 1) nominal sample periods. Each sample's time is computed from
-    /// the origin, so rounding does not accumulate.
-    fn next_us(&self) -> f64 {
-        let phase =
-            self.phase_origin_us + (self.samples + 1) as f64 * 1e6 / self.imu.output_rate_hz();
-        self.clock.time_at_phase_us(phase)
-    }
-
-    /// Continue under `clock` from board time `t_us` with the same progress towards the
-    /// next sample.
-    fn rebase(&mut self, clock: SensorClock, t_us: f64) {
-        let elapsed = self.clock.phase_us(t_us) - self.phase_origin_us;
-        self.phase_origin_us = clock.phase_us(t_us) - elapsed;
-        self.clock = clock;
-    }
+    sampler: Sampler,
 }
 
 impl SimMpu6050 {
@@ -135,40 +109,17 @@ impl SimMpu6050 {
     /// state (asleep).
     pub fn new(model: ImuModel, seed: u64) -> Self {
         let mut dev = SimMpu6050 {
-            address: DEFAULT_ADDRESS,
+            core: ChipCore::new(DEFAULT_ADDRESS, seed),
             regs: [0; 128],
-            pointer: 0,
             fifo: VecDeque::with_capacity(FIFO_SIZE),
             fifo_last_read: 0,
             model,
-            seed,
-            duration_hint_s: 3600.0,
             run: None,
-            runs_started: 0,
-            samples_made: 0,
-            time_us: 0,
-            faults: Faults::default(),
-            resets: 0,
-            expect_pointer: true,
-            written_since_start: false,
-            journal: None,
             input: None,
         };
         dev.device_reset();
-        dev.resets = 0;
+        dev.core.resets = 0;
         dev
-    }
-
-    /// The same at another 7-bit address (0x69 with AD0 high).
-    pub fn with_address(mut self, address: u8) -> Self {
-        self.address = address;
-        self
-    }
-
-    /// Build noise processes for runs of about `seconds` (default one hour).
-    pub fn with_duration_hint(mut self, seconds: f64) -> Self {
-        self.duration_hint_s = seconds;
-        self
     }
 
     /// Turn and rotate the sensor (scripted procedures such as calibration): what it senses
@@ -178,54 +129,6 @@ impl SimMpu6050 {
         if let Some(run) = &mut self.run {
             run.imu.set_input(input);
         }
-    }
-
-    pub fn faults(&self) -> &Faults {
-        &self.faults
-    }
-
-    pub fn faults_mut(&mut self) -> &mut Faults {
-        &mut self.faults
-    }
-
-    /// A device reset when the clock passes `t_us` (see [`Faults::resets_at_us`]).
-    pub fn schedule_reset(&mut self, t_us: u64) {
-        self.faults.resets_at_us.push(t_us);
-        self.faults.resets_at_us.sort_unstable();
-    }
-
-    /// Samples made so far, all runs together (whether or not they reached the FIFO).
-    pub fn samples_made(&self) -> u64 {
-        self.samples_made
-    }
-
-    /// Start keeping a journal of FIFO resets and samples made (see [`JournalEntry`]).
-    pub fn keep_journal(&mut self) {
-        self.journal.get_or_insert_with(Vec::new);
-    }
-
-    /// The journal's entries since the last call (empty if no journal is kept).
-    pub fn take_journal(&mut self) -> Vec<JournalEntry> {
-        self.journal
-            .as_mut()
-            .map(std::mem::take)
-            .unwrap_or_default()
-    }
-
-    fn note(&mut self, entry: JournalEntry) {
-        if let Some(journal) = &mut self.journal {
-            journal.push(entry);
-        }
-    }
-
-    /// The current time, us.
-    pub fn time_us(&self) -> u64 {
-        self.time_us
-    }
-
-    /// Device resets so far (commanded or injected), after construction.
-    pub fn resets(&self) -> u32 {
-        self.resets
     }
 
     /// Bytes in the FIFO (the truth, whatever the faults).
@@ -251,46 +154,13 @@ impl SimMpu6050 {
     /// Advance the clock by `dt`, producing the samples due.
     pub fn advance(&mut self, dt: Duration) {
         let dt = u64::try_from(dt.as_micros()).unwrap_or(u64::MAX);
-        self.set_time_us(self.time_us.saturating_add(dt));
+        self.set_time_us(self.core.time_us.saturating_add(dt));
     }
 
     /// Move the clock to `t_us` (a time in the past is ignored), producing the samples due
     /// and the injected resets on the way.
     pub fn set_time_us(&mut self, t_us: u64) {
-        if t_us <= self.time_us {
-            return;
-        }
-        let clock = self.faults.clock;
-        if let Some(run) = self.run.as_mut().filter(|run| run.clock != clock) {
-            run.rebase(clock, self.time_us as f64);
-        }
-        self.faults.resets_at_us.sort_unstable();
-        loop {
-            let reset = self
-                .faults
-                .resets_at_us
-                .first()
-                .copied()
-                .filter(|&r| r <= t_us);
-            let sample = self
-                .run
-                .as_ref()
-                .map(Run::next_us)
-                .filter(|&s| s <= t_us as f64);
-            match (sample, reset) {
-                (Some(s), r) if r.is_none_or(|r| s < r as f64) => {
-                    self.time_us = self.time_us.max(s as u64);
-                    self.sample();
-                }
-                (_, Some(r)) => {
-                    self.time_us = self.time_us.max(r);
-                    self.faults.resets_at_us.remove(0);
-                    self.device_reset();
-                }
-                _ => break,
-            }
-        }
-        self.time_us = t_us;
+        self.advance_to_us(t_us);
     }
 
     fn device_reset(&mut self) {
@@ -299,9 +169,9 @@ impl SimMpu6050 {
         self.regs[usize::from(reg::WHO_AM_I)] = WHO_AM_I_VALUE;
         self.clear_fifo();
         self.fifo_last_read = 0;
-        self.pointer = 0;
+        self.reset_pointer();
         self.run = None;
-        self.resets += 1;
+        self.core.resets += 1;
     }
 
     fn awake(&self) -> bool {
@@ -311,39 +181,39 @@ impl SimMpu6050 {
     /// (Re)start sampling with the current settings, or stop when asleep.
     fn restart(&mut self) {
         self.run = if self.awake() {
-            self.runs_started += 1;
-            let seed = self
-                .seed
-                .wrapping_add(self.runs_started.wrapping_mul(0x9E37_79B9_7F4A_7C15));
-            let chip = chip_or_mpu6050(self.faults.who_am_i.unwrap_or(WHO_AM_I_VALUE));
-            let mut imu =
-                Imu::new(&self.model, self.settings(), seed, self.duration_hint_s).with_chip(chip);
+            let seed = self.core.next_run_seed();
+            let chip = chip_or_mpu6050(self.core.faults.who_am_i.unwrap_or(WHO_AM_I_VALUE));
+            let mut imu = Imu::new(
+                &self.model,
+                self.settings(),
+                seed,
+                self.core.duration_hint_s,
+            )
+            .with_chip(chip);
             imu.set_input(self.input);
-            let clock = self.faults.clock;
-            Some(Run {
-                imu,
-                phase_origin_us: clock.phase_us(self.time_us as f64),
-                clock,
-                samples: 0,
-            })
+            let sampler = Sampler::start(
+                self.core.faults.clock,
+                self.core.time_us,
+                imu.output_rate_hz(),
+            );
+            Some(Run { imu, sampler })
         } else {
             None
         };
     }
 
     /// One output sample: data registers, DATA_RDY, FIFO.
-    fn sample(&mut self) {
+    fn sample_registers(&mut self) {
         let Some(run) = &mut self.run else { return };
         let raw = run.imu.next_raw();
-        run.samples += 1;
-        self.samples_made += 1;
+        self.core.samples_made += 1;
         let bytes = RawSample::to_fifo_bytes(&raw);
         self.regs[usize::from(reg::ACCEL_XOUT_H)..][..14].copy_from_slice(&bytes);
         let enable = self.regs[usize::from(reg::INT_ENABLE)];
         self.regs[usize::from(reg::INT_STATUS)] |= enable & DATA_RDY;
         let in_fifo = self.regs[usize::from(reg::USER_CTRL)] & USER_FIFO_EN != 0;
-        let time_us = self.time_us;
-        self.note(JournalEntry::Sample {
+        let time_us = self.core.time_us;
+        self.core.note(JournalEntry::Sample {
             time_us,
             raw,
             in_fifo,
@@ -369,8 +239,8 @@ impl SimMpu6050 {
 
     fn clear_fifo(&mut self) {
         self.fifo.clear();
-        let time_us = self.time_us;
-        self.note(JournalEntry::FifoReset { time_us });
+        let time_us = self.core.time_us;
+        self.core.note(JournalEntry::FifoReset { time_us });
     }
 
     /// Append one byte, dropping the oldest when full (and flagging the overflow).
@@ -383,9 +253,10 @@ impl SimMpu6050 {
         self.fifo.push_back(byte);
     }
 
-    fn read_register(&mut self, r: u8) -> u8 {
+    fn read_mpu_register(&mut self, r: u8) -> u8 {
         let count = || {
-            self.faults
+            self.core
+                .faults
                 .stuck_fifo_count
                 .unwrap_or(self.fifo.len() as u16)
         };
@@ -399,12 +270,12 @@ impl SimMpu6050 {
                 }
                 self.fifo_last_read
             }
-            reg::WHO_AM_I => self.faults.who_am_i.unwrap_or(WHO_AM_I_VALUE),
+            reg::WHO_AM_I => self.core.faults.who_am_i.unwrap_or(WHO_AM_I_VALUE),
             _ => self.regs[usize::from(r & 0x7F)],
         }
     }
 
-    fn write_register(&mut self, r: u8, value: u8) {
+    fn write_mpu_register(&mut self, r: u8, value: u8) {
         let i = usize::from(r & 0x7F);
         match r {
             reg::PWR_MGMT_1 if value & DEVICE_RESET != 0 => self.device_reset(),
@@ -434,23 +305,44 @@ impl SimMpu6050 {
             _ => self.regs[i] = value,
         }
     }
-
-    fn step_pointer(&mut self) {
-        if self.pointer != reg::FIFO_R_W {
-            self.pointer = (self.pointer + 1) & 0x7F;
-        }
-    }
-
-    /// Consume one count of a fault, if set.
-    fn take(count: &mut u32) -> bool {
-        if *count == 0 {
-            return false;
-        }
-        if *count != u32::MAX {
-            *count -= 1;
-        }
-        true
-    }
 }
 
 const FIFO_COUNT_L: u8 = reg::FIFO_COUNT_H + 1;
+
+impl SimChip for SimMpu6050 {
+    fn core(&self) -> &ChipCore {
+        &self.core
+    }
+    fn core_mut(&mut self) -> &mut ChipCore {
+        &mut self.core
+    }
+}
+
+impl RegisterChip for SimMpu6050 {
+    fn read_register(&mut self, register: u8) -> u8 {
+        self.read_mpu_register(register)
+    }
+    fn write_register(&mut self, register: u8, value: u8) {
+        self.write_mpu_register(register, value);
+    }
+    /// FIFO_R_W stays put, so a burst read drains the FIFO.
+    fn next_register(&self, register: u8) -> u8 {
+        if register == reg::FIFO_R_W {
+            register
+        } else {
+            register.wrapping_add(1) & 0x7F
+        }
+    }
+}
+
+impl SampledChip for SimMpu6050 {
+    fn sampler_mut(&mut self) -> Option<&mut Sampler> {
+        self.run.as_mut().map(|run| &mut run.sampler)
+    }
+    fn sample(&mut self) {
+        self.sample_registers();
+    }
+    fn power_on_reset(&mut self) {
+        self.device_reset();
+    }
+}

@@ -1,45 +1,29 @@
-//! `imunoise settings`: the MPU-6050's DLPF table, or the exact register values for an output
-//! rate and a bandwidth (with the nearest valid choices when there are none).
+//! `imunoise settings --sensor mpu6050`: the DLPF table, or the exact register values for an
+//! output rate and a bandwidth (with the nearest valid choices when there are none).
 
+use super::{SettingsArgs, aliasing_note, json_text, lines, required_bandwidth};
 use anyhow::{Result, anyhow};
 use protocol::mpu6050::{AccelRange, DLPF_TABLE, GyroRange, SensorSettings};
 use serde_json::json;
 
-#[derive(clap::Args, Debug)]
-pub struct SettingsArgs {
-    /// Output sample rate in Hz (e.g. 200); with --bandwidth, resolves to register values
-    #[arg(long, requires = "bandwidth", allow_negative_numbers = true)]
-    pub rate: Option<f64>,
-    /// DLPF bandwidth in Hz, gyro (256 188 98 42 20 10 5) or accel (260 184 94 44 21 10 5)
-    #[arg(long, requires = "rate")]
-    pub bandwidth: Option<f64>,
-    /// Gyro full scale in deg/s: 250, 500, 1000 or 2000
-    #[arg(long, default_value_t = 250)]
-    pub gyro_range: u32,
-    /// Accel full scale in g: 2, 4, 8 or 16
-    #[arg(long, default_value_t = 2)]
-    pub accel_range: u32,
-    /// Print JSON instead of a table
-    #[arg(long)]
-    pub json: bool,
-}
-
-pub fn run(args: &SettingsArgs) -> Result<()> {
-    match (args.rate, args.bandwidth) {
-        (Some(rate), Some(bandwidth)) => {
+pub(super) fn run(args: &SettingsArgs) -> Result<String> {
+    let gyro_bandwidths = DLPF_TABLE
+        .map(|r| r.gyro_bandwidth_hz.to_string())
+        .join(" ");
+    Ok(match required_bandwidth(args, &gyro_bandwidths)? {
+        Some((rate, bandwidth)) => {
             let settings = SensorSettings::for_rate_and_bandwidth(rate, bandwidth)
                 .map_err(|e| anyhow!("--rate {rate} --bandwidth {bandwidth}: {e}"))?
                 .with_ranges(gyro_range(args.gyro_range)?, accel_range(args.accel_range)?);
             if args.json {
-                println!("{:#}", settings_json(&settings));
+                json_text(&settings_json(&settings))
             } else {
-                print_settings(&settings);
+                settings_text(&settings)
             }
         }
-        _ if args.json => println!("{:#}", table_json()),
-        _ => print_table(),
-    }
-    Ok(())
+        None if args.json => json_text(&table_json()),
+        None => table_text(),
+    })
 }
 
 /// `--gyro-range DPS`: the range of that full scale.
@@ -52,37 +36,32 @@ pub fn accel_range(g: u32) -> Result<AccelRange> {
     AccelRange::from_full_scale_g(g).map_err(|e| anyhow!("--accel-range {g}: {e}"))
 }
 
-fn print_settings(s: &SensorSettings) {
+fn settings_text(s: &SensorSettings) -> String {
     let r = s.registers();
-    println!("{s}");
-    println!("registers:");
-    println!(
+    let mut out = vec![s.to_string(), "registers:".to_string()];
+    out.push(format!(
         "  SMPLRT_DIV   (0x19) = {:#04x}  ({})",
         r.smplrt_div, r.smplrt_div
-    );
-    println!(
+    ));
+    out.push(format!(
         "  CONFIG       (0x1A) = {:#04x}  (DLPF_CFG {})",
         r.config,
         s.dlpf.bits()
-    );
-    println!(
+    ));
+    out.push(format!(
         "  GYRO_CONFIG  (0x1B) = {:#04x}  (FS_SEL {}, {} LSB per deg/s)",
         r.gyro_config,
         s.gyro_range.bits(),
         s.gyro_range.lsb_per_dps()
-    );
-    println!(
+    ));
+    out.push(format!(
         "  ACCEL_CONFIG (0x1C) = {:#04x}  (AFS_SEL {}, {} LSB per g)",
         r.accel_config,
         s.accel_range.bits(),
         s.accel_range.lsb_per_g()
-    );
-    if s.aliases() {
-        println!(
-            "note: the gyro bandwidth exceeds half the output rate ({} Hz): noise above it folds back (aliasing), which inflates the angle random walk",
-            s.output_rate_hz() / 2.0
-        );
-    }
+    ));
+    out.extend(aliasing_note(s.aliases(), s.output_rate_hz()));
+    lines(out)
 }
 
 fn settings_json(s: &SensorSettings) -> serde_json::Value {
@@ -115,9 +94,10 @@ fn rate_span(internal_hz: f64) -> (f64, f64) {
     (internal_hz / 256.0, internal_hz)
 }
 
-fn print_table() {
-    println!("MPU-6050 digital low-pass filter (register map rev 4.2, register 26)");
-    println!(
+fn table_text() -> String {
+    let mut out =
+        vec!["MPU-6050 digital low-pass filter (register map rev 4.2, register 26)".to_string()];
+    out.push(format!(
         "{:>8} {:>12} {:>13} {:>13} {:>14} {:>15} {:>22}",
         "DLPF_CFG",
         "gyro BW Hz",
@@ -126,10 +106,10 @@ fn print_table() {
         "accel delay ms",
         "gyro int. Hz",
         "output rate Hz"
-    );
+    ));
     for r in &DLPF_TABLE {
         let (lo, hi) = rate_span(r.gyro_internal_rate_hz);
-        println!(
+        out.push(format!(
             "{:>8} {:>12} {:>13} {:>13} {:>14} {:>15} {:>22}",
             r.cfg.bits(),
             r.gyro_bandwidth_hz,
@@ -138,15 +118,17 @@ fn print_table() {
             r.accel_delay_ms,
             r.gyro_internal_rate_hz,
             format!("{lo}..{hi}")
-        );
+        ));
     }
-    println!(
+    out.push(format!(
         "{:>8} {:>12}  (reserved by the datasheet; gyro internal rate 8000 Hz)",
         7, "-"
-    );
-    println!(
+    ));
+    out.push(
         "output rate = gyro internal rate / (1 + SMPLRT_DIV), SMPLRT_DIV 0..255; the accelerometer samples at 1000 Hz"
+            .to_string(),
     );
+    lines(out)
 }
 
 fn table_json() -> serde_json::Value {
