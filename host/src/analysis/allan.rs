@@ -62,7 +62,20 @@ pub fn max_factor(est: Estimator, n_phase: usize) -> usize {
 
 /// Number of terms `est` sums at factor m on `n_phase` points (Stable32's `#`); 0 if none.
 pub fn term_count(est: Estimator, n_phase: usize, m: usize) -> usize {
-    if m == 0 || m > max_factor(est, n_phase) {
+    terms_up_to(est, n_phase, m, max_factor(est, n_phase))
+}
+
+/// Largest averaging factor of totdev on the whole reflected extension of `n_phase` points:
+/// the extension reaches N - 2 points past either end, so a centre's neighbours at ±m stay on
+/// it for m ≤ N - 1 (0 when N < 3). allantools computes totdev this far; [`max_factor`] stops
+/// at half the record as Stable32 does.
+pub fn totdev_extension_max_factor(n_phase: usize) -> usize {
+    if n_phase >= 3 { n_phase - 1 } else { 0 }
+}
+
+/// [`term_count`] with the largest factor given.
+fn terms_up_to(est: Estimator, n_phase: usize, m: usize, limit: usize) -> usize {
+    if m == 0 || m > limit {
         return 0;
     }
     let n1 = n_phase - 1;
@@ -81,11 +94,22 @@ pub fn term_count(est: Estimator, n_phase: usize, m: usize) -> usize {
 /// de-duplicated, unsupported ones (0, or above [`max_factor`]) are skipped. Empty or
 /// too-short input gives an empty [`Deviation`]. Taus are computed in parallel.
 pub fn deviation(est: Estimator, x: &[f64], tau0: f64, factors: &[usize]) -> Deviation {
-    let mut ms: Vec<usize> = factors
-        .iter()
-        .copied()
-        .filter(|&m| term_count(est, x.len(), m) > 0)
-        .collect();
+    curve(est, x, tau0, factors, max_factor(est, x.len()))
+}
+
+/// Totdev (SP 1065 eq. 25) at each factor in `factors` up to
+/// [`totdev_extension_max_factor`]: past half the record, where [`deviation`] stops, the
+/// centres' neighbours lie on the reflected extension on both sides. Otherwise as
+/// [`deviation`]. This is the range allantools' `totdev` reports.
+pub fn totdev_whole_extension(x: &[f64], tau0: f64, factors: &[usize]) -> Deviation {
+    let limit = totdev_extension_max_factor(x.len());
+    curve(Estimator::Totdev, x, tau0, factors, limit)
+}
+
+/// [`deviation`] with factors up to `limit` kept.
+fn curve(est: Estimator, x: &[f64], tau0: f64, factors: &[usize], limit: usize) -> Deviation {
+    let terms = |m: usize| terms_up_to(est, x.len(), m, limit);
+    let mut ms: Vec<usize> = factors.iter().copied().filter(|&m| terms(m) > 0).collect();
     ms.sort_unstable();
     ms.dedup();
     let sums = match est {
@@ -93,7 +117,7 @@ pub fn deviation(est: Estimator, x: &[f64], tau0: f64, factors: &[usize]) -> Dev
         Estimator::Ohdev => overlapping_sums(x, &ms, Order::Third),
         _ => ms.par_iter().map(|&m| sum_of_squares(est, x, m)).collect(),
     };
-    let n: Vec<usize> = ms.iter().map(|&m| term_count(est, x.len(), m)).collect();
+    let n: Vec<usize> = ms.iter().map(|&m| terms(m)).collect();
     let dev = ms
         .iter()
         .zip(&sums)
@@ -314,9 +338,9 @@ fn sum_sq_moving(x: &[f64], m: usize) -> f64 {
 
 /// Total-variance sum on the reflected extension of x (SP 1065 §5.2.11): with 0-based
 /// indices, x*(-k) = 2 x\[0\] - x\[k\] and x*(N-1+k) = 2 x\[N-1\] - x\[N-1-k\] for k = 1..N-2;
-/// the sum runs over centres i = 1..=N-2 of `x*(i-m) - 2 x(i) + x*(i+m)`. Centres whose
-/// differences stay inside x (i in m..=N-1-m) reuse the plain second-difference loop; only
-/// the 2m edge centres touch the reflection.
+/// the sum runs over centres i = 1..=N-2 of `x*(i-m) - 2 x(i) + x*(i+m)`, for any m ≤ N - 1.
+/// Centres whose differences stay inside x (i in m..=N-1-m, empty past half the record)
+/// reuse the plain second-difference loop; only the others touch the reflection.
 fn sum_sq_reflected(x: &[f64], m: usize) -> f64 {
     let n = x.len();
     let last = n - 1;
@@ -333,14 +357,16 @@ fn sum_sq_reflected(x: &[f64], m: usize) -> f64 {
         let (i, mi) = (i as isize, m as isize);
         ext(i + mi) - 2.0 * x[i as usize] + ext(i - mi)
     };
-    // max_factor guarantees m ≤ (N-1)/2, so the interior m..=N-1-m is non-empty.
-    let interior_count = n - 2 * m;
-    let interior = sum_blocks(interior_count, BLOCK, |(s, c)| {
+    // Centres 1..left reach below x[0]; right..=N-2 reach past x[N-1]; between them, the
+    // interior (its first centre m is the second difference starting at x[0]).
+    let left = m.min(last);
+    let right = (n - m).max(left);
+    let interior = sum_blocks(right - left, BLOCK, |(s, c)| {
         sum_sq_run(x, m, Order::Second, s, c)
     });
-    let left = sum_squares(m - 1, |k| edge(k + 1));
-    let right = sum_squares(m - 1, |k| edge(n - m + k));
-    interior + left + right
+    let low = sum_squares(left - 1, |k| edge(k + 1));
+    let high = sum_squares(last - right, |k| edge(right + k));
+    interior + low + high
 }
 
 #[cfg(test)]
@@ -428,6 +454,33 @@ mod tests {
                 assert_eq!(d.tau[k], m as f64 * 0.5);
             }
         }
+    }
+
+    #[test]
+    fn totdev_on_the_whole_extension_equals_the_textbook_formula() {
+        // Odd and even lengths, so that m = N/2 and the factors either side of it occur.
+        for n in [3, 4, 9, 10, 2 * BLOCK + 5] {
+            let x = walk(n);
+            let ms: Vec<usize> = [1, 2, n / 2 - 1, n / 2, n / 2 + 1, n - 2, n - 1, n]
+                .into_iter()
+                .filter(|&m| m >= 1)
+                .collect();
+            let d = totdev_whole_extension(&x, 0.25, &ms);
+            let mut want_ms: Vec<usize> = ms.iter().copied().filter(|&m| m < n).collect();
+            want_ms.sort_unstable();
+            want_ms.dedup();
+            assert_eq!(d.m, want_ms, "n={n}");
+            for (k, &m) in d.m.iter().enumerate() {
+                let want = naive(Estimator::Totdev, &x, 0.25, m);
+                let rel = (d.dev[k] - want).abs() / want;
+                assert!(rel < 1e-9, "n={n} m={m}: {} vs {want}", d.dev[k]);
+                assert_eq!(d.n[k], n - 2);
+            }
+            // Up to half the record, the same curve as the Stable32 range.
+            let half = deviation(Estimator::Totdev, &x, 0.25, &ms);
+            assert_eq!(half.dev[..], d.dev[..half.dev.len()], "n={n}");
+        }
+        assert!(totdev_whole_extension(&[1.0, 2.0], 1.0, &[1]).m.is_empty());
     }
 
     #[test]

@@ -78,6 +78,96 @@ impl Default for Options {
     }
 }
 
+/// `--bandwidth`: a stated -3 dB bandwidth in Hz, or no low-pass at all.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Bandwidth {
+    Hz(f64),
+    Off,
+}
+
+impl std::str::FromStr for Bandwidth {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Bandwidth, String> {
+        if s.eq_ignore_ascii_case("off") {
+            return Ok(Bandwidth::Off);
+        }
+        match s.parse::<f64>() {
+            Ok(hz) if hz.is_finite() && hz > 0.0 => Ok(Bandwidth::Hz(hz)),
+            _ => Err(format!("'{s}': a bandwidth in Hz (e.g. 42) or 'off'")),
+        }
+    }
+}
+
+impl LowPassChoice {
+    /// The low-pass the fit models: the stated `bandwidth` if any, else the input's own
+    /// sensor settings (a capture's), else one fitted to the spectrum.
+    pub fn chosen(bandwidth: Option<Bandwidth>, settings: Option<SensorSettings>) -> Self {
+        match (bandwidth, settings) {
+            (Some(Bandwidth::Off), _) => LowPassChoice::Off,
+            (Some(Bandwidth::Hz(hz)), _) => LowPassChoice::Bandwidth(hz),
+            (None, Some(s)) => LowPassChoice::Sensor(s),
+            (None, None) => LowPassChoice::Detect,
+        }
+    }
+}
+
+/// An analysis as a caller asks for it, in the terms of `imunoise analyze`'s options: the
+/// command line and the Python package both turn theirs into [`Options`] through
+/// [`Request::options`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Request {
+    pub data_type: DataType,
+    /// Estimators in the order given; none means oadev, and a repeat is dropped.
+    pub estimators: Vec<Estimator>,
+    pub taus: TauGrid,
+    pub confidence: f64,
+    pub fit_tau_min: Option<f64>,
+    /// The sensor's low-pass; `None` takes the input's settings or fits one.
+    pub bandwidth: Option<Bandwidth>,
+    pub psd_segment: Option<usize>,
+    pub psd_window: Window,
+}
+
+impl Default for Request {
+    fn default() -> Self {
+        let o = Options::default();
+        Request {
+            data_type: o.data_type,
+            estimators: Vec::new(),
+            taus: o.taus,
+            confidence: o.confidence,
+            fit_tau_min: o.fit_tau_min,
+            bandwidth: None,
+            psd_segment: o.psd_segment,
+            psd_window: o.psd_window,
+        }
+    }
+}
+
+impl Request {
+    /// The options for an input whose sensor settings are `settings` (a capture's; `None`
+    /// for a table or an array).
+    pub fn options(&self, settings: Option<SensorSettings>) -> Options {
+        let mut estimators = self.estimators.clone();
+        if estimators.is_empty() {
+            estimators.push(Estimator::Oadev);
+        }
+        let mut seen = std::collections::HashSet::new();
+        estimators.retain(|e| seen.insert(*e));
+        Options {
+            data_type: self.data_type,
+            estimators,
+            taus: self.taus,
+            confidence: self.confidence,
+            psd_segment: self.psd_segment,
+            psd_window: self.psd_window,
+            fit_tau_min: self.fit_tau_min,
+            low_pass: LowPassChoice::chosen(self.bandwidth, settings),
+            ..Options::default()
+        }
+    }
+}
+
 /// One estimator's curve with its intervals.
 #[derive(Debug, Clone, Serialize)]
 pub struct DeviationResult {
@@ -446,6 +536,36 @@ mod tests {
     use crate::sim::noise::add_line;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn a_request_becomes_the_options() {
+        let defaults = Request::default().options(None);
+        assert_eq!(defaults.estimators, vec![Estimator::Oadev]);
+        assert_eq!(defaults.low_pass, LowPassChoice::Detect);
+        assert_eq!(defaults.taus, Options::default().taus);
+        let request = Request {
+            estimators: vec![Estimator::Mdev, Estimator::Adev, Estimator::Mdev],
+            bandwidth: Some("off".parse().unwrap()),
+            ..Request::default()
+        };
+        let options = request.options(None);
+        assert_eq!(options.estimators, vec![Estimator::Mdev, Estimator::Adev]);
+        assert_eq!(options.low_pass, LowPassChoice::Off);
+        let settings = SensorSettings::default();
+        assert_eq!(
+            Request::default().options(Some(settings)).low_pass,
+            LowPassChoice::Sensor(settings)
+        );
+        let hz = Request {
+            bandwidth: Some("42".parse().unwrap()),
+            ..Request::default()
+        };
+        assert_eq!(
+            hz.options(Some(settings)).low_pass,
+            LowPassChoice::Bandwidth(42.0)
+        );
+        assert!("0".parse::<Bandwidth>().is_err() && "wide".parse::<Bandwidth>().is_err());
+    }
 
     /// A wide line near Nyquist (0.3 to 1 Hz wide, 20 to 50 times the white PSD at its
     /// peak, 40 to 45 % of the rate) on white noise is never read as a roll-off; behind a real

@@ -8,7 +8,7 @@ use crate::cli::stored;
 use anyhow::{Context, Result};
 use imunoise::analysis::bounded::Bounded;
 use imunoise::analysis::filter;
-use imunoise::analysis::pipeline::{self, ChannelResult, LowPassChoice, Options};
+use imunoise::analysis::pipeline::{self, Bandwidth, ChannelResult, Options, Request};
 use imunoise::analysis::psd::Window;
 use imunoise::analysis::taus::TauGrid;
 use imunoise::analysis::{DataType, Estimator};
@@ -16,7 +16,6 @@ use imunoise::input::{self, CountScale, LoadOptions, Loaded, NpyStream, ReadRepo
 use imunoise::record::{Quantity, Record};
 use imunoise::report;
 use imunoise::report::filter::FilterFileError;
-use protocol::mpu6050::SensorSettings;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
@@ -97,35 +96,9 @@ pub struct AnalysisArgs {
     pub filter: Vec<PathBuf>,
 }
 
-/// `--bandwidth`: a -3 dB bandwidth, or no low-pass at all.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Bandwidth {
-    Hz(f64),
-    Off,
-}
-
-/// The low-pass the fit models: `--bandwidth` if given, else the input's own settings, else
-/// one fitted to the spectrum.
-pub fn low_pass_choice(
-    bandwidth: Option<Bandwidth>,
-    settings: Option<SensorSettings>,
-) -> LowPassChoice {
-    match (bandwidth, settings) {
-        (Some(Bandwidth::Off), _) => LowPassChoice::Off,
-        (Some(Bandwidth::Hz(hz)), _) => LowPassChoice::Bandwidth(hz),
-        (None, Some(s)) => LowPassChoice::Sensor(s),
-        (None, None) => LowPassChoice::Detect,
-    }
-}
-
+/// `--bandwidth`'s parser (a bandwidth in Hz or `off`).
 pub fn parse_bandwidth(s: &str) -> Result<Bandwidth, String> {
-    if s.eq_ignore_ascii_case("off") {
-        return Ok(Bandwidth::Off);
-    }
-    match s.parse::<f64>() {
-        Ok(hz) if hz.is_finite() && hz > 0.0 => Ok(Bandwidth::Hz(hz)),
-        _ => Err(format!("'{s}': a bandwidth in Hz (e.g. 42) or 'off'")),
-    }
+    s.parse()
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -251,8 +224,7 @@ fn analyse_streamed(mut stream: NpyStream, args: &AnalysisArgs) -> Result<Analys
     if let Some(segment) = args.psd_segment {
         check_psd_segment(segment, Some(rows))?;
     }
-    let mut options = options(args)?;
-    options.low_pass = low_pass_choice(args.bandwidth, None);
+    let options = request(args).options(None);
     let channels: Vec<(String, Quantity)> = record
         .channels
         .iter()
@@ -416,8 +388,7 @@ pub fn analyse(loaded: Loaded, args: &AnalysisArgs) -> Result<Analysed> {
     if let Some(segment) = args.psd_segment {
         check_psd_segment(segment, Some(record.len()))?;
     }
-    let mut options = options(args)?;
-    options.low_pass = low_pass_choice(args.bandwidth, settings);
+    let options = request(args).options(settings);
     let steps = record.channels.len() * pipeline::steps_per_channel(&options);
     let bar = crate::cli::progress::bar(steps as u64, "analysing");
     let results = pipeline::analyze(&record, &options, &|| bar.inc(1))
@@ -483,26 +454,21 @@ fn write_outputs(
     Ok(Analysed { document, options })
 }
 
-fn options(args: &AnalysisArgs) -> Result<Options> {
-    let mut estimators = args.estimators.clone();
-    if estimators.is_empty() {
-        estimators.push(Estimator::Oadev);
-    }
-    let mut seen = std::collections::HashSet::new();
-    estimators.retain(|e| seen.insert(*e));
-    Ok(Options {
+/// The library's request for the analysis `args` ask for.
+fn request(args: &AnalysisArgs) -> Request {
+    Request {
         data_type: match args.data_type {
             DataTypeArg::Rate => DataType::Rate,
             DataTypeArg::Phase => DataType::Phase,
         },
-        estimators,
+        estimators: args.estimators.clone(),
         taus: args.taus,
         confidence: args.confidence,
+        fit_tau_min: args.fit_tau_min,
+        bandwidth: args.bandwidth,
         psd_segment: args.psd_segment,
         psd_window: args.psd_window,
-        fit_tau_min: args.fit_tau_min,
-        ..Options::default()
-    })
+    }
 }
 
 /// A `--filter` file's error, the flag named where the file name is at fault.

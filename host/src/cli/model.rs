@@ -1,9 +1,10 @@
 //! `imunoise model INPUT`: fit -> simulate -> compare -> name the missing effect -> refit, on
 //! one channel (see `model`).
 
-use crate::cli::analyze::{Bandwidth, ReadArgs, low_pass_choice, parse_bandwidth};
+use crate::cli::analyze::{ReadArgs, parse_bandwidth};
 use crate::cli::stored;
 use anyhow::{Context, Result};
+use imunoise::analysis::pipeline::{Bandwidth, LowPassChoice};
 use imunoise::model::{self, Settings, report};
 use std::path::{Path, PathBuf};
 
@@ -47,7 +48,7 @@ pub fn run(args: &ModelArgs, store: Option<&Path>) -> Result<()> {
     let settings = Settings {
         realisations: args.realisations as usize,
         seed: args.seed,
-        low_pass: low_pass_choice(args.bandwidth, loaded.settings),
+        low_pass: LowPassChoice::chosen(args.bandwidth, loaded.settings),
     };
     let outcome = model::run(
         &record,
