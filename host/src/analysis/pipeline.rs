@@ -368,7 +368,7 @@ fn analyze_channel(
             .cloned()
             .unwrap_or_else(|| curve(Estimator::Oadev)),
     };
-    let (fit, readouts) = fit_noise(&fit_deviation, phase.len(), low_pass, options);
+    let (fit, readouts) = fit_noise(&fit_deviation, phase.len(), low_pass.clone(), options);
     // The intervals take the noise type from the fit where it has one (ci::intervals_with_model).
     let with_intervals = |deviation: Deviation| {
         let model = fit.as_ref().ok();
@@ -393,6 +393,7 @@ fn analyze_channel(
         segment_len: options.psd_segment.unwrap_or(0),
         window: options.psd_window,
         confidence: options.confidence,
+        low_pass,
     };
     // The spectrum is the PSD fit's finest level: the same Welch estimate.
     let welch = psd.as_ref().ok().map(|(p, _)| p);

@@ -52,6 +52,14 @@
 //! sensor's low-pass filter or quantization shape the spectrum and no term of this model
 //! describes them.
 //!
+//! **The sensor's filter.** A flat band judged by its slope is far coarser than N's own
+//! precision on a long record: a filter that tilts the top of the band by 1-2 % biases N by
+//! several of its standard deviations (2 h of the MPU-6050 at 200 Hz with the 98 Hz DLPF: N
+//! 2.4 % low with a +/-0.1 % interval). When the filter is known from the sensor's settings
+//! ([`PsdFitOptions::low_pass`]) every term is multiplied by its folded power gain
+//! (`filtered_band_end`), so N is the DC white level the Allan deviation's N is; the same
+//! record then gives N within its interval of the Allan fit's.
+//!
 //! **Intervals.** A squared coefficient theta with standard deviation sd is reported as
 //! resolved when `theta > z sd` (z the two-sided normal quantile of the confidence); its
 //! interval is then Satterthwaite's chi-squared one, `nu = 2 theta^2 / sd^2`,
@@ -60,6 +68,7 @@
 //! `theta + z sd`. Square roots give the coefficients' intervals.
 
 use super::{longest_run, ls_slope};
+use crate::analysis::low_pass::{LowPass, LowPassSource};
 use crate::analysis::numerics::inverse;
 use crate::analysis::psd::{self, PsdError, WelchOptions, Window};
 use serde::Serialize;
@@ -87,6 +96,9 @@ pub struct PsdFitOptions {
     pub window: Window,
     /// Two-sided confidence level of the intervals, in (0, 1).
     pub confidence: f64,
+    /// The sensor's low-pass filter: when it comes from the sensor's settings, the model is
+    /// the filtered spectrum (`filtered_band_end`); a fitted one is not used.
+    pub low_pass: Option<LowPass>,
 }
 
 impl Default for PsdFitOptions {
@@ -95,6 +107,7 @@ impl Default for PsdFitOptions {
             segment_len: 0,
             window: Window::Hann,
             confidence: 0.683,
+            low_pass: None,
         }
     }
 }
@@ -458,11 +471,14 @@ pub fn fit_psd_with(
     if !(opts.confidence > 0.0 && opts.confidence < 1.0) {
         return Err(PsdFitError::BadConfidence(opts.confidence));
     }
-    let all: Vec<Point> = pyramid(rate, rate_hz, opts.segment_len, opts.window, welch)?
+    let mut all: Vec<Point> = pyramid(rate, rate_hz, opts.segment_len, opts.window, welch)?
         .into_iter()
         .filter(|p| p.public.density > 0.0)
         .collect();
-    let f_hi = white_band_end(&all);
+    let f_hi = match &opts.low_pass {
+        Some(lp) if lp.source == LowPassSource::Settings => filtered_band_end(&mut all, lp),
+        _ => white_band_end(&all),
+    };
     let pts: Vec<&Point> = all.iter().filter(|p| p.public.freq <= f_hi).collect();
     if pts.len() < 3 {
         return Err(PsdFitError::TooFewPoints(pts.len()));
@@ -526,6 +542,29 @@ pub fn fit_psd_with(
         },
         spectrum: all.into_iter().map(|p| p.public).collect(),
     })
+}
+
+/// With the sensor's filter known from its settings: every point's basis times the filter's
+/// folded power gain at its frequency ([`LowPass::power_gain`], 1 at DC), so N is the white
+/// level at DC that the Allan deviation's N is, and the band ends where the spectrum divided
+/// by that gain stops being flat. A filter only fitted to the spectrum is not used: its shape
+/// is the generic two-pole family's, and a chain that folds aliases back (an ADXL345-like
+/// filter at half the rate) rises where that family falls, so dividing by it biases N more
+/// than the flat band does.
+fn filtered_band_end(points: &mut [Point], lp: &LowPass) -> f64 {
+    for p in points.iter_mut() {
+        let gain = lp.power_gain(p.public.freq);
+        p.basis = p.basis.map(|b| b * gain);
+    }
+    let flattened: Vec<Point> = points
+        .iter()
+        .map(|p| {
+            let mut q = p.clone();
+            q.public.density /= lp.power_gain(p.public.freq).max(f64::MIN_POSITIVE);
+            q
+        })
+        .collect();
+    white_band_end(&flattened)
 }
 
 /// The highest frequency fitted: the end of the longest run of flat points (local log-log

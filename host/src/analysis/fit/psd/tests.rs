@@ -187,3 +187,42 @@ fn bad_inputs_are_errors_not_panics() {
             .all(|r| r.lo <= r.value && r.value <= r.hi)
     );
 }
+
+/// White noise through the MPU-6050's 98 Hz gyro DLPF at 200 Hz (the filter reaching past
+/// half the rate, so its folded gain tilts the whole band): with the filter from the
+/// settings, N is the DC white level within three half-widths of its interval, over seeds;
+/// without it, the flat-band fit is several half-widths off.
+#[test]
+fn a_known_filter_is_modelled_so_n_is_the_white_level() {
+    use crate::analysis::low_pass::LowPass;
+    use crate::sim::dlpf::Sensor;
+    use protocol::mpu6050::SensorSettings;
+    let settings = SensorSettings::for_rate_and_bandwidth(200.0, 98.0).unwrap();
+    let lp = LowPass::mpu6050(&settings, Sensor::Gyro).unwrap();
+    let n0 = 1e-3;
+    let mut worst_plain: f64 = 0.0;
+    for seed in 0..3 {
+        let mut rng = ChaCha8Rng::seed_from_u64(300 + seed);
+        let y = lp.white_through(n0, 200 * 1800, &mut rng);
+        let opts = PsdFitOptions {
+            low_pass: Some(lp.clone()),
+            ..PsdFitOptions::default()
+        };
+        let with = fit_psd(&y, 200.0, &opts).unwrap().n;
+        let half = (with.hi - with.lo) / 2.0;
+        assert!(
+            (with.value - n0).abs() < 3.0 * half,
+            "seed {seed}: N {} [{}, {}] against {n0}",
+            with.value,
+            with.lo,
+            with.hi
+        );
+        let plain = fit_psd(&y, 200.0, &PsdFitOptions::default()).unwrap().n;
+        let plain_half = (plain.hi - plain.lo) / 2.0;
+        worst_plain = worst_plain.max((plain.value - n0).abs() / plain_half);
+    }
+    assert!(
+        worst_plain > 3.0,
+        "the flat band alone: {worst_plain:.1} half-widths"
+    );
+}
