@@ -278,7 +278,13 @@ impl Acquisition {
             self.failing_since_us = None;
             return Ok(report);
         }
-        let bytes = &mut self.buf[..n as usize * S::SAMPLE_BYTES];
+        // A count check passed, so the samples fit; a count that would not is the count's
+        // fault, not a reason to index past the buffer.
+        let Some(bytes) = self.buf.get_mut(..n as usize * S::SAMPLE_BYTES) else {
+            return Err(ErrorCode::FifoCountImplausible {
+                count: waiting.count,
+            });
+        };
         if let Err(e) = dev.read_samples(bytes) {
             // Some bytes may have been popped: the FIFO is no longer aligned.
             self.reset_fifo(dev, before)?;

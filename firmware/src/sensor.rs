@@ -4,10 +4,11 @@
 //! next replaces it) are all read through it, so [`crate::acquire::Acquisition`]'s exact
 //! accounting of every sample made is written once.
 
+use protocol::mpu6050::FIFO_SIZE;
 use protocol::{ErrorCode, RawSample};
 
 /// Largest burst a drain reads: the MPU-6050's whole samples in its 1024-byte FIFO.
-pub const MAX_DRAIN_BYTES: usize = 73 * RawSample::FIFO_BYTES;
+pub const MAX_DRAIN_BYTES: usize = FIFO_SIZE / RawSample::FIFO_BYTES * RawSample::FIFO_BYTES;
 
 /// What a sensor's buffer held when asked.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

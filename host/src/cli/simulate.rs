@@ -2,7 +2,7 @@
 //! through the chips' signal chains (DLPF, decimation without anti-aliasing, LSB
 //! quantization), written as CSV in SI units.
 
-use crate::cli::settings::{accel_range, gyro_range};
+use crate::cli::settings::{accel_range, adxl345_range, gyro_range};
 use anyhow::{Context, Result, bail};
 use imunoise::capture::CaptureWriter;
 use imunoise::link::setup::SIMULATED_BOARD_ID;
@@ -61,23 +61,6 @@ pub struct SimulateArgs {
     pub accel_range: u32,
 }
 
-/// One board's samples, one at a time.
-trait Source {
-    fn next_si(&mut self) -> SiSample;
-}
-
-impl Source for Imu {
-    fn next_si(&mut self) -> SiSample {
-        Imu::next_si(self)
-    }
-}
-
-impl Source for gy85::Gy85 {
-    fn next_si(&mut self) -> SiSample {
-        gy85::Gy85::next_si(self)
-    }
-}
-
 /// "2h", "30m", "90s", "1.5h", "250ms" or a bare number of seconds, to seconds.
 pub fn parse_duration(text: &str) -> Result<f64, String> {
     let t = text.trim();
@@ -112,7 +95,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     let rows = (rate * seconds + 1e-6).floor() as u64;
     let mut imu = Imu::new(&model, settings, args.seed, seconds);
     write_out(&args.out, rows, |w, bar| match format {
-        Format::Csv => write_csv(w, &mut imu, rows, bar),
+        Format::Csv => write_csv(w, || imu.next_si(), rows, bar),
         Format::Capture => write_capture(w, &mut imu, rows, args.seed, bar),
     })?;
     eprintln!(
@@ -154,19 +137,13 @@ fn run_gy85(args: &SimulateArgs, format: Format, seconds: f64) -> Result<()> {
             args.bandwidth
         )
     })?;
-    accel.range = protocol::adxl345::Adxl345Range::ALL
-        .into_iter()
-        .find(|r| r.full_scale_g() == args.accel_range)
-        .ok_or_else(|| {
-            anyhow::anyhow!(
-                "--accel-range {}: the ADXL345's ranges are 2, 4, 8 and 16 g",
-                args.accel_range
-            )
-        })?;
+    accel.range = adxl345_range(args.accel_range)?;
     let model = model_file::load(&args.model)?;
     let mut pair = gy85::Gy85::new(&model, &gyro, &accel, args.seed, seconds);
     let rows = (pair.output_rate_hz() * seconds + 1e-6).floor() as u64;
-    write_out(&args.out, rows, |w, bar| write_csv(w, &mut pair, rows, bar))?;
+    write_out(&args.out, rows, |w, bar| {
+        write_csv(w, || pair.next_si(), rows, bar)
+    })?;
     eprintln!(
         "wrote {rows} samples ({seconds} s; {gyro}; {accel}) to {}",
         args.out.display()
@@ -179,15 +156,16 @@ enum Format {
     Capture,
 }
 
+/// `rows` samples from `next` as CSV in SI units.
 fn write_csv(
     w: &mut impl Write,
-    imu: &mut impl Source,
+    mut next: impl FnMut() -> SiSample,
     rows: u64,
     bar: &ProgressBar,
 ) -> std::io::Result<()> {
     writeln!(w, "time,gx,gy,gz,ax,ay,az,temp")?;
     for i in 0..rows {
-        let s = imu.next_si();
+        let s = next();
         writeln!(
             w,
             "{},{},{},{},{},{},{},{}",

@@ -187,57 +187,43 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Loaded, InputError> {
         .read_to_end(&mut magic)
         .map_err(io)?;
     file.seek(SeekFrom::Start(0)).map_err(io)?;
-    if let Some(format) = rosbag::Format::of(&magic) {
+    let mut notes = Vec::new();
+    let mut settings = None;
+    let table = if let Some(format) = rosbag::Format::of(&magic) {
         drop(file);
         let (table, bag) =
             rosbag::table(path, format, options.topic.as_deref(), options.ignore_time)?;
         report.bag = Some(bag);
-        let record = build_record(path, table, options, &mut report)?;
-        return Ok(Loaded {
-            record,
-            notes: Vec::new(),
-            settings: None,
-            report,
-        });
-    }
-    if let Some(topic) = &options.topic {
+        table
+    } else if let Some(topic) = &options.topic {
         return Err(InputError::file(
             path,
             format!("--topic {topic}: not a ROS bag (ROS 1 .bag, MCAP or rosbag2 .db3)"),
         ));
-    }
-    if magic.starts_with(npy::MAGIC) {
+    } else if magic.starts_with(npy::MAGIC) {
         // An uncompressed array is read straight into its channels.
         let len = file.metadata().map_err(io)?.len();
-        let table = npy::parse_reader(path, std::io::BufReader::new(file), len)?;
-        let record = build_record(path, table, options, &mut report)?;
-        return Ok(Loaded {
-            record,
-            notes: Vec::new(),
-            settings: None,
-            report,
-        });
-    }
-    let mut bytes = Vec::new();
-    file.read_to_end(&mut bytes).map_err(io)?;
-    if bytes.starts_with(&GZIP_MAGIC) {
-        bytes = gunzip(path, &bytes)?;
-        report.compression = Some("gzip");
-    }
-    let is_npy = bytes.starts_with(npy::MAGIC)
-        || path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
-    let mut notes = Vec::new();
-    let mut settings = None;
-    let table = if capture::looks_like_capture(&bytes) {
-        let (table, s) = capture_table(path, &bytes, options, &mut notes)?;
-        settings = Some(s);
-        table
-    } else if is_npy {
-        npy::parse(path, &bytes)?
+        npy::parse_reader(path, std::io::BufReader::new(file), len)?
     } else {
-        text::parse(path, &bytes, options.ignore_time)?
+        let mut bytes = Vec::new();
+        file.read_to_end(&mut bytes).map_err(io)?;
+        if bytes.starts_with(&GZIP_MAGIC) {
+            bytes = gunzip(path, &bytes)?;
+            report.compression = Some("gzip");
+        }
+        let is_npy = bytes.starts_with(npy::MAGIC)
+            || path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+        if capture::looks_like_capture(&bytes) {
+            let (table, s) = capture_table(path, &bytes, options, &mut notes)?;
+            settings = Some(s);
+            table
+        } else if is_npy {
+            npy::parse(path, &bytes)?
+        } else {
+            text::parse(path, &bytes, options.ignore_time)?
+        }
     };
     let record = build_record(path, table, options, &mut report)?;
     Ok(Loaded {

@@ -39,6 +39,11 @@ impl Adxl345Range {
     pub fn full_scale_g(self) -> u32 {
         2 << (self as u32)
     }
+
+    /// The range whose full scale is `g` (2, 4, 8 or 16).
+    pub fn from_full_scale_g(g: u32) -> Option<Self> {
+        Self::ALL.into_iter().find(|r| r.full_scale_g() == g)
+    }
 }
 
 /// Everything the host can set on the ADXL345.

@@ -552,18 +552,14 @@ pub fn fit_psd_with(
 /// filter at half the rate) rises where that family falls, so dividing by it biases N more
 /// than the flat band does.
 fn filtered_band_end(points: &mut [Point], lp: &LowPass) -> f64 {
+    let mut flattened = Vec::with_capacity(points.len());
     for p in points.iter_mut() {
         let gain = lp.power_gain(p.public.freq);
         p.basis = p.basis.map(|b| b * gain);
+        let mut q = p.clone();
+        q.public.density /= gain.max(f64::MIN_POSITIVE);
+        flattened.push(q);
     }
-    let flattened: Vec<Point> = points
-        .iter()
-        .map(|p| {
-            let mut q = p.clone();
-            q.public.density /= lp.power_gain(p.public.freq).max(f64::MIN_POSITIVE);
-            q
-        })
-        .collect();
     white_band_end(&flattened)
 }
 

@@ -1,7 +1,7 @@
 //! `imunoise settings --sensor itg3200`: the gyro's DLPF table, or SMPLRT_DIV and DLPF_FS for
 //! an output rate and a bandwidth.
 
-use super::{SettingsArgs, aliasing_note, json_text, lines, required_bandwidth};
+use super::{SettingsArgs, aliasing_note, json_text, lines, rate_span, required_bandwidth};
 use anyhow::{Result, anyhow};
 use protocol::itg3200::{self, Itg3200Settings, reg};
 use protocol::mpu6050::DLPF_TABLE;
@@ -81,16 +81,13 @@ fn table_text() -> String {
             dlpf: r.cfg,
             smplrt_div: 0,
         };
+        let (lo, hi) = rate_span(r.gyro_internal_rate_hz);
         out.push(format!(
             "{:>8} {:>8} {:>12} {:>16} {:>#8x}",
             r.cfg.bits(),
             r.gyro_bandwidth_hz,
             r.gyro_internal_rate_hz,
-            format!(
-                "{}..{}",
-                r.gyro_internal_rate_hz / 256.0,
-                r.gyro_internal_rate_hz
-            ),
+            format!("{lo}..{hi}"),
             s.dlpf_fs()
         ));
     }
@@ -105,12 +102,13 @@ fn table_json() -> serde_json::Value {
     let rows: Vec<_> = DLPF_TABLE
         .iter()
         .map(|r| {
+            let (lo, hi) = rate_span(r.gyro_internal_rate_hz);
             json!({
                 "dlpf_cfg": r.cfg.bits(),
                 "bandwidth_hz": r.gyro_bandwidth_hz,
                 "internal_rate_hz": r.gyro_internal_rate_hz,
-                "min_output_rate_hz": r.gyro_internal_rate_hz / 256.0,
-                "max_output_rate_hz": r.gyro_internal_rate_hz,
+                "min_output_rate_hz": lo,
+                "max_output_rate_hz": hi,
             })
         })
         .collect();

@@ -6,6 +6,7 @@ mod adxl345;
 mod itg3200;
 mod mpu6050;
 
+pub use adxl345::range as adxl345_range;
 pub use mpu6050::{accel_range, gyro_range};
 
 use anyhow::{Result, bail};
@@ -67,17 +68,11 @@ fn required_bandwidth(args: &SettingsArgs, table: &str) -> Result<Option<(f64, f
         (Some(rate), Some(bandwidth)) => Ok(Some((rate, bandwidth))),
         (Some(rate), None) => bail!(
             "--rate {rate} needs --bandwidth with --sensor {}: one of {table} Hz",
-            sensor_name(args.sensor)
+            clap::ValueEnum::to_possible_value(&args.sensor)
+                .map(|v| v.get_name().to_string())
+                .unwrap_or_default()
         ),
         _ => Ok(None),
-    }
-}
-
-fn sensor_name(sensor: Sensor) -> &'static str {
-    match sensor {
-        Sensor::Mpu6050 => "mpu6050",
-        Sensor::Itg3200 => "itg3200",
-        Sensor::Adxl345 => "adxl345",
     }
 }
 
@@ -99,4 +94,9 @@ fn aliasing_note(aliases: bool, rate_hz: f64) -> Option<String> {
             rate_hz / 2.0
         )
     })
+}
+
+/// The output rates SMPLRT_DIV 255..0 give at an internal rate, Hz: (slowest, fastest).
+fn rate_span(internal_hz: f64) -> (f64, f64) {
+    (internal_hz / 256.0, internal_hz)
 }

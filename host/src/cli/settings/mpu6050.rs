@@ -1,7 +1,7 @@
 //! `imunoise settings --sensor mpu6050`: the DLPF table, or the exact register values for an
 //! output rate and a bandwidth (with the nearest valid choices when there are none).
 
-use super::{SettingsArgs, aliasing_note, json_text, lines, required_bandwidth};
+use super::{SettingsArgs, aliasing_note, json_text, lines, rate_span, required_bandwidth};
 use anyhow::{Result, anyhow};
 use protocol::mpu6050::{AccelRange, DLPF_TABLE, GyroRange, SensorSettings};
 use serde_json::json;
@@ -88,10 +88,6 @@ fn settings_json(s: &SensorSettings) -> serde_json::Value {
             "ACCEL_CONFIG": r.accel_config,
         },
     })
-}
-
-fn rate_span(internal_hz: f64) -> (f64, f64) {
-    (internal_hz / 256.0, internal_hz)
 }
 
 fn table_text() -> String {

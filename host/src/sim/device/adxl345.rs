@@ -156,21 +156,6 @@ impl SimAdxl345 {
         )
     }
 
-    /// Samples in the FIFO (the truth, whatever the faults).
-    pub fn fifo_len(&self) -> usize {
-        self.fifo.len()
-    }
-
-    /// A register's stored value, without side effects.
-    pub fn peek(&self, register: u8) -> u8 {
-        self.regs[usize::from(register & 0x3F)]
-    }
-
-    /// Move the clock to `t_us`, making the samples due.
-    pub fn set_time_us(&mut self, t_us: u64) {
-        self.advance_to_us(t_us);
-    }
-
     fn measuring(&self) -> bool {
         self.regs[usize::from(reg::POWER_CTL)] & MEASURE != 0
     }

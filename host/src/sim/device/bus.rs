@@ -79,10 +79,6 @@ impl SimBus {
         }
     }
 
-    pub fn chips_mut(&mut self) -> &mut [BusChip] {
-        &mut self.chips
-    }
-
     /// The first ITG-3200 on the bus.
     pub fn itg3200_mut(&mut self) -> Option<&mut SimItg3200> {
         self.chips.iter_mut().find_map(|c| match c {
@@ -95,14 +91,6 @@ impl SimBus {
     pub fn adxl345_mut(&mut self) -> Option<&mut SimAdxl345> {
         self.chips.iter_mut().find_map(|c| match c {
             BusChip::Adxl345(c) => Some(c),
-            _ => None,
-        })
-    }
-
-    /// The first MPU-6050 on the bus.
-    pub fn mpu6050_mut(&mut self) -> Option<&mut SimMpu6050> {
-        self.chips.iter_mut().find_map(|c| match c {
-            BusChip::Mpu6050(c) => Some(c),
             _ => None,
         })
     }

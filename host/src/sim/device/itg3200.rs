@@ -89,16 +89,6 @@ impl SimItg3200 {
         )
     }
 
-    /// A register's stored value, without side effects.
-    pub fn peek(&self, register: u8) -> u8 {
-        self.regs[usize::from(register & 0x7F)]
-    }
-
-    /// Move the clock to `t_us`, making the samples due.
-    pub fn set_time_us(&mut self, t_us: u64) {
-        self.advance_to_us(t_us);
-    }
-
     fn awake(&self) -> bool {
         self.regs[usize::from(reg::PWR_MGM)] & SLEEP == 0
     }
