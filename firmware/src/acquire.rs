@@ -76,12 +76,7 @@ pub fn check_supported(settings: &SensorSettings) -> Result<(), ErrorCode> {
 
 /// The nominal sample period in microseconds: 125 or 1000 us times (1 + SMPLRT_DIV), exact.
 pub fn period_us(settings: &SensorSettings) -> u32 {
-    let internal_period = if settings.dlpf.gyro_internal_rate_hz() > 1000.0 {
-        125
-    } else {
-        1000
-    };
-    internal_period * (1 + u32::from(settings.smplrt_div))
+    settings.period_us()
 }
 
 /// Where a run resumed after a fault starts: on the old run's sample grid, at the moment

@@ -36,7 +36,7 @@ use embedded_hal::i2c::I2c;
 use protocol::frame::{FrameDecoder, FrameError, MAX_WIRE_LEN, encode};
 use protocol::{
     Command, DeviceInfo, DeviceMessage, ErrorCode, MAX_SAMPLES_PER_BATCH, PROTOCOL_VERSION,
-    Request, ResetReason, SampleBatch, SensorSettings, Status,
+    Request, ResetReason, SampleBatch, SensorConfig, SensorList, SensorSettings, Status,
 };
 
 /// Replies waiting for room on the link.
@@ -103,6 +103,7 @@ pub struct Firmware<I2C, C> {
     dev: Mpu6050<I2C>,
     clock: C,
     board_id: u64,
+    address: u8,
     reset_reason: ResetReason,
     /// What WHO_AM_I answered last (0: never answered).
     who_am_i: u8,
@@ -131,6 +132,7 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
             dev: Mpu6050::new(i2c, config.address),
             clock,
             board_id: config.board_id,
+            address: config.address,
             reset_reason: config.reset_reason,
             who_am_i: 0,
             settings: SensorSettings::default(),
@@ -386,6 +388,11 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
                 return;
             }
             Command::Configure(settings) => self.configure(settings),
+            Command::ConfigureSensor {
+                sensor: 0,
+                config: SensorConfig::Mpu6050(settings),
+            } => self.configure(settings),
+            Command::ConfigureSensor { sensor, .. } => Err(ErrorCode::NoSuchSensor { sensor }),
             Command::Start => self.start(),
             Command::Stop => self.stop(out),
         };
@@ -409,6 +416,7 @@ impl<I2C: I2c + BusClear, C: Clock> Firmware<I2C, C> {
             streaming: self.streaming(),
             max_samples_per_batch: MAX_SAMPLES_PER_BATCH as u16,
             reset_reason: self.reset_reason,
+            sensors: SensorList::mpu6050(self.address, self.who_am_i, self.settings),
         }
     }
 

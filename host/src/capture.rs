@@ -356,6 +356,10 @@ impl StreamDecoder {
             } => self.recovered(attempts, resumed_at_index),
             // Acks and pongs carry nothing to keep.
             DeviceMessage::Ack { .. } | DeviceMessage::Pong { .. } => {}
+            // Sensors past the first are not decoded yet.
+            DeviceMessage::SensorSamples { .. }
+            | DeviceMessage::SensorFault { .. }
+            | DeviceMessage::SensorRecovered { .. } => {}
         }
     }
 
@@ -661,6 +665,7 @@ mod tests {
             streaming: true,
             max_samples_per_batch: 32,
             reset_reason: protocol::ResetReason::Unknown,
+            sensors: protocol::SensorList::default(),
         }
     }
 

@@ -346,6 +346,7 @@ fn gapped_captures_are_refused_or_cut_to_their_longest_run() {
         streaming: true,
         max_samples_per_batch: 32,
         reset_reason: protocol::ResetReason::Unknown,
+        sensors: protocol::SensorList::default(),
     }))
     .unwrap();
     let mut s = 5u64;

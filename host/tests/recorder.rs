@@ -79,6 +79,7 @@ fn info() -> DeviceInfo {
         streaming: true,
         max_samples_per_batch: 32,
         reset_reason: protocol::ResetReason::Unknown,
+        sensors: protocol::SensorList::default(),
     }
 }
 

@@ -234,6 +234,7 @@ fn export_marks_gaps_without_bridging_them() {
         streaming: true,
         max_samples_per_batch: 32,
         reset_reason: protocol::ResetReason::Unknown,
+        sensors: protocol::SensorList::default(),
     }))
     .unwrap();
     for first in [0u64, 4, 10] {

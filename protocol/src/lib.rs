@@ -15,8 +15,9 @@
 //! | host sends ([`Command`]) | board replies ([`DeviceMessage`]) | refused with ([`ErrorCode`] in `Nack`) | since |
 //! | --- | --- | --- | --- |
 //! | `GetInfo` | `Info(`[`DeviceInfo`]`)` | never | 1 |
-//! | `Configure(`[`SensorSettings`]`)` | `Ack`, or `Nack` | `Busy` while streaming; `InvalidSettings`; the sensor's errors (`SensorNotResponding`, `WrongSensor`, `VerifyFailed`, `I2cFailure`) | 1 |
-//! | `Start` | `Ack`, then `Samples(`[`SampleBatch`]`)` until Stop; or `Nack` | `Busy` while streaming; the sensor's errors | 1 |
+//! | `Configure(`[`SensorSettings`]`)`: sensor 0, an MPU-6050 | `Ack`, or `Nack` | `Busy` while streaming; `InvalidSettings` (also when sensor 0 is no MPU-6050); the sensor's errors (`SensorNotResponding`, `WrongSensor`, `VerifyFailed`, `I2cFailure`) | 1 |
+//! | `ConfigureSensor { sensor, config: `[`SensorConfig`]` }` | `Ack`, or `Nack` | as `Configure`; `NoSuchSensor` for a number the board does not list or a config of another kind | 4 |
+//! | `Start` | `Ack`, then samples of every sensor until Stop; or `Nack` | `Busy` while streaming; the sensors' errors | 1 |
 //! | `Stop` | `Ack`, then a final `Status(`[`Status`]`)`; or `Nack` | `NotStreaming` | 1 |
 //! | `Ping` | `Pong` | never | 1 |
 //! | `GetStatus` | `Status(`[`Status`]`)` | never | 1 |
@@ -26,6 +27,15 @@
 //! sensor fails (since 1) and `Recovered` when samples flow again (since 3); a fault that
 //! ends the run is `Fault(GaveUp)` (since 3). Every device frame carries its number
 //! ([`DeviceFrame`], since 3).
+//!
+//! **Several sensors** (since 4). [`DeviceInfo::sensors`] lists what the board found
+//! ([`sensors`]). Sensor 0 speaks as a one-sensor board always did (`Samples`, `Fault`,
+//! `Recovered`), so an MPU-6050 board's stream is unchanged but for its Info; every other
+//! sensor's samples, faults and recoveries come tagged with its number (`SensorSamples`,
+//! `SensorFault`, `SensorRecovered`). [`DeviceMessage::samples_of`],
+//! [`DeviceMessage::fault_of`] and [`DeviceMessage::recovered_of`] build the right variant
+//! for a sensor number; [`DeviceMessage::sensor_samples`] reads either back. Each sensor
+//! numbers its own samples from 0 at Start, at its own rate.
 #![no_std]
 #![forbid(unsafe_code)]
 // Nothing on the data path may panic: errors are values sent to the other side.
@@ -39,10 +49,12 @@ pub mod cobs;
 pub mod frame;
 pub mod itg3200;
 pub mod mpu6050;
+pub mod sensors;
 
 use serde::{Deserialize, Serialize};
 
 pub use mpu6050::SensorSettings;
+pub use sensors::{MAX_SENSORS, SensorConfig, SensorInfo, SensorKind, SensorList};
 
 /// Version of everything in this crate that shapes bytes on the wire.
 ///
@@ -57,8 +69,11 @@ pub use mpu6050::SensorSettings;
 /// [`ErrorCode::SensorReset`]), numbered every device frame ([`DeviceFrame`]), accepted clone
 /// chips ([`mpu6050::KNOWN_CHIPS`]) and appended
 /// the recovery counters to [`Status`] and the reset reason to [`DeviceInfo`] (a version-2
-/// Status or Info still decodes: [`Status::decode_v2`], [`DeviceInfo::decode_v2`]).
-pub const PROTOCOL_VERSION: u16 = 3;
+/// Status or Info still decodes: [`Status::decode_v2`], [`DeviceInfo::decode_v2`]); 4 let a
+/// board stream several sensors: [`DeviceInfo::sensors`], [`Command::ConfigureSensor`], the
+/// tagged messages and [`ErrorCode::NoSuchSensor`] (a version-3 Info still decodes:
+/// [`DeviceInfo::decode_v3`]).
+pub const PROTOCOL_VERSION: u16 = 4;
 
 /// Most samples one [`SampleBatch`] carries: 32 samples are 32 ms at 1 kHz, so a batch
 /// leaves the board at least every 32 ms at the top rate while one frame stays well under
@@ -93,6 +108,8 @@ pub enum Command {
     Ping,
     /// Reply: [`DeviceMessage::Status`].
     GetStatus,
+    /// Write `config` to sensor number `sensor` (only while stopped). Reply: Ack or Nack.
+    ConfigureSensor { sensor: u8, config: SensorConfig },
 }
 
 // ----------------------------------------------------------------------------------------
@@ -134,6 +151,65 @@ pub enum DeviceMessage {
         /// Index of the first sample of the resumed run.
         resumed_at_index: u64,
     },
+    /// `Samples` of sensor number `sensor` (never 0).
+    SensorSamples {
+        sensor: u8,
+        batch: SampleBatch,
+    },
+    /// `Fault` of sensor number `sensor` (never 0).
+    SensorFault {
+        sensor: u8,
+        error: ErrorCode,
+    },
+    /// `Recovered` of sensor number `sensor` (never 0).
+    SensorRecovered {
+        sensor: u8,
+        attempts: u16,
+        resumed_at_index: u64,
+    },
+}
+
+impl DeviceMessage {
+    /// Sensor `sensor`'s batch as the board sends it: `Samples` for sensor 0, else tagged.
+    pub fn samples_of(sensor: u8, batch: SampleBatch) -> DeviceMessage {
+        match sensor {
+            0 => DeviceMessage::Samples(batch),
+            _ => DeviceMessage::SensorSamples { sensor, batch },
+        }
+    }
+
+    /// Sensor `sensor`'s fault as the board sends it: `Fault` for sensor 0, else tagged.
+    pub fn fault_of(sensor: u8, error: ErrorCode) -> DeviceMessage {
+        match sensor {
+            0 => DeviceMessage::Fault(error),
+            _ => DeviceMessage::SensorFault { sensor, error },
+        }
+    }
+
+    /// Sensor `sensor`'s recovery as the board sends it: `Recovered` for sensor 0, else
+    /// tagged.
+    pub fn recovered_of(sensor: u8, attempts: u16, resumed_at_index: u64) -> DeviceMessage {
+        match sensor {
+            0 => DeviceMessage::Recovered {
+                attempts,
+                resumed_at_index,
+            },
+            _ => DeviceMessage::SensorRecovered {
+                sensor,
+                attempts,
+                resumed_at_index,
+            },
+        }
+    }
+
+    /// The sensor number and batch of either samples variant.
+    pub fn sensor_samples(&self) -> Option<(u8, &SampleBatch)> {
+        match self {
+            DeviceMessage::Samples(batch) => Some((0, batch)),
+            DeviceMessage::SensorSamples { sensor, batch } => Some((*sensor, batch)),
+            _ => None,
+        }
+    }
 }
 
 /// A device frame's body as read: the message, and the frame counter that follows it.
@@ -154,7 +230,13 @@ impl DeviceFrame {
     /// A frame body: the message, then the counter if any is there; `None` if the body is
     /// no message, or something other than one varint follows it.
     pub fn decode(body: &[u8]) -> Option<DeviceFrame> {
-        let (message, rest) = postcard::take_from_bytes::<DeviceMessage>(body).ok()?;
+        let (message, rest) = match peek_info_version(body) {
+            Some(3) => {
+                let (info, rest) = DeviceInfo::decode_v3(body)?;
+                (DeviceMessage::Info(info), rest)
+            }
+            _ => postcard::take_from_bytes::<DeviceMessage>(body).ok()?,
+        };
         let counter = if rest.is_empty() {
             None
         } else {
@@ -187,6 +269,23 @@ pub struct DeviceInfo {
     /// says so. Defaults when missing from a self-describing format.
     #[serde(default)]
     pub reset_reason: ResetReason,
+    /// Every sensor the board found and streams, by number ([`sensors`]). `who_am_i` and
+    /// `settings` above are sensor 0's when it is an MPU-6050 (a GY-85 board: the ITG-3200's
+    /// WHO_AM_I and the default MPU-6050 settings). Defaults, empty, when missing from a
+    /// self-describing format: read [`DeviceInfo::sensor_list`].
+    #[serde(default)]
+    pub sensors: SensorList,
+}
+
+impl DeviceInfo {
+    /// The sensors the board streams: [`DeviceInfo::sensors`], or for an Info without a list
+    /// (before version 4) the one MPU-6050 that `who_am_i` and `settings` describe.
+    pub fn sensor_list(&self) -> SensorList {
+        if !self.sensors.is_empty() {
+            return self.sensors;
+        }
+        SensorList::mpu6050(mpu6050::DEFAULT_ADDRESS, self.who_am_i, self.settings)
+    }
 }
 
 /// Why the board's chip last started (the RP2040's CHIP_RESET and WATCHDOG REASON
@@ -219,24 +318,52 @@ struct DeviceInfoV2 {
     max_samples_per_batch: u16,
 }
 
+/// [`DeviceInfo`] as protocol version 3 sent it: version 2's fields and the reset reason.
+#[derive(Deserialize)]
+struct DeviceInfoV3 {
+    v2: DeviceInfoV2,
+    reset_reason: ResetReason,
+}
+
+impl DeviceInfoV2 {
+    fn into_info(self, reset_reason: ResetReason) -> DeviceInfo {
+        DeviceInfo {
+            protocol_version: self.protocol_version,
+            firmware_version: self.firmware_version,
+            board_id: self.board_id,
+            who_am_i: self.who_am_i,
+            settings: self.settings,
+            streaming: self.streaming,
+            max_samples_per_batch: self.max_samples_per_batch,
+            reset_reason,
+            sensors: SensorList::default(),
+        }
+    }
+}
+
 impl DeviceInfo {
     /// A version-2 Info message body (variant 0, then the seven fields it had), or `None`.
+    /// Its sensor is the one MPU-6050 ([`DeviceInfo::sensor_list`]).
     pub fn decode_v2(body: &[u8]) -> Option<DeviceInfo> {
         let (&variant, rest) = body.split_first()?;
         if variant != 0 {
             return None;
         }
         let v2: DeviceInfoV2 = postcard::from_bytes(rest).ok()?;
-        (v2.protocol_version == 2).then_some(DeviceInfo {
-            protocol_version: v2.protocol_version,
-            firmware_version: v2.firmware_version,
-            board_id: v2.board_id,
-            who_am_i: v2.who_am_i,
-            settings: v2.settings,
-            streaming: v2.streaming,
-            max_samples_per_batch: v2.max_samples_per_batch,
-            reset_reason: ResetReason::Unknown,
-        })
+        (v2.protocol_version == 2).then(|| v2.into_info(ResetReason::Unknown))
+    }
+
+    /// A version-3 Info message body (version 2's fields and the reset reason) and what
+    /// follows it (its frame number), or `None`. Its sensor is the one MPU-6050.
+    /// [`DeviceFrame::decode`] uses it for every version-3 Info: read as version 4, the
+    /// frame number would be taken for the sensor list.
+    pub fn decode_v3(body: &[u8]) -> Option<(DeviceInfo, &[u8])> {
+        let (&variant, rest) = body.split_first()?;
+        if variant != 0 {
+            return None;
+        }
+        let (v3, rest): (DeviceInfoV3, _) = postcard::take_from_bytes(rest).ok()?;
+        (v3.v2.protocol_version == 3).then(|| (v3.v2.into_info(v3.reset_reason), rest))
     }
 }
 
@@ -406,7 +533,7 @@ pub enum ErrorCode {
     InvalidSettings,
     /// The sensor did not answer on I2C (after retries).
     SensorNotResponding,
-    /// WHO_AM_I gave a value that is not an MPU-6050's.
+    /// The identity register (WHO_AM_I, DEVID) gave a value that is not the expected chip's.
     WrongSensor { who_am_i: u8 },
     /// A register read back a different value than was written.
     VerifyFailed { register: u8, wrote: u8, read: u8 },
@@ -433,6 +560,9 @@ pub enum ErrorCode {
         last: FaultKind,
         ended_at: u64,
     },
+    /// [`Command::ConfigureSensor`] named a sensor the board does not list, or gave it a
+    /// config of another kind. Appended last, like the ones before.
+    NoSuchSensor { sensor: u8 },
 }
 
 /// How long the board keeps trying to bring a failed sensor back before it stops streaming
@@ -471,12 +601,13 @@ impl core::fmt::Display for ErrorCode {
         match self {
             ErrorCode::Busy => f.write_str("the board is streaming; send stop first"),
             ErrorCode::NotStreaming => f.write_str("the board is not streaming"),
-            ErrorCode::InvalidSettings => f.write_str("the settings are not valid for an MPU-6050"),
+            ErrorCode::InvalidSettings => f.write_str("the settings are not valid for the sensor"),
             ErrorCode::SensorNotResponding => f.write_str("the sensor does not answer on I2C"),
             ErrorCode::WrongSensor { who_am_i } => write!(
                 f,
-                "WHO_AM_I is {who_am_i:#04x}, which is no MPU-6050 or known compatible chip \
-                 (0x68, 0x70, 0x72, 0x98)"
+                "the identity register reads {who_am_i:#04x}, which is no chip this firmware \
+                 knows (MPU-6050 and clones 0x68, 0x70, 0x72, 0x98; ITG-3200 0x68/0x69; \
+                 ADXL345 0xE5)"
             ),
             ErrorCode::VerifyFailed {
                 register,
@@ -501,6 +632,10 @@ impl core::fmt::Display for ErrorCode {
                 f,
                 "gave up after {attempts} recovery attempts over {GAVE_UP_AFTER_S} s \
                  (last: {last:?}); streaming stopped"
+            ),
+            ErrorCode::NoSuchSensor { sensor } => write!(
+                f,
+                "the board lists no sensor {sensor} of that kind (see its Info's sensors)"
             ),
         }
     }
@@ -636,6 +771,73 @@ mod tests {
     }
 
     #[test]
+    fn a_version_3_info_still_decodes_with_its_frame_number() {
+        let settings = SensorSettings::default();
+        // Variant 0, the seven fields of version 2, the reset reason (Watchdog is 3), then
+        // a frame number whose first byte would read as a sensor count.
+        let v3 = (
+            0u8,
+            3u16,
+            (0u16, 2u16, 0u16),
+            7u64,
+            0x68u8,
+            settings,
+            true,
+            32u16,
+            3u8,
+            2u32,
+        );
+        let mut buf = [0u8; 64];
+        let body = postcard::to_slice(&v3, &mut buf).unwrap();
+        let frame = DeviceFrame::decode(body).unwrap();
+        assert_eq!(frame.counter, Some(2));
+        let DeviceMessage::Info(info) = frame.message else {
+            panic!("not an Info: {:?}", frame.message);
+        };
+        assert_eq!((info.protocol_version, info.board_id), (3, 7));
+        assert_eq!(info.reset_reason, ResetReason::Watchdog);
+        let list = info.sensor_list();
+        assert_eq!(list.len(), 1);
+        let sensor = list.get(0).unwrap();
+        assert_eq!(sensor.kind, SensorKind::Mpu6050);
+        assert_eq!(sensor.config, SensorConfig::Mpu6050(settings));
+    }
+
+    #[test]
+    fn sensor_0_speaks_untagged_and_the_others_tagged() {
+        let batch = SampleBatch {
+            first_index: 5,
+            first_timestamp_us: 9,
+            samples: heapless::Vec::new(),
+        };
+        let zero = DeviceMessage::samples_of(0, batch.clone());
+        assert_eq!(zero, DeviceMessage::Samples(batch.clone()));
+        let one = DeviceMessage::samples_of(1, batch.clone());
+        assert_eq!(one.sensor_samples(), Some((1, &batch)));
+        assert_eq!(zero.sensor_samples(), Some((0, &batch)));
+        assert_eq!(
+            DeviceMessage::fault_of(1, ErrorCode::I2cFailure),
+            DeviceMessage::SensorFault {
+                sensor: 1,
+                error: ErrorCode::I2cFailure
+            }
+        );
+        assert_eq!(
+            DeviceMessage::recovered_of(0, 2, 40),
+            DeviceMessage::Recovered {
+                attempts: 2,
+                resumed_at_index: 40
+            }
+        );
+        // Appended variants keep the earlier ones' indices: Samples is still 3.
+        let mut buf = [0u8; 64];
+        let body = postcard::to_slice(&zero, &mut buf).unwrap();
+        assert_eq!(body[0], 3);
+        let body = postcard::to_slice(&one, &mut buf).unwrap();
+        assert_eq!(body[0], 8);
+    }
+
+    #[test]
     fn info_version_can_be_read_without_decoding_the_rest() {
         let info = DeviceMessage::Info(DeviceInfo {
             protocol_version: 0x1234,
@@ -650,6 +852,7 @@ mod tests {
             streaming: false,
             max_samples_per_batch: 32,
             reset_reason: ResetReason::Watchdog,
+            sensors: SensorList::default(),
         });
         let mut buf = [0u8; 64];
         let body = postcard::to_slice(&info, &mut buf).unwrap();

@@ -4,11 +4,13 @@
 //! (`GOLDEN_PRINT=1 cargo test -p imunoise-protocol --test golden -- --nocapture` prints the
 //! bytes the code makes now, for a deliberate protocol change.)
 
+use protocol::adxl345::{Adxl345Range, Adxl345Settings};
 use protocol::frame::{MAX_WIRE_LEN, encode};
+use protocol::itg3200::Itg3200Settings;
 use protocol::mpu6050::{AccelRange, DlpfCfg, GyroRange, SensorSettings};
 use protocol::{
     Command, DeviceInfo, DeviceMessage, ErrorCode, FaultKind, FirmwareVersion, RawSample, Request,
-    ResetReason, SampleBatch, Status,
+    ResetReason, SampleBatch, SensorConfig, SensorInfo, SensorKind, SensorList, Status,
 };
 
 fn hex(bytes: &[u8]) -> String {
@@ -47,7 +49,47 @@ fn requests() -> Vec<(&'static str, Request)> {
         ("Stop", r(4, Command::Stop)),
         ("Ping", r(300, Command::Ping)),
         ("GetStatus", r(65535, Command::GetStatus)),
+        (
+            "ConfigureSensor",
+            r(
+                5,
+                Command::ConfigureSensor {
+                    sensor: 1,
+                    config: SensorConfig::Adxl345(adxl345()),
+                },
+            ),
+        ),
     ]
+}
+
+fn adxl345() -> Adxl345Settings {
+    Adxl345Settings {
+        rate_code: 0x09,
+        low_power: false,
+        range: Adxl345Range::G16,
+    }
+}
+
+/// A GY-85 board's sensors.
+fn gy85() -> SensorList {
+    SensorList::of(&[
+        SensorInfo {
+            kind: SensorKind::Itg3200,
+            address: 0x68,
+            id: 0x69,
+            config: SensorConfig::Itg3200(Itg3200Settings {
+                dlpf: DlpfCfg::Cfg4,
+                smplrt_div: 19,
+            }),
+        },
+        SensorInfo {
+            kind: SensorKind::Adxl345,
+            address: 0x53,
+            id: 0xE5,
+            config: SensorConfig::Adxl345(adxl345()),
+        },
+    ])
+    .unwrap()
 }
 
 fn messages() -> Vec<(&'static str, DeviceMessage)> {
@@ -60,7 +102,7 @@ fn messages() -> Vec<(&'static str, DeviceMessage)> {
         (
             "Info",
             DeviceMessage::Info(DeviceInfo {
-                protocol_version: 3,
+                protocol_version: 4,
                 firmware_version: FirmwareVersion {
                     major: 0,
                     minor: 1,
@@ -72,6 +114,7 @@ fn messages() -> Vec<(&'static str, DeviceMessage)> {
                 streaming: true,
                 max_samples_per_batch: 32,
                 reset_reason: ResetReason::Watchdog,
+                sensors: gy85(),
             }),
         ),
         ("Ack", DeviceMessage::Ack { seq: 7 }),
@@ -128,6 +171,37 @@ fn messages() -> Vec<(&'static str, DeviceMessage)> {
                 resumed_at_index: 24_483,
             },
         ),
+        (
+            "SensorSamples",
+            DeviceMessage::SensorSamples {
+                sensor: 1,
+                batch: SampleBatch {
+                    first_index: 7,
+                    first_timestamp_us: 20_000,
+                    samples: heapless::Vec::from_slice(&[RawSample {
+                        accel: [-3, 5, 256],
+                        temp: 0,
+                        gyro: [0; 3],
+                    }])
+                    .unwrap(),
+                },
+            },
+        ),
+        (
+            "SensorFault",
+            DeviceMessage::SensorFault {
+                sensor: 1,
+                error: ErrorCode::SensorReset,
+            },
+        ),
+        (
+            "SensorRecovered",
+            DeviceMessage::SensorRecovered {
+                sensor: 1,
+                attempts: 1,
+                resumed_at_index: 900,
+            },
+        ),
     ]
 }
 
@@ -146,6 +220,15 @@ fn error_codes() -> Vec<(&'static str, ErrorCode)> {
         ),
         ("UnknownCommand", ErrorCode::UnknownCommand),
         ("SensorReset", ErrorCode::SensorReset),
+        (
+            "GaveUp",
+            ErrorCode::GaveUp {
+                attempts: 3,
+                last: FaultKind::I2cFailure,
+                ended_at: 12,
+            },
+        ),
+        ("NoSuchSensor", ErrorCode::NoSuchSensor { sensor: 2 }),
     ]
 }
 
@@ -156,11 +239,12 @@ const REQUESTS: &[(&str, &str)] = &[
     ("Stop", "000704034186bcbc00"),
     ("Ping", "0008ac02048ddb781a00"),
     ("GetStatus", "0009ffff03054c4a9e1a00"),
+    ("ConfigureSensor", "000605060102090603ca98bc1800"),
 ];
 const MESSAGES: &[(&str, &str)] = &[
     (
         "Info",
-        "000102031c0102a5f4f0d882a690b0e6017003040101012003f0a204957c81f700",
+        "00010204220102a5f4f0d882a690b0e601700304010101200301016869010413010253e502090903f0a204d9f92d9300",
     ),
     ("Ack", "000a0107f0a204b68f0d4800"),
     ("Nack", "000e0208056b0140f0a2048ceffda300"),
@@ -175,6 +259,12 @@ const MESSAGES: &[(&str, &str)] = &[
     ("Pong", "000a0509f0a204455e525d00"),
     ("Fault", "0005060add040d8094ebdc03f0a204581c91cc00"),
     ("Recovered", "000d0706a3bf01f0a20408110c9700"),
+    (
+        "SensorSamples",
+        "000c080107a09c0101050a800401010108f0a2048710a2ef00",
+    ),
+    ("SensorFault", "000b090109f0a204f3ff3df800"),
+    ("SensorRecovered", "000d0a01018407f0a204f95ce06e00"),
 ];
 const ERROR_CODES: &[(&str, &str)] = &[
     ("Busy", "0003020108f0a204ba40f2ef00"),
@@ -186,6 +276,8 @@ const ERROR_CODES: &[(&str, &str)] = &[
     ("FifoCountImplausible", "000d020107c003f0a2048fcd4d4900"),
     ("UnknownCommand", "000b020108f0a2045568462a00"),
     ("SensorReset", "000b020109f0a204300ffa9200"),
+    ("GaveUp", "000e02010a03030cf0a2049cbd5f0500"),
+    ("NoSuchSensor", "000c02010b02f0a204ca8dee3200"),
 ];
 
 fn run<T: serde::Serialize>(cases: Vec<(&'static str, T)>, golden: &[(&str, &str)]) {

@@ -1,10 +1,13 @@
 //! proptest strategies for every protocol type, covering each field's whole range.
 
 use proptest::prelude::*;
+use protocol::adxl345::{Adxl345Range, Adxl345Settings};
+use protocol::itg3200::Itg3200Settings;
 use protocol::mpu6050::{AccelRange, DlpfCfg, GyroRange, SensorSettings};
 use protocol::{
     Command, DeviceInfo, DeviceMessage, ErrorCode, FaultKind, FirmwareVersion,
-    MAX_SAMPLES_PER_BATCH, RawSample, Request, SampleBatch, Status,
+    MAX_SAMPLES_PER_BATCH, RawSample, Request, SampleBatch, SensorConfig, SensorInfo, SensorList,
+    Status,
 };
 
 pub fn settings() -> impl Strategy<Value = SensorSettings> {
@@ -32,6 +35,10 @@ pub fn command() -> impl Strategy<Value = Command> {
         Just(Command::Stop),
         Just(Command::Ping),
         Just(Command::GetStatus),
+        (any::<u8>(), sensor_info()).prop_map(|(sensor, info)| Command::ConfigureSensor {
+            sensor,
+            config: info.config
+        }),
     ]
 }
 
@@ -69,6 +76,7 @@ pub fn device_info() -> impl Strategy<Value = DeviceInfo> {
         settings(),
         any::<bool>(),
         any::<u16>(),
+        sensor_list(),
     )
         .prop_map(
             |(
@@ -79,6 +87,7 @@ pub fn device_info() -> impl Strategy<Value = DeviceInfo> {
                 settings,
                 streaming,
                 max,
+                sensors,
             )| DeviceInfo {
                 protocol_version,
                 firmware_version: FirmwareVersion {
@@ -92,8 +101,43 @@ pub fn device_info() -> impl Strategy<Value = DeviceInfo> {
                 streaming,
                 max_samples_per_batch: max,
                 reset_reason: protocol::ResetReason::Unknown,
+                sensors,
             },
         )
+}
+
+/// Any sensor a board can list, with any settings of its kind.
+pub fn sensor_info() -> impl Strategy<Value = SensorInfo> {
+    let config = prop_oneof![
+        settings().prop_map(SensorConfig::Mpu6050),
+        (prop::sample::select(DlpfCfg::ALL.to_vec()), any::<u8>()).prop_map(
+            |(dlpf, smplrt_div)| { SensorConfig::Itg3200(Itg3200Settings { dlpf, smplrt_div }) }
+        ),
+        (
+            0u8..16,
+            any::<bool>(),
+            prop::sample::select(Adxl345Range::ALL.to_vec())
+        )
+            .prop_map(|(rate_code, low_power, range)| {
+                SensorConfig::Adxl345(Adxl345Settings {
+                    rate_code,
+                    low_power,
+                    range,
+                })
+            }),
+    ];
+    (any::<u8>(), any::<u8>(), config).prop_map(|(address, id, config)| SensorInfo {
+        kind: config.kind(),
+        address,
+        id,
+        config,
+    })
+}
+
+/// Up to [`protocol::MAX_SENSORS`] sensors.
+pub fn sensor_list() -> impl Strategy<Value = SensorList> {
+    prop::collection::vec(sensor_info(), 0..=protocol::MAX_SENSORS)
+        .prop_map(|sensors| SensorList::of(&sensors).expect("at most MAX_SENSORS"))
 }
 
 pub fn status() -> impl Strategy<Value = Status> {
@@ -145,6 +189,7 @@ pub fn error_code() -> impl Strategy<Value = ErrorCode> {
         any::<u16>().prop_map(|count| ErrorCode::FifoCountImplausible { count }),
         Just(ErrorCode::UnknownCommand),
         Just(ErrorCode::SensorReset),
+        any::<u8>().prop_map(|sensor| ErrorCode::NoSuchSensor { sensor }),
         (any::<u16>(), 0..7u8, any::<u64>()).prop_map(|(attempts, k, ended_at)| {
             ErrorCode::GaveUp {
                 ended_at,
@@ -175,6 +220,17 @@ pub fn device_message() -> impl Strategy<Value = DeviceMessage> {
         any::<(u16, u64)>().prop_map(|(attempts, resumed_at_index)| DeviceMessage::Recovered {
             attempts,
             resumed_at_index
+        }),
+        (1..=u8::MAX, sample_batch())
+            .prop_map(|(sensor, batch)| DeviceMessage::SensorSamples { sensor, batch }),
+        (1..=u8::MAX, error_code())
+            .prop_map(|(sensor, error)| DeviceMessage::SensorFault { sensor, error }),
+        (1..=u8::MAX, any::<(u16, u64)>()).prop_map(|(sensor, (attempts, resumed_at_index))| {
+            DeviceMessage::SensorRecovered {
+                sensor,
+                attempts,
+                resumed_at_index,
+            }
         }),
     ]
 }

@@ -317,6 +317,7 @@ fn encoder_refuses_small_buffers() {
         streaming: false,
         max_samples_per_batch: 32,
         reset_reason: protocol::ResetReason::Unknown,
+        sensors: protocol::SensorList::default(),
     });
     assert_eq!(
         frame::encode(&message, &mut small),

@@ -18,6 +18,7 @@ fn info_body(protocol_version: u16) -> Vec<u8> {
         streaming: false,
         max_samples_per_batch: 32,
         reset_reason: protocol::ResetReason::Unknown,
+        sensors: protocol::SensorList::default(),
     };
     postcard::to_allocvec(&DeviceMessage::Info(info)).unwrap()
 }

@@ -46,6 +46,21 @@ proptest! {
     }
 }
 
+/// The longest sensor entry: an MPU-6050's settings are the widest config.
+fn widest_sensor() -> protocol::SensorInfo {
+    protocol::SensorInfo {
+        kind: protocol::SensorKind::Mpu6050,
+        address: u8::MAX,
+        id: u8::MAX,
+        config: protocol::SensorConfig::Mpu6050(SensorSettings {
+            dlpf: DlpfCfg::Cfg7,
+            smplrt_div: 255,
+            gyro_range: GyroRange::Dps2000,
+            accel_range: AccelRange::G16,
+        }),
+    }
+}
+
 /// The widest values postcard can meet: varints at their longest, a full batch.
 #[test]
 fn the_largest_messages_fit_one_frame() {
@@ -77,6 +92,7 @@ fn the_largest_messages_fit_one_frame() {
         streaming: true,
         max_samples_per_batch: u16::MAX,
         reset_reason: protocol::ResetReason::Unknown,
+        sensors: protocol::SensorList::of(&[widest_sensor(); protocol::MAX_SENSORS]).unwrap(),
     };
     let status = Status {
         streaming: true,
@@ -94,6 +110,10 @@ fn the_largest_messages_fit_one_frame() {
         sample_period_ns: u32::MAX,
     };
     let messages = [
+        DeviceMessage::SensorSamples {
+            sensor: u8::MAX,
+            batch: batch.clone(),
+        },
         DeviceMessage::Samples(batch),
         DeviceMessage::Info(info),
         DeviceMessage::Status(status),
@@ -115,7 +135,7 @@ fn the_largest_messages_fit_one_frame() {
     }
     // The full batch of worst-case samples: 7 zigzag varints of 3 bytes each per sample.
     assert!(
-        stream.frames[0].len() > 32 * 21,
+        stream.frames[1].len() > 32 * 21,
         "the worst case really was exercised"
     );
     through_frames(&messages);

@@ -382,6 +382,11 @@ fn decode_throughput(megabytes: usize) {
         streaming: true,
         max_samples_per_batch: protocol::MAX_SAMPLES_PER_BATCH as u16,
         reset_reason: protocol::ResetReason::Unknown,
+        sensors: protocol::SensorList::mpu6050(
+            protocol::mpu6050::DEFAULT_ADDRESS,
+            protocol::mpu6050::WHO_AM_I_VALUE,
+            settings,
+        ),
     };
     let mut index = 0u64;
     let mut ok = writer.message(&DeviceMessage::Info(info)).is_ok();

@@ -200,6 +200,11 @@ fn write_capture(
         streaming: true,
         max_samples_per_batch: MAX_SAMPLES_PER_BATCH as u16,
         reset_reason: protocol::ResetReason::Unknown,
+        sensors: protocol::SensorList::mpu6050(
+            protocol::mpu6050::DEFAULT_ADDRESS,
+            protocol::mpu6050::WHO_AM_I_VALUE,
+            settings,
+        ),
     }))?;
     let mut index = 0u64;
     while index < rows {

@@ -37,12 +37,7 @@ impl Itg3200Settings {
 
     /// The sample period in microseconds: 125 or 1000 us times (1 + SMPLRT_DIV), exact.
     pub fn period_us(&self) -> u32 {
-        let internal_us = if self.dlpf.gyro_internal_rate_hz() > 1000.0 {
-            125
-        } else {
-            1000
-        };
-        internal_us * (1 + u32::from(self.smplrt_div))
+        self.dlpf.gyro_internal_period_us() * (1 + u32::from(self.smplrt_div))
     }
 
     /// The DLPF row, or `None` for the reserved DLPF_CFG 7.

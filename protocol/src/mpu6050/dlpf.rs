@@ -91,4 +91,12 @@ impl DlpfCfg {
             _ => 1000.0,
         }
     }
+
+    /// The gyro's internal sample period, microseconds: 125 at 8 kHz, 1000 at 1 kHz (exact).
+    pub fn gyro_internal_period_us(self) -> u32 {
+        match self {
+            DlpfCfg::Cfg0 | DlpfCfg::Cfg7 => 125,
+            _ => 1000,
+        }
+    }
 }

@@ -45,6 +45,11 @@ impl SensorSettings {
         self.dlpf.gyro_internal_rate_hz() / (1.0 + f64::from(self.smplrt_div))
     }
 
+    /// The sample period in microseconds: 125 or 1000 us times (1 + SMPLRT_DIV), exact.
+    pub fn period_us(&self) -> u32 {
+        self.dlpf.gyro_internal_period_us() * (1 + u32::from(self.smplrt_div))
+    }
+
     /// Seconds between output samples.
     pub fn sample_interval_s(&self) -> f64 {
         1.0 / self.output_rate_hz()
