@@ -199,15 +199,16 @@ fn damaged_transport_keeps_every_intact_batch_and_counts_every_loss() {
     let (_dir, store, outcome) = record(stream, false);
     let c = outcome.capture.unwrap();
     let kept: HashSet<i16> = c
+        .first()
         .runs
         .iter()
         .flat_map(|r| r.samples.iter().map(|s| s.gyro[0]))
         .collect();
     let missing: Vec<_> = intact.difference(&kept).collect();
     assert!(missing.is_empty(), "intact samples lost: {missing:?}");
-    let a = &c.accounting;
+    let a = &c.first().accounting;
     assert_eq!(a.received() + a.lost(), a.expected());
-    assert_eq!(c.restarts.len(), 1, "the board reset is recorded");
+    assert_eq!(c.first().restarts.len(), 1, "the board reset is recorded");
     assert!(c.decoder.rejected() > 0);
     let session = store.get(outcome.session_id).unwrap().unwrap();
     assert_eq!(session.counts.restarts, 1);
@@ -315,5 +316,5 @@ fn a_failing_disk_is_an_error_naming_the_file_and_keeps_what_was_written() {
         "everything written before the failure is kept"
     );
     let c = Capture::decode(&kept).unwrap();
-    assert!(c.accounting.received() > 0);
+    assert!(c.first().accounting.received() > 0);
 }

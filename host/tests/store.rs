@@ -94,8 +94,8 @@ fn a_capture_killed_with_sigkill_is_listed_and_readable() {
     let file = PathBuf::from(s["file"].as_str().unwrap());
     let bytes = std::fs::read(&file).unwrap();
     let c = imunoise::capture::Capture::decode(&bytes).unwrap();
-    assert_eq!(c.accounting.received(), received);
-    assert_eq!(c.accounting.lost(), 0);
+    assert_eq!(c.first().accounting.received(), received);
+    assert_eq!(c.first().accounting.lost(), 0);
     // The head of the original stream, byte for byte.
     assert_eq!(bytes, std::fs::read(&source).unwrap()[..bytes.len()]);
 }

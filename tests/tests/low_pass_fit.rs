@@ -87,7 +87,11 @@ fn study(
 }
 
 fn settings_of(rate: f64, bandwidth: f64) -> LowPassChoice {
-    LowPassChoice::Sensor(SensorSettings::for_rate_and_bandwidth(rate, bandwidth).unwrap())
+    LowPassChoice::Sensor(
+        SensorSettings::for_rate_and_bandwidth(rate, bandwidth)
+            .unwrap()
+            .into(),
+    )
 }
 
 /// 68.3 % coverage over `records` records is binomial(records, 0.683); the asserts accept the

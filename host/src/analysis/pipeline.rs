@@ -51,10 +51,9 @@ pub enum LowPassChoice {
     /// shows no roll-off below Nyquist.
     #[default]
     Detect,
-    /// The MPU-6050's chain at these settings (a capture's Info): the gyro filter for rates
-    /// and channels of unknown quantity, the accel filter for accelerations, none for the
-    /// temperature.
-    Sensor(SensorSettings),
+    /// The filters the sensors' settings give (a capture's Info, [`KnownFilters`]); none for
+    /// the temperature.
+    Sensor(KnownFilters),
     /// A stated -3 dB bandwidth, Hz, at the record's rate ([`LowPass::for_bandwidth`]).
     Bandwidth(f64),
     /// No low-pass in the model.
@@ -98,10 +97,71 @@ impl std::str::FromStr for Bandwidth {
     }
 }
 
+/// The filters a record's sensors apply, known from their settings (a capture's Info): the
+/// MPU-6050's chain at `gyro`'s settings for angular rates and channels of unknown quantity,
+/// at `accel`'s for accelerations. An ITG-3200's gyro filter is the MPU-6050's gyro DLPF at
+/// the same DLPF_CFG and SMPLRT_DIV (one InvenSense design, one table); the ADXL345's
+/// decimation filter is not modelled (its data sheet gives only its bandwidth, rate / 2), so
+/// its channels' roll-off is detected as for an unknown sensor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct KnownFilters {
+    pub gyro: Option<SensorSettings>,
+    pub accel: Option<SensorSettings>,
+}
+
+impl From<SensorSettings> for KnownFilters {
+    /// An MPU-6050's: both of its chains.
+    fn from(settings: SensorSettings) -> Self {
+        KnownFilters {
+            gyro: Some(settings),
+            accel: Some(settings),
+        }
+    }
+}
+
+impl KnownFilters {
+    /// The filters of a board's sensors: each quantity's from the first sensor that
+    /// measures it.
+    pub fn of(configs: &[protocol::SensorConfig]) -> KnownFilters {
+        use protocol::SensorConfig::*;
+        let mut filters = KnownFilters {
+            gyro: None,
+            accel: None,
+        };
+        let mut accel_seen = false;
+        for config in configs {
+            match config {
+                Mpu6050(s) => {
+                    filters.gyro.get_or_insert(*s);
+                    if !accel_seen {
+                        filters.accel = Some(*s);
+                    }
+                    accel_seen = true;
+                }
+                Itg3200(s) => {
+                    filters
+                        .gyro
+                        .get_or_insert(crate::capture::itg3200_as_mpu6050(s));
+                }
+                Adxl345(_) => accel_seen = true,
+            }
+        }
+        filters
+    }
+
+    /// The MPU-6050 settings whose `sensor` chain filters a channel of that kind.
+    fn for_sensor(&self, sensor: crate::sim::dlpf::Sensor) -> Option<SensorSettings> {
+        match sensor {
+            crate::sim::dlpf::Sensor::Gyro => self.gyro,
+            crate::sim::dlpf::Sensor::Accel => self.accel,
+        }
+    }
+}
+
 impl LowPassChoice {
     /// The low-pass the fit models: the stated `bandwidth` if any, else the input's own
     /// sensor settings (a capture's), else one fitted to the spectrum.
-    pub fn chosen(bandwidth: Option<Bandwidth>, settings: Option<SensorSettings>) -> Self {
+    pub fn chosen(bandwidth: Option<Bandwidth>, settings: Option<KnownFilters>) -> Self {
         match (bandwidth, settings) {
             (Some(Bandwidth::Off), _) => LowPassChoice::Off,
             (Some(Bandwidth::Hz(hz)), _) => LowPassChoice::Bandwidth(hz),
@@ -145,9 +205,9 @@ impl Default for Request {
 }
 
 impl Request {
-    /// The options for an input whose sensor settings are `settings` (a capture's; `None`
+    /// The options for an input whose sensors' filters are `settings` (a capture's; `None`
     /// for a table or an array).
-    pub fn options(&self, settings: Option<SensorSettings>) -> Options {
+    pub fn options(&self, settings: Option<KnownFilters>) -> Options {
         let mut estimators = self.estimators.clone();
         if estimators.is_empty() {
             estimators.push(Estimator::Oadev);
@@ -441,25 +501,36 @@ pub(super) fn channel_low_pass(
     let sensor = low_pass::sensor_for(quantity);
     match options.low_pass {
         LowPassChoice::Off => None,
-        LowPassChoice::Sensor(settings) => LowPass::mpu6050(&settings, sensor?),
+        LowPassChoice::Sensor(filters) => match filters.for_sensor(sensor?) {
+            Some(settings) => LowPass::mpu6050(&settings, sensor?),
+            None => detected_low_pass(rate, searched, rate_hz, options),
+        },
         // Validated in `analyze`, so the error branch is not reached.
         LowPassChoice::Bandwidth(hz) => LowPass::for_bandwidth(hz, rate_hz, sensor?).ok().flatten(),
-        LowPassChoice::Detect => {
-            let own = match searched {
-                Some(_) => None,
-                None => lines::clean(rate, rate_hz, &LineOptions::default()).ok(),
-            };
-            let (series, found): (&[f64], &[Line]) = match searched.or(own.as_ref()) {
-                Some(removed) => (&removed.rate, &removed.lines),
-                None => (rate, &[]),
-            };
-            let background = white_level(rate, rate_hz);
-            let near = |f: f64| found.iter().any(|l| near_line(l, f, rate_hz, background));
-            low_pass::detect_outside(series, rate_hz, options.confidence, &near)
-                .ok()
-                .and_then(|d| d.low_pass)
-        }
+        LowPassChoice::Detect => detected_low_pass(rate, searched, rate_hz, options),
     }
+}
+
+/// The roll-off [`low_pass::detect_outside`] finds in `rate` away from its lines.
+fn detected_low_pass(
+    rate: &[f64],
+    searched: Option<&lines::Cleaned>,
+    rate_hz: f64,
+    options: &Options,
+) -> Option<LowPass> {
+    let own = match searched {
+        Some(_) => None,
+        None => lines::clean(rate, rate_hz, &LineOptions::default()).ok(),
+    };
+    let (series, found): (&[f64], &[Line]) = match searched.or(own.as_ref()) {
+        Some(removed) => (&removed.rate, &removed.lines),
+        None => (rate, &[]),
+    };
+    let background = white_level(rate, rate_hz);
+    let near = |f: f64| found.iter().any(|l| near_line(l, f, rate_hz, background));
+    low_pass::detect_outside(series, rate_hz, options.confidence, &near)
+        .ok()
+        .and_then(|d| d.low_pass)
 }
 
 /// Whether the roll-off detection leaves `freq_hz` out for `line`: within four of its PSD
@@ -554,15 +625,15 @@ mod tests {
         assert_eq!(options.low_pass, LowPassChoice::Off);
         let settings = SensorSettings::default();
         assert_eq!(
-            Request::default().options(Some(settings)).low_pass,
-            LowPassChoice::Sensor(settings)
+            Request::default().options(Some(settings.into())).low_pass,
+            LowPassChoice::Sensor(settings.into())
         );
         let hz = Request {
             bandwidth: Some("42".parse().unwrap()),
             ..Request::default()
         };
         assert_eq!(
-            hz.options(Some(settings)).low_pass,
+            hz.options(Some(settings.into())).low_pass,
             LowPassChoice::Bandwidth(42.0)
         );
         assert!("0".parse::<Bandwidth>().is_err() && "wide".parse::<Bandwidth>().is_err());

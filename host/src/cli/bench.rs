@@ -422,7 +422,7 @@ fn decode_throughput(megabytes: usize) {
     match decoded {
         Ok(c) => println!(
             "   {mb:.0} MB, {} samples: {:.0} MB/s keeping samples, {:.0} MB/s counting only",
-            c.accounting.received(),
+            c.totals().received,
             mb / keeping,
             mb / counting_s
         ),

@@ -274,7 +274,10 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         println!("{summary}");
     }
     let board_errors = outcome.capture.as_ref().map_or(0, |c| c.board_errors.len());
-    let recoveries = outcome.capture.as_ref().map_or(0, |c| c.recoveries.len());
+    let recoveries = outcome
+        .capture
+        .as_ref()
+        .map_or(0, |c| c.recoveries().count());
     if board_errors > 0 {
         println!(
             "the board reported {board_errors} error(s) and recovered {recoveries} time(s): `imunoise show {}` lists them",

@@ -4,7 +4,7 @@
 use crate::cli::sessions::{duration, rate_bandwidth};
 use crate::cli::stored::read_store;
 use anyhow::Result;
-use imunoise::capture::{BoardReport, Capture, RecoveryReport, Segment};
+use imunoise::capture::{BoardReport, Capture, RecoveryReport, Segment, SensorCapture};
 use imunoise::store::{Analysis, Kind, Session, State};
 use serde_json::json;
 use std::fmt::Write;
@@ -42,6 +42,8 @@ pub fn run(args: &ShowArgs, store: Option<&Path>) -> Result<()> {
 }
 
 /// Losses as decoded from the raw file (the truth, also for a session still recording).
+/// The index lists are sensor 0's (the whole board's on a one-sensor board); a board with
+/// several sensors lists the others' in `other_sensors`.
 #[derive(serde::Serialize, Default)]
 struct Losses {
     /// Half-open ranges of lost sample indices.
@@ -58,7 +60,22 @@ struct Losses {
     segments: Vec<Segment>,
     /// Device frames missing by the board's frame numbers (damaged or lost whole).
     frames_missing: u64,
+    /// The gaps of every sensor past the first (their indices are their own).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    other_sensors: Vec<SensorGaps>,
     error: Option<String>,
+}
+
+/// One sensor's gaps.
+#[derive(serde::Serialize)]
+struct SensorGaps {
+    sensor: usize,
+    kind: String,
+    gaps: Vec<(u64, u64)>,
+}
+
+fn gap_list(sensor: &SensorCapture) -> Vec<(u64, u64)> {
+    sensor.gaps().iter().map(|g| (g.start, g.end)).collect()
 }
 
 impl Losses {
@@ -71,13 +88,24 @@ impl Losses {
             .and_then(|b| Capture::decode(&b).map_err(|e| e.to_string()));
         match decoded {
             Ok(c) => Losses {
-                gaps: c.gaps().iter().map(|g| (g.start, g.end)).collect(),
-                restarts: c.restarts.clone(),
+                gaps: gap_list(c.first()),
+                restarts: c.first().restarts.clone(),
                 trailing_bytes: c.trailing_bytes,
                 board_errors: c.board_errors.clone(),
-                recoveries: c.recoveries.clone(),
-                segments: c.segments.clone(),
+                recoveries: c.recoveries().copied().collect(),
+                segments: c.first().segments.clone(),
                 frames_missing: c.frames_missing,
+                other_sensors: c
+                    .sensors
+                    .iter()
+                    .enumerate()
+                    .skip(1)
+                    .map(|(k, s)| SensorGaps {
+                        sensor: k,
+                        kind: s.sensor.kind.to_string(),
+                        gaps: gap_list(s),
+                    })
+                    .collect(),
                 error: None,
             },
             Err(e) => Losses {
@@ -215,6 +243,29 @@ fn text(s: &Session, losses: &Losses, analyses: &[Analysis]) -> String {
                 losses.gaps.len() - GAPS_SHOWN
             ),
         );
+    }
+    for other in &losses.other_sensors {
+        for (start, end) in other.gaps.iter().take(GAPS_SHOWN) {
+            kv(
+                "gap",
+                format!(
+                    "sensor {} ({}): {} samples lost at index {start}",
+                    other.sensor,
+                    other.kind,
+                    end - start
+                ),
+            );
+        }
+        if other.gaps.len() > GAPS_SHOWN {
+            kv(
+                "gap",
+                format!(
+                    "sensor {}: ... and {} more (--json lists all)",
+                    other.sensor,
+                    other.gaps.len() - GAPS_SHOWN
+                ),
+            );
+        }
     }
     for r in &losses.restarts {
         kv("restart", format!("the board restarted at index {r}"));

@@ -15,9 +15,10 @@ pub use npy::{NpyChunks, NpyError, write_f64 as write_npy};
 pub use timing::Timing;
 pub use units::UnitConversion;
 
-use crate::capture::{self, Capture};
+use crate::analysis::pipeline::KnownFilters;
+use crate::capture::{self, Capture, SensorRecord};
 use crate::record::{Channel, Quantity, Record};
-use protocol::mpu6050::SensorSettings;
+use protocol::SensorConfig;
 use serde::Serialize;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
@@ -54,7 +55,7 @@ pub struct Loaded {
     pub notes: Vec<String>,
     /// The sensor settings the samples were taken with, when the input states them (a
     /// capture's Info for the run read).
-    pub settings: Option<SensorSettings>,
+    pub settings: Option<KnownFilters>,
     /// How the file was read: compression, time base, unit conversions, warnings.
     pub report: ReadReport,
 }
@@ -357,7 +358,7 @@ fn capture_table(
     bytes: &[u8],
     options: &LoadOptions,
     notes: &mut Vec<String>,
-) -> Result<(Table, SensorSettings), InputError> {
+) -> Result<(Table, KnownFilters), InputError> {
     if options.counts.is_some() {
         return Err(InputError::file(
             path,
@@ -365,21 +366,21 @@ fn capture_table(
         ));
     }
     let capture = Capture::decode(bytes).map_err(|e| InputError::file(path, e.to_string()))?;
-    let record = capture
-        .to_record(&path.display().to_string(), options.longest_run)
+    let (record, used) = capture
+        .to_record_with(&path.display().to_string(), options.longest_run)
         .map_err(|e| InputError::file(path, e.to_string()))?;
-    notes.extend(capture_notes(&capture, record.len()));
-    // The run `to_record` read: the longest.
-    let settings = capture
-        .runs
+    notes.extend(capture_notes(&capture, &used));
+    // The runs `to_record` read: the longest of each sensor.
+    let configs: Vec<SensorConfig> = capture
+        .sensors
         .iter()
-        .max_by_key(|r| r.samples.len())
-        .and_then(|r| r.settings)
-        .unwrap_or(capture.info.settings);
+        .filter_map(|s| s.longest_run().map(|run| s.config_of(run)))
+        .collect();
+    let settings = KnownFilters::of(&configs);
     let table = Table {
         rate_hz: Some(RateSource {
             hz: record.rate_hz,
-            from: format!("board's settings ({})", capture.info.settings),
+            from: format!("board's settings ({})", describe_configs(&configs)),
         }),
         timing: None,
         ignored_time: None,
@@ -392,15 +393,43 @@ fn capture_table(
     Ok((table, settings))
 }
 
-/// What a capture lost, in words: gaps, damaged frames, the board's own loss counters.
-fn capture_notes(capture: &Capture, analysed: usize) -> Vec<String> {
+/// Each sensor's settings, in words.
+fn describe_configs(configs: &[SensorConfig]) -> String {
+    let described: Vec<String> = configs
+        .iter()
+        .map(|c| match c {
+            SensorConfig::Mpu6050(s) => s.to_string(),
+            SensorConfig::Itg3200(s) => format!("ITG-3200 {s}"),
+            SensorConfig::Adxl345(s) => format!("ADXL345 {s}"),
+        })
+        .collect();
+    described.join("; ")
+}
+
+/// What a capture lost, in words: gaps, samples left out to line sensors up, damaged
+/// frames, the board's own loss counters.
+fn capture_notes(capture: &Capture, used: &[SensorRecord]) -> Vec<String> {
     let mut notes = Vec::new();
-    let lost = capture.accounting.lost();
-    if lost > 0 {
-        notes.push(format!(
-            "capture: {lost} samples lost in {} gap(s); analysing the longest gap-free run, {analysed} samples",
-            capture.gaps().len()
-        ));
+    let several = capture.sensors.len() > 1;
+    for (sensor, part) in capture.sensors.iter().zip(used) {
+        let name = match several {
+            true => format!("capture, {}", part.kind),
+            false => "capture".to_string(),
+        };
+        let lost = sensor.accounting.lost();
+        if lost > 0 {
+            notes.push(format!(
+                "{name}: {lost} samples lost in {} gap(s); analysing the longest gap-free run, {} samples",
+                sensor.gaps().len(),
+                part.used + part.trimmed
+            ));
+        }
+        if part.trimmed > 0 {
+            notes.push(format!(
+                "{name}: {} samples outside the time all sensors cover left out; {} analysed",
+                part.trimmed, part.used
+            ));
+        }
     }
     let rejected = capture.decoder.rejected();
     if rejected > 0 {

@@ -12,7 +12,7 @@
 use crate::analysis::fit::FitOptions;
 use crate::analysis::live::{Live, Snapshot};
 use crate::analysis::low_pass::LowPass;
-use crate::analysis::pipeline::{self, LowPassChoice, Options};
+use crate::analysis::pipeline::{self, KnownFilters, LowPassChoice, Options};
 use crate::analysis::precision::{Status, StopRule};
 use crate::capture::{Capture, StreamDecoder};
 use crate::record::Record;
@@ -258,9 +258,21 @@ impl Watcher {
         let rule = self.options.rule.as_ref()?;
         self.next_confirm_s = snapshot.elapsed_s * (1.0 + CONFIRM_GROWTH);
         let capture = Capture::decode(&std::fs::read(path).ok()?).ok()?;
-        let run = capture.runs.last()?;
-        let settings = run.settings.unwrap_or(capture.info.settings);
-        let full = capture.run_record(run, "capture");
+        // The sensor that measures the rule's axes (the gyro on every board we know).
+        let (sensor, run, full) = capture
+            .sensors
+            .iter()
+            .filter_map(|s| {
+                let run = s.runs.last()?;
+                Some((s, run, capture.run_record(s, run, "capture")))
+            })
+            .max_by_key(|(_, _, r)| {
+                r.channels
+                    .iter()
+                    .filter(|c| self.options.rule_axes.contains(&c.name))
+                    .count()
+            })?;
+        let settings = KnownFilters::of(&[sensor.config_of(run)]);
         let record = Record {
             channels: full
                 .channels

@@ -425,7 +425,7 @@ mod tests {
         let rate = settings.output_rate_hz();
         // Every loss is a gap at its own fault, none longer than the budget: the
         // outage plus a second, two seconds per reset.
-        let gaps = capture.gaps().to_vec();
+        let gaps = capture.first().gaps().to_vec();
         assert_eq!(gaps.len(), 3, "{gaps:?}");
         let at = |t: f64| t * rate * 1.003;
         for (gap, (t, budget_s)) in gaps.iter().zip([(120.0, 3.0), (300.0, 2.0), (420.0, 2.0)]) {
@@ -438,24 +438,27 @@ mod tests {
                 "gap {gap:?} costs more than {budget_s} s"
             );
         }
-        assert_eq!(capture.recoveries.len(), 2);
-        assert_eq!(capture.segments.len(), 1);
-        assert!(capture.restarts.is_empty());
+        assert_eq!(capture.first().recoveries.len(), 2);
+        assert_eq!(capture.first().segments.len(), 1);
+        assert!(capture.first().restarts.is_empty());
         // Received + lost against what the sensor made up to the last sample received (the
         // FIFO's unread tail aside): equal within the reboot's estimate, a few samples.
         let made = board.sensor().lock().samples_made() - made_at_start;
-        let accounted = capture.accounting.expected();
+        let accounted = capture.first().accounting.expected();
         let unread = made.saturating_sub(accounted);
         assert!(unread < 64, "made {made}, accounted for {accounted}");
         assert!(accounted as f64 >= 600.0 * rate);
         // The clone's temperature is read on its own scale: the example model warms from
         // 25 degC by up to 6 degC (on the MPU-6050's scale it would read 15 degC high).
-        let record = capture.run_record(&capture.runs[0], "faults");
+        let record = capture.run_record(capture.first(), &capture.first().runs[0], "faults");
         let temp = &record.channel("temp").unwrap().values;
         let mean = temp.iter().sum::<f64>() / temp.len() as f64;
         assert!((25.0..31.5).contains(&mean), "{mean} degC");
         let session = store.get(outcome.session_id).unwrap().unwrap();
-        assert_eq!(session.counts.samples_lost, capture.accounting.lost());
+        assert_eq!(
+            session.counts.samples_lost,
+            capture.first().accounting.lost()
+        );
     }
 
     /// A sensor that never comes back: the board gives up after ten minutes, the watcher
@@ -486,7 +489,10 @@ mod tests {
         assert!((816.0..830.0).contains(&span_s), "ended after {span_s} s");
         let capture = outcome.capture.unwrap();
         let rate = settings.output_rate_hz();
-        let (received, lost) = (capture.accounting.received(), capture.accounting.lost());
+        let (received, lost) = (
+            capture.first().accounting.received(),
+            capture.first().accounting.lost(),
+        );
         assert!(((received as f64) - 60.0 * rate).abs() < rate, "{received}");
         // Received + lost is the whole time on the host's clock, within a second.
         let accounted = (received + lost) as f64;
@@ -577,7 +583,9 @@ mod tests {
     fn assert_n_within(capture: &Capture, axes: &[&str], fraction: f64) {
         let record = capture.to_record("until", false).unwrap();
         let options = crate::analysis::pipeline::Options {
-            low_pass: crate::analysis::pipeline::LowPassChoice::Sensor(capture.info.settings),
+            low_pass: crate::analysis::pipeline::LowPassChoice::Sensor(
+                capture.info.settings.into(),
+            ),
             ..Default::default()
         };
         let results = crate::analysis::pipeline::analyze(&record, &options, &|| {}).unwrap();

@@ -6,9 +6,9 @@
 //! I` comment marks where they were (a board restart likewise gets a `# restart` line), so
 //! the time column stays true to each sample's index.
 
-use crate::capture::{Capture, CaptureError};
+use crate::capture::{Capture, CaptureError, SensorCapture};
 use crate::record::Record;
-use protocol::RawSample;
+use protocol::{RawSample, SensorKind};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -46,24 +46,43 @@ pub fn read_capture(path: &Path) -> Result<Capture, CsvError> {
 }
 
 /// A capture's runs in order, a comment for each gap and restart between them; `correct`
-/// is applied to each run's record before it is written (SI units only matter to it).
+/// is applied to each run's record before it is written (SI units only matter to it). A
+/// board with several sensors gives each sensor's runs in turn, each sensor's after a
+/// comment naming it and a header of its own columns (they number their samples apart).
 pub fn write_capture<E: From<std::io::Error>>(
     capture: &Capture,
     units: Units,
     out: &mut impl Write,
     correct: &dyn Fn(&mut Record) -> Result<(), E>,
 ) -> Result<(), E> {
+    let several = capture.sensors.len() > 1;
+    for (number, sensor) in capture.sensors.iter().enumerate() {
+        if several {
+            writeln!(out, "# sensor {number}: {}", sensor.sensor.kind)?;
+        }
+        write_sensor(capture, sensor, units, out, correct)?;
+    }
+    Ok(())
+}
+
+fn write_sensor<E: From<std::io::Error>>(
+    capture: &Capture,
+    sensor: &SensorCapture,
+    units: Units,
+    out: &mut impl Write,
+    correct: &dyn Fn(&mut Record) -> Result<(), E>,
+) -> Result<(), E> {
     let mut next = 0u64;
-    for (k, run) in capture.runs.iter().enumerate() {
-        let mut record = capture.run_record(run, "");
+    for (k, run) in sensor.runs.iter().enumerate() {
+        let mut record = capture.run_record(sensor, run, "");
         correct(&mut record)?;
         if k == 0 {
             match units {
                 Units::Si => header(&record, out)?,
-                Units::Counts => writeln!(out, "index,gx,gy,gz,ax,ay,az,temp")?,
+                Units::Counts => writeln!(out, "index,{}", record.names().join(","))?,
             }
         }
-        for r in capture
+        for r in sensor
             .restarts
             .iter()
             .filter(|&&r| (next..=run.first_index).contains(&r))
@@ -79,7 +98,7 @@ pub fn write_capture<E: From<std::io::Error>>(
         }
         match units {
             Units::Si => rows(&record, run.first_index, out)?,
-            Units::Counts => count_rows(&run.samples, run.first_index, out)?,
+            Units::Counts => count_rows(&run.samples, sensor.sensor.kind, run.first_index, out)?,
         }
         next = run.first_index + run.samples.len() as u64;
     }
@@ -92,17 +111,28 @@ pub fn write_record(record: &Record, out: &mut impl Write) -> std::io::Result<()
     rows(record, 0, out)
 }
 
-/// One line per sample: its index, then the raw counts in the SI columns' order.
+/// One line per sample: its index, then the raw counts the sensor fills, in the SI
+/// columns' order.
 fn count_rows(
     samples: &[RawSample],
+    kind: SensorKind,
     first_index: u64,
     out: &mut impl Write,
 ) -> std::io::Result<()> {
+    let fills = kind.fills();
     for (i, r) in samples.iter().enumerate() {
-        let [gx, gy, gz] = r.gyro;
-        let [ax, ay, az] = r.accel;
-        let index = first_index + i as u64;
-        writeln!(out, "{index},{gx},{gy},{gz},{ax},{ay},{az},{}", r.temp)?;
+        write!(out, "{}", first_index + i as u64)?;
+        let parts = [
+            (fills.gyro, &r.gyro[..]),
+            (fills.accel, &r.accel[..]),
+            (fills.temp, std::slice::from_ref(&r.temp)),
+        ];
+        for (_, counts) in parts.iter().filter(|(filled, _)| *filled) {
+            for c in counts.iter() {
+                write!(out, ",{c}")?;
+            }
+        }
+        writeln!(out)?;
     }
     Ok(())
 }

@@ -92,15 +92,16 @@ pub struct Counts {
 
 impl Counts {
     pub fn of(decoder: &StreamDecoder, bytes: u64) -> Counts {
-        let a = decoder.accounting();
+        // Every sensor's samples together.
+        let a = decoder.totals();
         let stats = decoder.stats();
         Counts {
             bytes,
-            samples_received: a.received(),
-            samples_lost: a.lost(),
-            gaps: a.gaps().len() as u64,
+            samples_received: a.received,
+            samples_lost: a.lost,
+            gaps: a.gaps,
             restarts: decoder.restarts().len() as u64,
-            out_of_order_batches: a.out_of_order_batches(),
+            out_of_order_batches: a.out_of_order_batches,
             frames_ok: stats.frames_ok,
             frames_rejected: stats.rejected(),
             bytes_discarded: stats.bytes_discarded,
