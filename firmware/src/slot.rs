@@ -74,14 +74,14 @@ impl<I2C: I2c + BusClear> Slot<I2C> {
         on_stream!(self, s => s.start(clock))
     }
 
-    pub fn poll(&mut self, clock: &mut impl Clock, outlet: &mut impl Outlet) {
+    pub fn poll(&mut self, clock: &mut impl Clock, outlet: &mut dyn Outlet) {
         on_stream!(self, s => s.poll(clock, outlet))
     }
 
     pub fn stop(
         &mut self,
         clock: &mut impl Clock,
-        outlet: &mut impl Outlet,
+        outlet: &mut dyn Outlet,
     ) -> Result<(), ErrorCode> {
         on_stream!(self, s => s.stop(clock, outlet))
     }

@@ -143,7 +143,7 @@ impl<S: SensorChip> SensorStream<S> {
     }
 
     /// Drain if due, check health if due, attempt a recovery if due.
-    pub fn poll(&mut self, clock: &mut impl Clock, outlet: &mut impl Outlet) {
+    pub fn poll(&mut self, clock: &mut impl Clock, outlet: &mut dyn Outlet) {
         let now = clock.now_us();
         if self.run.as_ref().is_some_and(|run| run.due(now))
             && let Err(error) = self.drain(clock, outlet)
@@ -167,7 +167,7 @@ impl<S: SensorChip> SensorStream<S> {
     pub fn stop(
         &mut self,
         clock: &mut impl Clock,
-        outlet: &mut impl Outlet,
+        outlet: &mut dyn Outlet,
     ) -> Result<(), ErrorCode> {
         if let Some(recovery) = self.recovery.take() {
             self.count_loss(&recovery.timeline, clock.now_us(), None);
@@ -203,7 +203,7 @@ impl<S: SensorChip> SensorStream<S> {
     }
 
     /// One drain; batches the link refuses are dropped and counted.
-    fn drain(&mut self, clock: &mut impl Clock, outlet: &mut impl Outlet) -> Result<(), ErrorCode> {
+    fn drain(&mut self, clock: &mut impl Clock, outlet: &mut dyn Outlet) -> Result<(), ErrorCode> {
         let Some(run) = self.run.as_mut() else {
             return Ok(());
         };
@@ -224,7 +224,7 @@ impl<S: SensorChip> SensorStream<S> {
     }
 
     /// The run ended with `error`: report it and start bringing the sensor back.
-    fn fault(&mut self, error: ErrorCode, clock: &mut impl Clock, outlet: &mut impl Outlet) {
+    fn fault(&mut self, error: ErrorCode, clock: &mut impl Clock, outlet: &mut dyn Outlet) {
         let now = clock.now_us();
         let Some(run) = self.run.take() else {
             return;
@@ -249,7 +249,7 @@ impl<S: SensorChip> SensorStream<S> {
     /// One recovery attempt: clear the bus, probe, set up, restart the buffer's numbering
     /// from where the old run's grid says the sensor is. A failure waits for the next
     /// attempt or, after [`protocol::GAVE_UP_AFTER_S`], stops this sensor's stream.
-    fn attempt_recovery(&mut self, clock: &mut impl Clock, outlet: &mut impl Outlet) {
+    fn attempt_recovery(&mut self, clock: &mut impl Clock, outlet: &mut dyn Outlet) {
         let Some(mut recovery) = self.recovery.take() else {
             return;
         };

@@ -99,7 +99,7 @@ impl VirtualBoard {
         speed: Speed,
         faults: &FaultPlan,
     ) -> Self {
-        let mut gyro = SimItg3200::new(model.clone(), seed);
+        let mut gyro = SimItg3200::new(model, seed);
         let mut accel = SimAdxl345::new(model, seed ^ ACCEL_SEED);
         faults.apply_to_sensor(&mut gyro);
         let accel_faults = FaultPlan {
@@ -444,6 +444,40 @@ mod tests {
         assert_eq!(b.reboots(), 2);
         b.advance(Duration::from_secs(5));
         assert_eq!(b.reboots(), 2);
+    }
+
+    /// A GY-85 board streams both sensors, each from index 0, and the fault plan reaches
+    /// both chips.
+    #[test]
+    fn a_gy85_board_streams_both_sensors() {
+        let plan = FaultPlan {
+            clock: crate::sim::device::SensorClock {
+                ppm: 100.0,
+                drift_ppm_per_hour: 0.0,
+            },
+            ..FaultPlan::default()
+        };
+        let mut b = VirtualBoard::gy85(ImuModel::default(), 1, 85, Speed::Max, &plan);
+        assert_eq!(b.boot_error(), None);
+        {
+            let mut bus = b.sensor().lock();
+            assert_eq!(bus.itg3200_mut().unwrap().faults().clock, plan.clock);
+            assert_eq!(bus.adxl345_mut().unwrap().faults().clock, plan.clock);
+        }
+        send(&mut b, 1, Command::Start);
+        let msgs = messages(&mut b, 100);
+        assert!(matches!(msgs[0], DeviceMessage::Ack { seq: 1 }));
+        let mut next = [0u64; 2];
+        for m in &msgs[1..] {
+            if let Some((sensor, batch)) = m.sensor_samples() {
+                let next = &mut next[usize::from(sensor)];
+                assert_eq!(batch.first_index, *next, "sensor {sensor}: no gap");
+                *next += batch.samples.len() as u64;
+            }
+        }
+        // Both at their default 100 Hz, in the same emulated time: a read at Max speed ends
+        // after the 5 ms step that made something, so 100 reads cover about a second.
+        assert!(next[0] >= 90 && next[0].abs_diff(next[1]) <= 2, "{next:?}");
     }
 
     /// At a speed factor the board streams what its emulated time made: every sample from
