@@ -18,6 +18,7 @@ pub mod itg3200;
 pub mod recovery;
 pub mod registers;
 pub mod reply;
+pub mod run_state;
 pub mod sensor;
 pub mod slot;
 pub mod stream;

@@ -9,10 +9,10 @@
 //! [`HEALTH_INTERVAL_US`] a streaming sensor's configuration is read back, so a sensor that
 //! reset to its power-on defaults is found even if its buffer count looks sane.
 
-use crate::acquire::{Acquisition, Resume, Timeline};
+use crate::acquire::{Acquisition, Resume};
 use crate::chip::SensorChip;
-use crate::recovery::{Recovery, STABLE_RUN_US};
 use crate::reply::Reply;
+use crate::run_state::RunState;
 use crate::timing::Clock;
 use embedded_hal::delay::DelayNs;
 use protocol::{ErrorCode, SampleBatch, SensorInfo, Status};
@@ -32,25 +32,13 @@ pub trait Outlet {
 /// One sensor and its run (module documentation).
 pub struct SensorStream<S: SensorChip> {
     dev: S,
-    /// The sensor's number in the board's list.
-    number: u8,
     address: u8,
     /// What the identity register answered last (0: never answered).
     id: u8,
     settings: S::Settings,
     /// The sensor holds `settings`, awake, buffer selected.
     ready: bool,
-    run: Option<Acquisition>,
-    /// A run that ended with a fault and is being brought back.
-    recovery: Option<Recovery>,
-    /// The last recovery and when its run resumed, until the run has been stable for
-    /// [`STABLE_RUN_US`].
-    resumed: Option<(Recovery, u64)>,
-    /// When the streaming sensor's configuration is next read back.
-    next_health_us: u64,
-    /// This sensor's share of the board's counters (samples, losses, overflows, drops,
-    /// recoveries, certainty, the last run's period).
-    counters: Status,
+    state: RunState,
 }
 
 impl<S: SensorChip> SensorStream<S> {
@@ -58,19 +46,11 @@ impl<S: SensorChip> SensorStream<S> {
     pub fn new(dev: S, number: u8, address: u8, id: u8) -> Self {
         SensorStream {
             dev,
-            number,
             address,
             id,
             settings: S::Settings::default(),
             ready: false,
-            run: None,
-            recovery: None,
-            resumed: None,
-            next_health_us: 0,
-            counters: Status {
-                loss_certain: true,
-                ..Status::default()
-            },
+            state: RunState::new(number),
         }
     }
 
@@ -84,7 +64,7 @@ impl<S: SensorChip> SensorStream<S> {
     }
 
     pub fn number(&self) -> u8 {
-        self.number
+        self.state.number
     }
 
     pub fn settings(&self) -> S::Settings {
@@ -97,20 +77,12 @@ impl<S: SensorChip> SensorStream<S> {
 
     /// Streaming as the host sees it: a run, or a run being recovered.
     pub fn streaming(&self) -> bool {
-        self.run.is_some() || self.recovery.is_some()
+        self.state.streaming()
     }
 
     /// This sensor's counters; the board sums them ([`crate::control`]).
     pub fn counters(&self) -> Status {
-        Status {
-            i2c_errors: self.dev.i2c_errors(),
-            sample_period_ns: match (&self.run, &self.recovery) {
-                (Some(run), _) => run.grid().period_ns(),
-                (None, Some(r)) => r.timeline.period_ns(),
-                (None, None) => self.counters.sample_period_ns,
-            },
-            ..self.counters
-        }
+        self.state.counters(self.dev.i2c_errors())
     }
 
     /// Power-up: reset, then the default settings.
@@ -129,7 +101,6 @@ impl<S: SensorChip> SensorStream<S> {
 
     /// Start a run numbered from 0.
     pub fn start(&mut self, clock: &mut impl Clock) -> Result<(), ErrorCode> {
-        self.resumed = None;
         if !self.ready {
             self.probe()?;
             self.set_up(self.settings)?;
@@ -137,28 +108,26 @@ impl<S: SensorChip> SensorStream<S> {
         self.dev.check_awake()?;
         let period = S::period_us(&self.settings)?;
         let run = Acquisition::start(&mut self.dev, clock, period, None)?;
-        self.run = Some(run);
-        self.next_health_us = clock.now_us().saturating_add(HEALTH_INTERVAL_US);
+        self.state.started(run, clock.now_us());
         Ok(())
     }
 
     /// Drain if due, check health if due, attempt a recovery if due.
     pub fn poll(&mut self, clock: &mut impl Clock, outlet: &mut dyn Outlet) {
         let now = clock.now_us();
-        if self.run.as_ref().is_some_and(|run| run.due(now))
+        if self.state.run.as_ref().is_some_and(|run| run.due(now))
             && let Err(error) = self.drain(clock, outlet)
         {
-            self.fault(error, clock, outlet);
+            self.fault(error, clock.now_us(), outlet);
         }
-        if self.run.is_some() && now >= self.next_health_us {
-            self.next_health_us = now.saturating_add(HEALTH_INTERVAL_US);
-            // A read that fails is the drains' business (they end the run if it persists).
-            if self.dev.check_streaming(&self.settings) == Err(ErrorCode::SensorReset) {
-                self.fault(ErrorCode::SensorReset, clock, outlet);
-            }
+        // A read that fails is the drains' business (they end the run if it persists).
+        if self.state.health_due(now)
+            && self.dev.check_streaming(&self.settings) == Err(ErrorCode::SensorReset)
+        {
+            self.fault(ErrorCode::SensorReset, clock.now_us(), outlet);
         }
-        if self.recovery.as_ref().is_some_and(|r| r.due(now)) {
-            self.attempt_recovery(clock, outlet);
+        if let Some(recovery) = self.state.take_due_recovery(now) {
+            self.attempt_recovery(recovery, clock, outlet);
         }
     }
 
@@ -169,46 +138,41 @@ impl<S: SensorChip> SensorStream<S> {
         clock: &mut impl Clock,
         outlet: &mut dyn Outlet,
     ) -> Result<(), ErrorCode> {
-        if let Some(recovery) = self.recovery.take() {
-            self.count_loss(&recovery.timeline, clock.now_us(), None);
+        if self.state.end_recovery(clock.now_us()) {
             // Best effort: the sensor is the problem.
             let _ = self.dev.stop();
             return Ok(());
         }
-        if self.run.is_none() {
+        if self.state.run.is_none() {
             return Ok(());
         }
         if let Err(error) = self.drain(clock, outlet) {
             outlet.reply(Reply::Fault {
-                sensor: self.number,
+                sensor: self.state.number,
                 error,
             });
         }
-        if let Some(run) = self.run.take() {
-            self.counters.sample_period_ns = run.grid().period_ns();
-        }
+        self.state.end_run();
         self.dev.stop()
     }
 
     /// The host left: stop as a Stop would, without a last drain.
     pub fn host_left(&mut self, clock: &mut impl Clock) {
-        if let Some(recovery) = self.recovery.take() {
-            self.count_loss(&recovery.timeline, clock.now_us(), None);
-        }
-        if self.run.take().is_some() {
+        self.state.end_recovery(clock.now_us());
+        if self.state.end_run() {
             // Best effort: a failure shows at the next Start.
             let _ = self.dev.stop();
         }
-        self.resumed = None;
     }
 
     /// One drain; batches the link refuses are dropped and counted.
     fn drain(&mut self, clock: &mut impl Clock, outlet: &mut dyn Outlet) -> Result<(), ErrorCode> {
-        let Some(run) = self.run.as_mut() else {
+        let state = &mut self.state;
+        let Some(run) = state.run.as_mut() else {
             return Ok(());
         };
         let (mut batches_dropped, mut samples_dropped) = (0u32, 0u64);
-        let number = self.number;
+        let number = state.number;
         let mut deliver = |batch: SampleBatch| {
             let len = batch.samples.len() as u64;
             if !outlet.samples(number, batch) {
@@ -216,43 +180,27 @@ impl<S: SensorChip> SensorStream<S> {
                 samples_dropped += len;
             }
         };
-        let result = run.drain(&mut self.dev, clock, &mut self.counters, &mut deliver);
-        let c = &mut self.counters;
-        c.batches_dropped = c.batches_dropped.saturating_add(batches_dropped);
-        c.samples_dropped = c.samples_dropped.saturating_add(samples_dropped);
+        let result = run.drain(&mut self.dev, clock, &mut state.counters, &mut deliver);
+        state.dropped(batches_dropped, samples_dropped);
         result.map(|_| ())
     }
 
     /// The run ended with `error`: report it and start bringing the sensor back.
-    fn fault(&mut self, error: ErrorCode, clock: &mut impl Clock, outlet: &mut dyn Outlet) {
-        let now = clock.now_us();
-        let Some(run) = self.run.take() else {
-            return;
-        };
-        self.counters.sample_period_ns = run.grid().period_ns();
-        self.ready = false;
-        let relapse = self.resumed.take().filter(|(episode, at)| {
-            now.saturating_sub(*at) < STABLE_RUN_US && episode.last_error == error
-        });
-        self.recovery = Some(match relapse {
-            Some((episode, _)) => episode.relapse(run.timeline(), error, now),
-            None => {
-                outlet.reply(Reply::Fault {
-                    sensor: self.number,
-                    error,
-                });
-                Recovery::new(run.timeline(), error, now)
-            }
-        });
+    fn fault(&mut self, error: ErrorCode, now_us: u64, outlet: &mut dyn Outlet) {
+        if self.state.fault(error, now_us, outlet) {
+            self.ready = false;
+        }
     }
 
     /// One recovery attempt: clear the bus, probe, set up, restart the buffer's numbering
     /// from where the old run's grid says the sensor is. A failure waits for the next
     /// attempt or, after [`protocol::GAVE_UP_AFTER_S`], stops this sensor's stream.
-    fn attempt_recovery(&mut self, clock: &mut impl Clock, outlet: &mut dyn Outlet) {
-        let Some(mut recovery) = self.recovery.take() else {
-            return;
-        };
+    fn attempt_recovery(
+        &mut self,
+        mut recovery: crate::recovery::Recovery,
+        clock: &mut impl Clock,
+        outlet: &mut dyn Outlet,
+    ) {
         recovery.attempts = recovery.attempts.saturating_add(1);
         self.dev.clear_bus();
         let settings = self.settings;
@@ -269,46 +217,13 @@ impl<S: SensorChip> SensorStream<S> {
             });
         let now = clock.now_us();
         match started {
-            Ok(run) => {
-                self.count_loss(&recovery.timeline, now, Some(run.next_index()));
-                self.counters.loss_certain &= run.resume_certain();
-                outlet.reply(Reply::Recovered {
-                    sensor: self.number,
-                    attempts: recovery.attempts,
-                    resumed_at_index: run.next_index(),
-                });
-                self.counters.recoveries = self.counters.recoveries.saturating_add(1);
-                self.next_health_us = now.saturating_add(HEALTH_INTERVAL_US);
-                self.run = Some(run);
-                self.resumed = Some((recovery, now));
-            }
+            Ok(run) => self.state.resumed(recovery, run, now, outlet),
             Err(error) => {
-                if recovery.failed(error, now) {
-                    self.recovery = Some(recovery);
-                    return;
+                if !self.state.attempt_failed(recovery, error, now, outlet) {
+                    let _ = self.dev.stop();
                 }
-                self.count_loss(&recovery.timeline, now, None);
-                let _ = self.dev.stop();
-                outlet.reply(Reply::Fault {
-                    sensor: self.number,
-                    error: ErrorCode::GaveUp {
-                        attempts: recovery.attempts,
-                        last: error.into(),
-                        ended_at: recovery.timeline.index_at(now).0,
-                    },
-                });
             }
         }
-    }
-
-    /// Count as lost every sample between the ended run's last delivered one and `now_us`
-    /// (or `resumed_at`, the index a resumed run starts at).
-    fn count_loss(&mut self, timeline: &Timeline, now_us: u64, resumed_at: Option<u64>) {
-        let (at_now, certain) = timeline.index_at(now_us);
-        let until = resumed_at.unwrap_or(at_now);
-        let lost = until.saturating_sub(timeline.next_index());
-        self.counters.samples_lost = self.counters.samples_lost.saturating_add(lost);
-        self.counters.loss_certain &= certain || lost == 0;
     }
 
     /// Read the identity register; an answer that names another chip is kept for Info.
