@@ -174,6 +174,24 @@ impl Acquisition {
         resume: Option<Resume>,
     ) -> Result<Self, ErrorCode> {
         let (before, after) = dev.restart_timed(|| clock.now_us())?;
+        Ok(Self::restarted(
+            before,
+            after,
+            dev.capacity_samples(),
+            period_us,
+            resume,
+        ))
+    }
+
+    /// The run whose buffer (of `capacity` samples) restarted between `before` and `after`;
+    /// apart from [`Acquisition::start`] so that the image holds it once for every sensor.
+    fn restarted(
+        before: u64,
+        after: u64,
+        capacity: usize,
+        period_us: u32,
+        resume: Option<Resume>,
+    ) -> Self {
         let (grid, base, resume_certain) = match resume {
             Some(r) => {
                 let (first, certain) = r.timeline.index_between(before, after);
@@ -183,11 +201,11 @@ impl Acquisition {
             }
             None => (SampleGrid::new(before, after, period_us), 0, true),
         };
-        Ok(Acquisition {
+        Acquisition {
             grid,
             base,
             resume_certain,
-            capacity: dev.capacity_samples(),
+            capacity,
             period_us,
             next_index: base,
             produced: base,
@@ -198,7 +216,7 @@ impl Acquisition {
             reset_owed: false,
             failing_since_us: None,
             buf: [0; MAX_DRAIN_BYTES],
-        })
+        }
     }
 
     /// Time between drains: 24 sample periods, at most 20 ms, and at most half of what the

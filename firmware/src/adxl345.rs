@@ -47,13 +47,13 @@ impl<I2C: I2c> Adxl345<I2C> {
         self.regs.i2c_mut()
     }
 
-    /// DEVID, checked: [`ErrorCode::WrongSensor`] unless it reads 0xE5.
-    pub fn probe(&mut self) -> Result<(), ErrorCode> {
+    /// DEVID, checked: the value, or [`ErrorCode::WrongSensor`] unless it reads 0xE5.
+    pub fn probe(&mut self) -> Result<u8, ErrorCode> {
         let devid = self.regs.read_reg(reg::DEVID)?;
         if devid != DEVID_VALUE {
             return Err(ErrorCode::WrongSensor { who_am_i: devid });
         }
-        Ok(())
+        Ok(devid)
     }
 
     /// Standby, then BW_RATE, DATA_FORMAT (full resolution) and the FIFO in stream mode,
@@ -89,6 +89,11 @@ impl<I2C: I2c> Adxl345<I2C> {
             return Err(ErrorCode::SensorReset);
         }
         Ok(())
+    }
+
+    /// The FIFO in bypass mode: emptied, keeping nothing until stream mode again.
+    pub fn stop_fifo(&mut self) -> Result<(), ErrorCode> {
+        self.regs.write_verified(reg::FIFO_CTL, 0)
     }
 
     fn entries(&mut self) -> Result<u8, ErrorCode> {

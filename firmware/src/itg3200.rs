@@ -61,14 +61,14 @@ impl<I2C: I2c> Itg3200<I2C> {
         self.regs.i2c_mut()
     }
 
-    /// WHO_AM_I (register 0), checked: [`ErrorCode::WrongSensor`] unless bits 6:1 name an
-    /// ITG-3200.
-    pub fn probe(&mut self) -> Result<(), ErrorCode> {
+    /// WHO_AM_I (register 0), checked: the value, or [`ErrorCode::WrongSensor`] unless bits
+    /// 6:1 name an ITG-3200.
+    pub fn probe(&mut self) -> Result<u8, ErrorCode> {
         let who_am_i = self.regs.read_reg(reg::WHO_AM_I)?;
         if !is_itg3200(who_am_i) {
             return Err(ErrorCode::WrongSensor { who_am_i });
         }
-        Ok(())
+        Ok(who_am_i)
     }
 
     /// H_RESET: every register at its power-on value.

@@ -11,12 +11,17 @@
 
 pub mod acquire;
 pub mod adxl345;
+pub mod chip;
 pub mod control;
 pub mod driver;
 pub mod itg3200;
 pub mod recovery;
 pub mod registers;
+pub mod reply;
+pub mod run_state;
 pub mod sensor;
+pub mod slot;
+pub mod stream;
 pub mod timing;
 
 pub use control::{BoardConfig, Firmware};

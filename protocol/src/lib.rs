@@ -440,23 +440,28 @@ impl RawSample {
 }
 
 /// Cumulative counters since the board powered up (they never reset, so the host can take
-/// differences between any two reports). The fields version 3 appended default when missing
-/// from a self-describing format (a stored JSON copy of a version-2 Status).
+/// differences between any two reports). On a board with several sensors the sample, loss,
+/// overflow, I2C, drop and recovery counters are the sums over its sensors, `loss_certain`
+/// holds only if it holds for every sensor, and `sample_period_ns` is sensor 0's. The fields
+/// version 3 appended default when missing from a self-describing format (a stored JSON copy
+/// of a version-2 Status).
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Status {
     pub streaming: bool,
     /// Board clock, microseconds since boot.
     pub uptime_us: u64,
-    /// Samples read from the FIFO and put into batches.
+    /// Samples read from the sensors' buffers and put into batches, all sensors together.
     pub samples_acquired: u64,
-    /// Times the sensor's 1024-byte FIFO overflowed (and was reset).
+    /// Times a sensor's FIFO overflowed (and was reset), all sensors together.
     pub fifo_overflows: u32,
-    /// Samples the sensor produced that never reached a batch (FIFO overflows, sensor
-    /// faults), counted from elapsed time and the output rate.
+    /// Samples the sensors produced that never reached a batch (FIFO overflows, sensor
+    /// faults), counted from elapsed time and each sensor's output rate, all together.
     pub samples_lost: u64,
-    /// I2C transactions that failed (each retry that fails counts).
+    /// I2C transactions that failed (each retry that fails counts), all sensors' drivers
+    /// together; a probe of an empty address is not counted.
     pub i2c_errors: u32,
-    /// Batches discarded because the USB link could not take them (back-pressure)...
+    /// Batches discarded because the USB link could not take them (back-pressure), all
+    /// sensors together...
     pub batches_dropped: u32,
     /// ...and the samples they held.
     pub samples_dropped: u64,
@@ -466,16 +471,16 @@ pub struct Status {
     /// was full: a host that sends commands without reading.
     #[serde(default)]
     pub replies_dropped: u32,
-    /// Faults the board recovered from while streaming.
+    /// Faults the board recovered from while streaming, all sensors together.
     #[serde(default)]
     pub recoveries: u32,
-    /// Whether every loss counted so far is exact: a loss is measured on the sensor's
-    /// sample grid, which is certain unless a gap was long and the sensor's clock not yet
-    /// measured (see the firmware's timing module).
+    /// Whether every loss counted so far is exact, on every sensor: a loss is measured on
+    /// the sensor's sample grid, which is certain unless a gap was long and the sensor's
+    /// clock not yet measured (see the firmware's timing module).
     #[serde(default)]
     pub loss_certain: bool,
-    /// The sensor's sample period as measured on the board's clock during the current or
-    /// last run, nanoseconds (0: not measured yet).
+    /// Sensor 0's sample period as measured on the board's clock during the current or last
+    /// run, nanoseconds (0: not measured yet).
     #[serde(default)]
     pub sample_period_ns: u32,
 }

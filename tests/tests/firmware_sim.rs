@@ -6,8 +6,8 @@ use embedded_hal::i2c::I2c;
 use firmware::acquire::FIFO_SAMPLES;
 use firmware::{BoardConfig, Firmware};
 use imunoise::link::accounting::SampleAccounting;
-use imunoise::link::virtual_board::SharedSensor;
-use imunoise::sim::device::{SimChip, SimMpu6050};
+use imunoise::link::shared_bus::SharedBus;
+use imunoise::sim::device::{BusChip, SimBus, SimChip, SimMpu6050};
 use imunoise::sim::imu::ImuModel;
 use imunoise::sim::noise::NoiseTerms;
 use protocol::frame::{FrameDecoder, MAX_WIRE_LEN, encode};
@@ -39,8 +39,8 @@ fn model() -> ImuModel {
 
 /// A board: firmware + simulated sensor + the host's decoder.
 struct Board {
-    sim: SharedSensor,
-    fw: Firmware<SharedSensor, SharedSensor>,
+    sim: SharedBus,
+    fw: Firmware<SharedBus, SharedBus>,
     decoder: FrameDecoder,
     seq: u16,
     /// The link takes frames only while this is true (back-pressure when false).
@@ -53,12 +53,12 @@ struct Board {
 
 impl Board {
     fn new(seed: u64) -> Self {
-        let sim = SharedSensor::new(SimMpu6050::new(model(), seed));
+        let chip = BusChip::Mpu6050(SimMpu6050::new(model(), seed));
+        let sim = SharedBus::new(SimBus::new(vec![chip]));
         let mut fw = Firmware::new(
             sim.clone(),
             sim.clone(),
             BoardConfig {
-                address: DEFAULT_ADDRESS,
                 board_id: 0xB0A4D,
                 reset_reason: protocol::ResetReason::Unknown,
             },
@@ -76,8 +76,8 @@ impl Board {
         }
     }
 
-    fn sim(&self) -> std::sync::MutexGuard<'_, SimMpu6050> {
-        self.sim.lock()
+    fn sim(&self) -> Mpu<'_> {
+        Mpu(self.sim.lock())
     }
 
     fn receive(&mut self, bytes: &[u8]) {
@@ -135,7 +135,7 @@ impl Board {
 
     /// Move time to `t_us` and poll once.
     fn poll_at(&mut self, t_us: u64) {
-        self.sim().set_time_us(t_us);
+        self.sim.lock().set_time_us(t_us);
         let mut wire = Vec::new();
         let open = self.link_open;
         self.fw.poll(&mut |f| {
@@ -159,6 +159,22 @@ impl Board {
     }
 }
 
+/// The board's MPU-6050, locked on its bus.
+struct Mpu<'a>(std::sync::MutexGuard<'a, SimBus>);
+
+impl std::ops::Deref for Mpu<'_> {
+    type Target = SimMpu6050;
+    fn deref(&self) -> &SimMpu6050 {
+        self.0.mpu6050().expect("the board has an MPU-6050")
+    }
+}
+
+impl std::ops::DerefMut for Mpu<'_> {
+    fn deref_mut(&mut self) -> &mut SimMpu6050 {
+        self.0.mpu6050_mut().expect("the board has an MPU-6050")
+    }
+}
+
 /// What the sensor produced, read straight from a clone of it taken at Start (same state,
 /// same noise): drained every millisecond, so it never overflows.
 struct Oracle {
@@ -169,7 +185,7 @@ struct Oracle {
 impl Oracle {
     fn at_start(board: &Board) -> Self {
         Oracle {
-            sim: board.sim.lock().clone(),
+            sim: SimMpu6050::clone(&board.sim()),
             samples: Vec::new(),
         }
     }

@@ -12,8 +12,7 @@ use firmware::sensor::Sensor;
 use imunoise::sim::device::{
     JournalEntry, Outage, SampledChip, SensorClock, SimAdxl345, SimChip, SimI2cError, SimItg3200,
 };
-use imunoise::sim::imu::ImuModel;
-use imunoise::sim::noise::NoiseTerms;
+use imunoise_tests::models::gy85_model as model;
 use protocol::adxl345::Adxl345Settings;
 use protocol::itg3200::Itg3200Settings;
 use protocol::{ErrorCode, RawSample, SampleBatch, Status};
@@ -46,19 +45,6 @@ impl<T: SimChip> Clock for Shared<T> {
     fn now_us(&mut self) -> u64 {
         self.0.borrow().time_us()
     }
-}
-
-fn model() -> ImuModel {
-    let mut m = ImuModel::default();
-    m.gyro.noise = NoiseTerms {
-        n: 5e-3,
-        ..Default::default()
-    };
-    m.accel.noise = NoiseTerms {
-        n: 5e-2,
-        ..Default::default()
-    };
-    m
 }
 
 /// What a run delivered, by index, and its status.

@@ -1,7 +1,9 @@
 //! I2C0 on GPIO4 (SDA) / GPIO5 (SCL) with the bus clear the portable firmware asks for after
 //! a fault ([`firmware::BusClear`]): the peripheral is released, SCL driven by hand for up
 //! to nine clocks until the sensor lets SDA go, a STOP sent, and the peripheral set up again.
+//! The sensors' drivers share it through [`Shared`] handles.
 
+use core::cell::RefCell;
 use embedded_hal::delay::DelayNs;
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal::i2c::{ErrorType, I2c, Operation};
@@ -105,6 +107,45 @@ impl<D> I2c for Bus<D> {
             Some(i2c) => i2c.transaction(address, operations),
             // Unreachable outside `clear_bus`; an abort is what a missing bus looks like.
             None => Err(hal::i2c::Error::Abort(0)),
+        }
+    }
+}
+
+/// The one bus shared by every sensor's driver: each holds a copy of this handle. The board
+/// is single-threaded and no transaction calls another, so a borrow never meets another;
+/// if one did, the transaction fails as an aborted one (an I2C error the firmware counts and
+/// retries), never a panic.
+pub struct Shared<'a, D>(pub &'a RefCell<Bus<D>>);
+
+impl<D> Clone for Shared<'_, D> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<D> Copy for Shared<'_, D> {}
+
+impl<D> ErrorType for Shared<'_, D> {
+    type Error = hal::i2c::Error;
+}
+
+impl<D> I2c for Shared<'_, D> {
+    fn transaction(
+        &mut self,
+        address: u8,
+        operations: &mut [Operation<'_>],
+    ) -> Result<(), Self::Error> {
+        match self.0.try_borrow_mut() {
+            Ok(mut bus) => bus.transaction(address, operations),
+            Err(_) => Err(hal::i2c::Error::Abort(0)),
+        }
+    }
+}
+
+impl<D: DelayNs> firmware::BusClear for Shared<'_, D> {
+    fn clear_bus(&mut self) {
+        if let Ok(mut bus) = self.0.try_borrow_mut() {
+            bus.clear_bus();
         }
     }
 }

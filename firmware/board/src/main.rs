@@ -1,9 +1,10 @@
-//! imunoise board firmware: RP2040 + MPU-6050.
+//! imunoise board firmware: RP2040 + MPU-6050, or RP2040 + GY-85 (ITG-3200 and ADXL345).
 //!
-//! Wiring (3.3 V logic): MPU-6050 SDA -> GPIO4 (I2C0 SDA), SCL -> GPIO5 (I2C0 SCL), VCC ->
-//! 3V3, GND -> GND, AD0 -> GND (address 0x68). The internal pull-ups are enabled, but most
-//! MPU-6050 breakouts carry their own 4.7-10 kOhm pull-ups, which 400 kHz needs. INT is not
-//! used (the FIFO is polled on the timer). LED: GPIO25 (the Pico's).
+//! Wiring (3.3 V logic): the sensor board's SDA -> GPIO4 (I2C0 SDA), SCL -> GPIO5 (I2C0
+//! SCL), VCC -> 3V3, GND -> GND; an MPU-6050's AD0 -> GND (address 0x68). The firmware
+//! probes the bus for what is there (`firmware::slot`). The internal pull-ups are enabled,
+//! but most breakouts carry their own 4.7-10 kOhm pull-ups, which 400 kHz needs. INT is not
+//! used (the sensors are polled on the timer). LED: GPIO25 (the Pico's).
 //!
 //! Everything the board does is in the portable `firmware` crate; this file only wires the
 //! RP2040 to it: clocks, I2C0 at 400 kHz, the microsecond timer as clock, USB CDC as the
@@ -17,6 +18,7 @@ mod flash;
 mod link;
 mod log;
 
+use core::cell::RefCell;
 use defmt_rtt as _;
 use panic_probe as _;
 
@@ -135,18 +137,25 @@ fn main() -> ! {
     // may hold SDA low: free the bus before the first transaction.
     let mut i2c = i2c;
     firmware::BusClear::clear_bus(&mut i2c);
+    let i2c = RefCell::new(i2c);
     let mut fw = Firmware::new(
-        i2c,
+        bus::Shared(&i2c),
         BoardClock(timer),
         BoardConfig {
-            address: protocol::mpu6050::DEFAULT_ADDRESS,
             board_id,
             reset_reason,
         },
     );
     match fw.init(&mut timer) {
-        Ok(()) => defmt::info!("MPU-6050 ready"),
-        Err(e) => defmt::warn!("MPU-6050 not ready: {}", defmt::Display2Format(&e)),
+        Ok(()) => defmt::info!("sensors ready"),
+        Err(e) => defmt::warn!("sensors not ready: {}", defmt::Display2Format(&e)),
+    }
+    for sensor in fw.sensors().iter() {
+        defmt::info!(
+            "sensor {} at {=u8:#x}",
+            sensor.kind.name(),
+            sensor.address
+        );
     }
 
     // From here the main loop must turn at least once a second, or the chip restarts (and

@@ -9,7 +9,7 @@ use super::gravity::STANDARD;
 use super::still::{Motion, TooShortToJudge, find_motion};
 use crate::capture::{CaptureError, StreamDecoder};
 use crate::link::board::{Board as BoardLink, BoardError};
-use crate::link::virtual_board::SharedSensor;
+use crate::link::shared_bus::SharedBus;
 use crate::link::{Link, Opened, start_board};
 use crate::record::Record;
 use crate::recorder::{self, Progress, RecordError, RecordOptions};
@@ -124,7 +124,7 @@ pub enum RigError {
 pub struct Rig<O: Operator> {
     link: Box<dyn Link>,
     /// The virtual board's sensor, turned by script; None for a real board.
-    sensor: Option<SharedSensor>,
+    sensor: Option<SharedBus>,
     settings: SensorSettings,
     /// The board and its settings, as the first capture's Info announced them.
     pub board: Option<Board>,

@@ -10,6 +10,7 @@ pub mod keepalive;
 pub mod replay;
 pub mod serial;
 pub mod setup;
+pub mod shared_bus;
 pub mod transport;
 pub mod virtual_board;
 

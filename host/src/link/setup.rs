@@ -6,7 +6,8 @@ use super::Link;
 use super::board::{Board, BoardError};
 use super::replay::Speed;
 use super::serial::{SerialError, SerialLink};
-use super::virtual_board::{SharedSensor, VirtualBoard};
+use super::shared_bus::SharedBus;
+use super::virtual_board::VirtualBoard;
 use crate::sim::model_file::{self, FaultPlan, ModelFile, ModelFileError};
 use firmware::acquire::MAX_RATE_HZ;
 use protocol::mpu6050::Hz;
@@ -50,7 +51,7 @@ pub enum OpenError {
 pub struct Opened {
     pub link: Box<dyn Link>,
     /// The virtual board's sensor (to turn it by script); None for a serial port.
-    pub sensor: Option<SharedSensor>,
+    pub sensor: Option<SharedBus>,
     /// Why the virtual board's sensor did not start: the firmware goes on, as a board does,
     /// and reports the error on Start.
     pub boot_error: Option<ErrorCode>,

@@ -1,10 +1,12 @@
 //! The virtual board: the firmware's portable code (`firmware::Firmware`, the very code the
-//! RP2040 runs) driving the simulated MPU-6050 (`sim::device`) in-process, emitting the bytes
-//! a real board would send over USB. Time is the simulated sensor's clock, which is also the
-//! firmware's clock; it advances with the wall clock times a speed factor, or as fast as the
-//! host reads (`Speed::Max`).
+//! RP2040 runs) driving simulated chips (`sim::device`) on a simulated I2C bus
+//! ([`SharedBus`]) in-process, emitting the bytes a real board would send over USB: an
+//! MPU-6050 alone ([`VirtualBoard::new`]) or a GY-85's ITG-3200 and ADXL345
+//! ([`VirtualBoard::gy85`]). Time is the bus's clock, which is also the firmware's clock; it
+//! advances with the wall clock times a speed factor, or as fast as the host reads
+//! (`Speed::Max`).
 //!
-//! Faults ([`VirtualBoard::with_faults`], the model file's `[faults]` table): the sensor's
+//! Faults ([`VirtualBoard::with_faults`], the model file's `[faults]` table): the sensors'
 //! own ([`crate::sim::device::Faults`]: its sample clock's offset and drift, I2C outages,
 //! sensor resets, a clone's WHO_AM_I) and board reboots (watchdog, brown-out) at listed
 //! times. A reboot replaces the firmware with a freshly started one (as at power-up: `init`
@@ -14,61 +16,19 @@
 //! start-up is not fatal, as on the board: the firmware logs it ([`VirtualBoard::boot_error`])
 //! and reports it on the next Configure or Start.
 
-use crate::sim::device::{RegisterChip, SimChip, SimI2cError, SimMpu6050};
+use super::shared_bus::SharedBus;
+use crate::sim::device::{BusChip, SimAdxl345, SimBus, SimItg3200, SimMpu6050};
 use crate::sim::imu::ImuModel;
 use crate::sim::model_file::FaultPlan;
-use embedded_hal::i2c::{ErrorType, I2c, Operation};
-use firmware::{BoardConfig, Clock, Firmware};
+use firmware::{BoardConfig, Firmware};
 use protocol::ErrorCode;
-use protocol::mpu6050::DEFAULT_ADDRESS;
 use std::collections::VecDeque;
-use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 pub use super::transport::Speed;
 
-/// The simulated sensor shared by the firmware (as its I2C bus and its clock) and the board
-/// (which moves time).
-#[derive(Clone)]
-pub struct SharedSensor(Arc<Mutex<SimMpu6050>>);
-
-impl SharedSensor {
-    pub fn new(sensor: SimMpu6050) -> Self {
-        SharedSensor(Arc::new(Mutex::new(sensor)))
-    }
-
-    /// The sensor; a poisoned lock (a panic elsewhere) still yields it, since its state is
-    /// plain registers and FIFO bytes.
-    pub fn lock(&self) -> MutexGuard<'_, SimMpu6050> {
-        self.0
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner())
-    }
-}
-
-impl ErrorType for SharedSensor {
-    type Error = SimI2cError;
-}
-
-impl I2c for SharedSensor {
-    fn transaction(&mut self, address: u8, ops: &mut [Operation<'_>]) -> Result<(), SimI2cError> {
-        self.lock().transaction(address, ops)
-    }
-}
-
-/// The simulated device has no pins to hold low: clearing the bus ends any transaction it is
-/// in, which is what nine clocks and a STOP do to a real one.
-impl firmware::BusClear for SharedSensor {
-    fn clear_bus(&mut self) {
-        self.lock().bus_stop();
-    }
-}
-
-impl Clock for SharedSensor {
-    fn now_us(&mut self) -> u64 {
-        self.lock().time_us()
-    }
-}
+/// How the ADXL345's seed follows from the board's: the two chips draw their own noise.
+const ACCEL_SEED: u64 = 0xAD_1345;
 
 struct NoDelay;
 impl embedded_hal::delay::DelayNs for NoDelay {
@@ -83,10 +43,10 @@ const STEP: Duration = Duration::from_millis(5);
 /// firmware then drops and counts batches, as on a real board whose host stops reading).
 pub const LINK_BUFFER: usize = 1 << 20;
 
-/// The firmware on the simulated sensor.
+/// The firmware on the simulated bus.
 pub struct VirtualBoard {
-    sensor: SharedSensor,
-    firmware: Firmware<SharedSensor, SharedSensor>,
+    sensor: SharedBus,
+    firmware: Firmware<SharedBus, SharedBus>,
     board_id: u64,
     /// What the last start-up's `init` returned.
     boot_result: Result<(), ErrorCode>,
@@ -120,7 +80,40 @@ impl VirtualBoard {
     ) -> Self {
         let mut sim = SimMpu6050::new(model, seed);
         faults.apply_to_sensor(&mut sim);
-        let sensor = SharedSensor::new(sim);
+        Self::on_bus(
+            SimBus::new(vec![BusChip::Mpu6050(sim)]),
+            board_id,
+            speed,
+            faults,
+        )
+    }
+
+    /// A GY-85 board: an ITG-3200 at 0x68 following `model`'s `[gyro]` (and temperature)
+    /// and an ADXL345 at 0x53 following its `[accel]`, each with its own noise from `seed`.
+    /// `faults` reach both chips (clock, I2C outages and resets; a WHO_AM_I only the
+    /// ITG-3200's) and the board.
+    pub fn gy85(
+        model: ImuModel,
+        seed: u64,
+        board_id: u64,
+        speed: Speed,
+        faults: &FaultPlan,
+    ) -> Self {
+        let mut gyro = SimItg3200::new(model, seed);
+        let mut accel = SimAdxl345::new(model, seed ^ ACCEL_SEED);
+        faults.apply_to_sensor(&mut gyro);
+        let accel_faults = FaultPlan {
+            who_am_i: None,
+            ..faults.clone()
+        };
+        accel_faults.apply_to_sensor(&mut accel);
+        let bus = SimBus::new(vec![BusChip::Itg3200(gyro), BusChip::Adxl345(accel)]);
+        Self::on_bus(bus, board_id, speed, faults)
+    }
+
+    /// The firmware started on `bus`, with the board's reboots from `faults`.
+    fn on_bus(bus: SimBus, board_id: u64, speed: Speed, faults: &FaultPlan) -> Self {
+        let sensor = SharedBus::new(bus);
         let (firmware, boot_result) = boot(&sensor, board_id);
         let emulated_origin_us = sensor.lock().time_us();
         let mut board = VirtualBoard {
@@ -163,8 +156,8 @@ impl VirtualBoard {
         self.firmware.streaming()
     }
 
-    /// The simulated sensor, to inject faults or read its state.
-    pub fn sensor(&self) -> &SharedSensor {
+    /// The simulated bus and its chips, to inject faults or read their state.
+    pub fn sensor(&self) -> &SharedBus {
         &self.sensor
     }
 
@@ -265,14 +258,13 @@ impl VirtualBoard {
 /// The firmware as the board starts it: constructed, then `init`, whose error the board
 /// logs and goes on.
 fn boot(
-    sensor: &SharedSensor,
+    sensor: &SharedBus,
     board_id: u64,
-) -> (Firmware<SharedSensor, SharedSensor>, Result<(), ErrorCode>) {
+) -> (Firmware<SharedBus, SharedBus>, Result<(), ErrorCode>) {
     let mut firmware = Firmware::new(
         sensor.clone(),
         sensor.clone(),
         BoardConfig {
-            address: DEFAULT_ADDRESS,
             board_id,
             reset_reason: protocol::ResetReason::Unknown,
         },
@@ -313,6 +305,7 @@ fn push_frame(outbox: &mut VecDeque<u8>, frame: &[u8]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::device::SimChip;
     use crate::sim::noise::NoiseTerms;
     use protocol::frame::{FrameDecoder, MAX_WIRE_LEN, encode};
     use protocol::{Command, DeviceMessage, Request, SensorSettings};
@@ -433,8 +426,8 @@ mod tests {
         let model = ImuModel::default();
         let mut b = VirtualBoard::with_faults(model, 1, 42, Speed::Max, &plan);
         {
-            let sensor = b.sensor().lock();
-            let faults = sensor.faults();
+            let bus = b.sensor().lock();
+            let faults = bus.mpu6050().unwrap().faults();
             assert_eq!(faults.clock, plan.clock);
             assert_eq!(faults.i2c_outages, plan.i2c_outages);
             assert_eq!(faults.resets_at_us, plan.sensor_resets_us);
@@ -451,6 +444,40 @@ mod tests {
         assert_eq!(b.reboots(), 2);
         b.advance(Duration::from_secs(5));
         assert_eq!(b.reboots(), 2);
+    }
+
+    /// A GY-85 board streams both sensors, each from index 0, and the fault plan reaches
+    /// both chips.
+    #[test]
+    fn a_gy85_board_streams_both_sensors() {
+        let plan = FaultPlan {
+            clock: crate::sim::device::SensorClock {
+                ppm: 100.0,
+                drift_ppm_per_hour: 0.0,
+            },
+            ..FaultPlan::default()
+        };
+        let mut b = VirtualBoard::gy85(ImuModel::default(), 1, 85, Speed::Max, &plan);
+        assert_eq!(b.boot_error(), None);
+        {
+            let mut bus = b.sensor().lock();
+            assert_eq!(bus.itg3200_mut().unwrap().faults().clock, plan.clock);
+            assert_eq!(bus.adxl345_mut().unwrap().faults().clock, plan.clock);
+        }
+        send(&mut b, 1, Command::Start);
+        let msgs = messages(&mut b, 100);
+        assert!(matches!(msgs[0], DeviceMessage::Ack { seq: 1 }));
+        let mut next = [0u64; 2];
+        for m in &msgs[1..] {
+            if let Some((sensor, batch)) = m.sensor_samples() {
+                let next = &mut next[usize::from(sensor)];
+                assert_eq!(batch.first_index, *next, "sensor {sensor}: no gap");
+                *next += batch.samples.len() as u64;
+            }
+        }
+        // Both at their default 100 Hz, in the same emulated time: a read at Max speed ends
+        // after the 5 ms step that made something, so 100 reads cover about a second.
+        assert!(next[0] >= 90 && next[0].abs_diff(next[1]) <= 2, "{next:?}");
     }
 
     /// At a speed factor the board streams what its emulated time made: every sample from

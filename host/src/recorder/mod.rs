@@ -319,7 +319,7 @@ mod tests {
     use super::*;
     use crate::link::board::Board;
     use crate::link::virtual_board::{Speed, VirtualBoard};
-    use crate::sim::device::{Outage, SensorClock, SimChip};
+    use crate::sim::device::{Outage, SensorClock};
     use crate::sim::model_file::{self, FaultPlan};
 
     /// A watched capture of `duration_s` into `store`.

@@ -38,7 +38,7 @@
 //! Unknown keys, keys in the wrong group, negative or non-finite values are errors naming the
 //! file and the field.
 
-use super::device::{Outage, SensorClock, SimChip, SimMpu6050};
+use super::device::{Outage, SensorClock, SimChip};
 use super::imu::{GravityAxis, ImuModel, SensorModel, TemperatureModel};
 use super::noise::{GaussMarkov, NoiseTerms, Sinusoid};
 use super::temperature::{Cycle, TempCoupling, TemperatureProfile, Warmup};
@@ -129,7 +129,7 @@ impl FaultPlan {
 
     /// Set the sensor's share of the plan (everything but board resets) on `sensor`: its
     /// clock and WHO_AM_I are replaced, outages and resets added to those it has.
-    pub fn apply_to_sensor(&self, sensor: &mut SimMpu6050) {
+    pub fn apply_to_sensor(&self, sensor: &mut impl SimChip) {
         let faults = sensor.faults_mut();
         faults.clock = self.clock;
         faults.i2c_outages.extend_from_slice(&self.i2c_outages);
@@ -506,6 +506,7 @@ mod tests {
         assert_eq!(model.gyro.noise.n, 1.5e-4);
     }
     use super::*;
+    use crate::sim::device::SimMpu6050;
 
     fn parse_str(text: &str) -> Result<ImuModel, ModelFileError> {
         parse(text, Path::new("m.toml"))

@@ -6,7 +6,9 @@
 use super::{
     RegisterChip, SampledChip, SimAdxl345, SimI2cError, SimItg3200, SimMpu6050, transaction,
 };
+use crate::sim::imu::TrueInput;
 use embedded_hal::i2c::{ErrorType, I2c, NoAcknowledgeSource, Operation};
+use std::time::Duration;
 
 macro_rules! alone_on_the_bus {
     ($($chip:ty),*) => {$(
@@ -38,6 +40,14 @@ pub enum BusChip {
 
 impl BusChip {
     fn chip(&mut self) -> &mut dyn RegisterChip {
+        match self {
+            BusChip::Mpu6050(c) => c,
+            BusChip::Itg3200(c) => c,
+            BusChip::Adxl345(c) => c,
+        }
+    }
+
+    fn chip_ref(&self) -> &dyn RegisterChip {
         match self {
             BusChip::Mpu6050(c) => c,
             BusChip::Itg3200(c) => c,
@@ -77,6 +87,52 @@ impl SimBus {
         for chip in &mut self.chips {
             chip.advance_to_us(t_us);
         }
+    }
+
+    /// Let `dt` pass on the bus's clock.
+    pub fn advance(&mut self, dt: Duration) {
+        let dt = u64::try_from(dt.as_micros()).unwrap_or(u64::MAX);
+        self.set_time_us(self.time_us.saturating_add(dt));
+    }
+
+    /// End any transaction every chip is in: what nine clocks and a STOP do to real ones.
+    pub fn bus_stop(&mut self) {
+        for chip in &mut self.chips {
+            chip.chip().bus_stop();
+        }
+    }
+
+    /// Samples made so far by all the chips together.
+    pub fn samples_made(&self) -> u64 {
+        self.chips.iter().map(|c| c.chip_ref().samples_made()).sum()
+    }
+
+    /// Device resets so far, all the chips together.
+    pub fn resets(&self) -> u32 {
+        self.chips.iter().map(|c| c.chip_ref().resets()).sum()
+    }
+
+    /// Turn and rotate the board: what its MPU-6050 senses from now on (the GY-85's chips
+    /// stay at rest).
+    pub fn set_input(&mut self, input: Option<TrueInput>) {
+        if let Some(mpu) = self.mpu6050_mut() {
+            mpu.set_input(input);
+        }
+    }
+
+    /// The first MPU-6050 on the bus.
+    pub fn mpu6050(&self) -> Option<&SimMpu6050> {
+        self.chips.iter().find_map(|c| match c {
+            BusChip::Mpu6050(c) => Some(c),
+            _ => None,
+        })
+    }
+
+    pub fn mpu6050_mut(&mut self) -> Option<&mut SimMpu6050> {
+        self.chips.iter_mut().find_map(|c| match c {
+            BusChip::Mpu6050(c) => Some(c),
+            _ => None,
+        })
     }
 
     /// The first ITG-3200 on the bus.
