@@ -157,3 +157,77 @@ fn the_sweep_reproduces_the_settings_studys_finding() {
         "ratio {ratio}"
     );
 }
+
+/// The second paper's board on the virtual board: the firmware finds an ITG-3200 and an
+/// ADXL345 on one simulated bus and streams both; the session keeps every sample of each
+/// (10 minutes at 50 Hz: 30000), and `analyze` of it gives both chips' noise terms as one
+/// record `gx gy gz ax ay az temp`. Expected white noise (`examples/gy85.toml`):
+/// - gyro: the model's N times the DLPF's folding at 50 Hz / 20 Hz
+///   (`experiment::sweep::folding_prediction`), and the ITG-3200's quantization (1/14.375
+///   deg/s per count: `q^2 / 12` per sample, so N_q = q sqrt(tau0 / 12));
+/// - accel: the model's 2.84e-3 m/s^2/sqrt(Hz) at 100 Hz times sqrt(100 / 50) (the ADXL345
+///   has the same noise in LSB rms at 50 Hz as at 100 Hz), on z times 1.1 / 0.75, and the
+///   quantization of 256 counts per g.
+///
+/// Ten minutes give N to about 1 % (68 %); the tolerance is 4 %.
+#[test]
+fn a_gy85_capture_keeps_both_sensors_and_analyses_as_one_record() {
+    use imunoise::experiment::sweep::folding_prediction;
+    use protocol::SensorSettings;
+    let store = TempStore::new();
+    store.ok(&[
+        "capture",
+        "--port",
+        "sim",
+        "--board",
+        "gy85",
+        "--rate",
+        "50",
+        "--bandwidth",
+        "20",
+        "--duration",
+        "10m",
+        "--speed",
+        "max",
+        "--name",
+        "gy85",
+    ]);
+    let list = json(&store.ok(&["sessions", "--json"]));
+    let s = &list[0];
+    assert_eq!(s["counts"]["samples_received"], 2 * 30_000, "{s}");
+    assert_eq!(s["counts"]["samples_lost"], 0);
+    assert_eq!(s["board"]["rate_hz"], 50.0);
+    assert_eq!(s["board"]["gyro_bandwidth_hz"], 20.0);
+    assert_eq!(s["board"]["accel_bandwidth_hz"], 25.0);
+    assert_eq!(s["board"]["gyro_range_dps"], 2000.0);
+    let doc = json(&store.ok(&["analyze", "gy85", "--json", "-"]));
+    assert_eq!(doc["samples"], 30_000);
+    let names: Vec<&str> = doc["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["gx", "gy", "gz", "ax", "ay", "az", "temp"]);
+    let tau0 = 1.0 / 50.0;
+    let quantized = |n: f64, q: f64| (n * n + q * q * tau0 / 12.0).sqrt();
+    let settings = SensorSettings::for_rate_and_bandwidth(50.0, 20.0).unwrap();
+    let gyro_q = protocol::itg3200::rad_s_per_lsb();
+    let gyro = quantized(3.7e-4 * folding_prediction(&settings), gyro_q);
+    let accel_q = protocol::adxl345::m_s2_per_lsb();
+    let accel_xy = quantized(2.84e-3 * 2f64.sqrt(), accel_q);
+    let accel_z = quantized(2.84e-3 * 2f64.sqrt() * 1.1 / 0.75, accel_q);
+    for (c, want) in doc["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip([gyro, gyro, gyro, accel_xy, accel_xy, accel_z])
+    {
+        let n = c["noise"]["N"]["value"].as_f64().unwrap();
+        assert!(
+            (n / want - 1.0).abs() < 0.04,
+            "{}: N = {n}, want {want}",
+            c["name"]
+        );
+    }
+}

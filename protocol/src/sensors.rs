@@ -175,6 +175,18 @@ impl SensorConfig {
     }
 }
 
+/// The settings in words (the ITG-3200's and ADXL345's texts name their chip; an
+/// MPU-6050's, the only one of most boards, does not).
+impl core::fmt::Display for SensorConfig {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            SensorConfig::Mpu6050(s) => write!(f, "{s}"),
+            SensorConfig::Itg3200(s) => write!(f, "{s}"),
+            SensorConfig::Adxl345(s) => write!(f, "{s}"),
+        }
+    }
+}
+
 /// One sensor a board found and streams.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SensorInfo {

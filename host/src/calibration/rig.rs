@@ -9,6 +9,7 @@ use super::gravity::STANDARD;
 use super::still::{Motion, TooShortToJudge, find_motion};
 use crate::capture::{CaptureError, StreamDecoder};
 use crate::link::board::{Board as BoardLink, BoardError};
+use crate::link::plan::Plan;
 use crate::link::shared_bus::SharedBus;
 use crate::link::{Link, Opened, start_board};
 use crate::record::Record;
@@ -175,7 +176,7 @@ impl<O: Operator> Rig<O> {
             notes: Some(note.to_string()),
             duration_s: Some(seconds),
             keep_samples: true,
-            watch: Some(self.settings),
+            watch: Some(Plan::mpu6050(self.settings)),
             live: None,
         };
         let stop = AtomicBool::new(false);
@@ -345,6 +346,7 @@ mod tests {
 
     fn virtual_board() -> Opened {
         crate::link::open(&PortSpec {
+            board: crate::link::setup::SimulatedBoard::Mpu6050,
             port: crate::link::setup::VIRTUAL_PORT,
             speed: Speed::Max,
             model: None,

@@ -504,6 +504,23 @@ impl StreamDecoder {
         Totals::of(self.streams.iter().map(|s| &s.accounting))
     }
 
+    /// Sensor 0's output rate, Hz, once an Info said it.
+    pub fn rate_hz(&self) -> Option<f64> {
+        self.streams[0].config.map(|c| c.output_rate_hz())
+    }
+
+    /// Whether every sensor listed has accounted for (received or lost) `duration_s` of
+    /// samples at its own rate: the samples `duration_s * rate`, rounded.
+    pub fn covers(&self, duration_s: f64) -> bool {
+        self.streams.iter().all(|s| match s.config {
+            Some(config) => {
+                let wanted = (duration_s * config.output_rate_hz()).round() as u64;
+                s.accounting.expected() >= wanted
+            }
+            None => false,
+        })
+    }
+
     pub fn status(&self) -> Option<&Status> {
         self.status.as_ref()
     }

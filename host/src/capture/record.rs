@@ -7,13 +7,14 @@
 //!
 //! **Several sensors, one record.** A record has one rate and rows of simultaneous samples,
 //! but each sensor runs on its own clock and numbers its own samples. So the sensors must
-//! have the same nominal output rate (else [`CaptureError::RatesDiffer`]); the run read of
-//! each (all of it, or its longest gap-free run) is cut to the board-time window all of them
-//! cover, and to equal length. What that cut leaves out is counted
-//! ([`SensorRecord::trimmed`]) and shown by the readers, never dropped silently. The chips'
-//! clocks differ by up to their tolerance (a few 0.1 %), so row `k` of two sensors is the
-//! same moment to within that fraction of the record's length: immaterial for the noise
-//! terms (each channel is analysed alone) and for a temperature regression on slow drift.
+//! have the same nominal output rate (else [`CaptureError::RatesDiffer`]). Of the run read of
+//! each (all of it, or its longest gap-free run), row `k` pairs the samples made nearest one
+//! moment: each sensor's first row is its sample nearest (within half a period of) the
+//! latest first sample of them all, and the rows end where the shortest run does. What that
+//! leaves out is counted ([`SensorRecord::trimmed`]) and shown by the readers, never dropped
+//! silently. The chips' clocks differ by up to their tolerance (a few 0.1 %), so the pairs
+//! drift apart by that fraction of the record's length: immaterial for the noise terms (each
+//! channel is analysed alone) and for a temperature regression on slow drift.
 
 use super::stream::{Run, SensorCapture};
 use super::{Capture, CaptureError};
@@ -87,12 +88,15 @@ impl Capture {
             .zip(&runs)
             .map(|(s, run)| Span::of(run, s.config_of(run).period_us()))
             .collect();
-        let window = common_window(&spans);
-        let mut parts: Vec<(usize, usize)> = spans.iter().map(|s| s.within(window)).collect();
-        let len = parts.iter().map(|p| p.1).min().unwrap_or(0);
-        for part in &mut parts {
-            part.1 = len;
-        }
+        let from_us = spans.iter().map(|s| s.start_us).max().unwrap_or(0);
+        let skips: Vec<usize> = spans.iter().map(|s| s.nearest(from_us)).collect();
+        let len = spans
+            .iter()
+            .zip(&skips)
+            .map(|(s, skip)| s.len - skip)
+            .min()
+            .unwrap_or(0);
+        let parts: Vec<(usize, usize)> = skips.iter().map(|&skip| (skip, len)).collect();
         let mut channels = Vec::new();
         let mut used = Vec::new();
         for ((sensor, run), (skip, take)) in self.sensors.iter().zip(&runs).zip(&parts) {
@@ -173,27 +177,12 @@ impl Span {
         }
     }
 
-    fn end_us(&self) -> u64 {
-        self.start_us + self.period_us * self.len as u64
+    /// The index of the sample made nearest `t_us` (at or after the span's start).
+    fn nearest(&self, t_us: u64) -> usize {
+        let after = t_us.saturating_sub(self.start_us);
+        let index = (after + self.period_us / 2) / self.period_us;
+        (index as usize).min(self.len)
     }
-
-    /// The samples (skip, take) inside `window`, start inclusive, end exclusive.
-    fn within(&self, (from_us, to_us): (u64, u64)) -> (usize, usize) {
-        let skip = from_us
-            .saturating_sub(self.start_us)
-            .div_ceil(self.period_us) as usize;
-        let end = (to_us.saturating_sub(self.start_us) / self.period_us) as usize;
-        let skip = skip.min(self.len);
-        (skip, end.min(self.len).saturating_sub(skip))
-    }
-}
-
-/// The board-time window every span covers (empty if they do not overlap). One span is its
-/// own window, so a one-sensor record keeps every sample.
-fn common_window(spans: &[Span]) -> (u64, u64) {
-    let from = spans.iter().map(|s| s.start_us).max().unwrap_or(0);
-    let to = spans.iter().map(Span::end_us).min().unwrap_or(0);
-    (from, to.max(from))
 }
 
 /// A sensor's samples in SI units, by its kind ([`record`](self) module docs).

@@ -15,9 +15,11 @@ use crate::cli::stored::open_store;
 use anyhow::{Context, Result, anyhow, bail};
 use imunoise::analysis::precision::StopRule;
 use imunoise::link::board::{Board, BoardError};
+use imunoise::link::plan::streamable;
+use imunoise::link::plan::{Plan, PlanError, Request};
 use imunoise::link::replay::{ReplayLink, Speed};
-use imunoise::link::setup::streamable;
-use imunoise::link::{self, Link, Opened, PortSpec, start_board};
+use imunoise::link::setup::{SimulatedBoard, StartError, VIRTUAL_PORT, start_board_for};
+use imunoise::link::{self, Link, Opened, PortSpec};
 use imunoise::recorder::live::{LiveOptions, RuleAxes};
 use imunoise::recorder::{self, Ending, Progress, RecordOptions};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -60,6 +62,8 @@ pub struct CaptureArgs {
     pub speed: Speed,
     #[command(flatten)]
     pub virtual_board: VirtualBoardArgs,
+    #[command(flatten)]
+    pub sim_board: SimBoardArgs,
     /// Session name (default: YYYYmmdd-HHMMSS-<rate>hz-<bandwidth>hz, UTC)
     #[arg(long)]
     pub name: Option<String>,
@@ -109,6 +113,16 @@ impl StopRuleArgs {
     }
 }
 
+/// Which sensors the virtual board carries (`--port sim`): `capture`, `sweep` and `info`
+/// (the calibration commands are the MPU-6050's).
+#[derive(clap::Args, Debug)]
+pub struct SimBoardArgs {
+    /// The virtual board's sensors: an MPU-6050, or a GY-85 (ITG-3200 + ADXL345) whose gyro
+    /// takes --rate and --bandwidth and whose accelerometer runs at the same rate
+    #[arg(long, value_enum, default_value_t = SimulatedBoard::Mpu6050)]
+    pub board: SimulatedBoard,
+}
+
 /// The virtual board's options (`--port sim`), shared by `capture` and `sweep`.
 #[derive(clap::Args, Debug)]
 pub struct VirtualBoardArgs {
@@ -135,6 +149,7 @@ fn open_link(args: &CaptureArgs) -> Result<Box<dyn Link>> {
     match (&args.port, &args.from_file) {
         (Some(port), _) => Ok(open_port(&PortSpec {
             port,
+            board: args.sim_board.board,
             speed: args.speed,
             model: args.virtual_board.model.as_deref(),
             seed: args.virtual_board.seed,
@@ -158,7 +173,7 @@ pub fn board_settings(
 ) -> Result<SensorSettings> {
     let settings = SensorSettings::for_rate_and_bandwidth(rate_hz, bandwidth_hz)
         .map_err(|e| anyhow!("--rate {rate_hz} --bandwidth {bandwidth_hz}: {e}"))?;
-    streamable(&settings).map_err(|e| anyhow!("--rate {rate_hz}: {e}"))?;
+    streamable(settings.output_rate_hz()).map_err(|e| anyhow!("--rate {rate_hz}: {e}"))?;
     Ok(settings.with_ranges(gyro_range(gyro_range_dps)?, accel_range(accel_range_g)?))
 }
 
@@ -193,29 +208,50 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
         .transpose()
         .map_err(|e| anyhow!("--duration: {e}"))?;
     let live = args.stop.live_options(duration_s)?;
-    let settings = match (args.rate, args.bandwidth) {
-        (Some(rate), Some(bandwidth)) => Some(board_settings(
-            rate,
-            bandwidth,
-            args.gyro_range,
-            args.accel_range,
-        )?),
+    let request = match (args.rate, args.bandwidth) {
+        (Some(rate_hz), Some(bandwidth_hz)) => Some(Request {
+            rate_hz,
+            bandwidth_hz,
+            gyro_range: gyro_range(args.gyro_range)?,
+            accel_range: accel_range(args.accel_range)?,
+        }),
         _ => None,
     };
+    // The virtual board's sensors are known: its settings are checked before anything opens.
+    if let (Some(request), Some(port)) = (&request, &args.port)
+        && port == VIRTUAL_PORT
+    {
+        Plan::for_kinds(request, args.sim_board.board.sensors())
+            .map_err(|e| request_error(request, e))?;
+    }
     let mut link = open_link(args)?;
-    let store = open_store(store)?;
     let mut watch = None;
-    if let Some(settings) = settings {
-        let info = start_board(link.as_mut(), settings)?;
-        watch = args.port.is_some().then_some(settings);
+    // A real board says what it carries when asked: the store opens once it took its
+    // settings, so that a refused request leaves nothing behind.
+    if let Some(request) = request {
+        let (info, plan) = start_board_for(link.as_mut(), &request).map_err(|e| match e {
+            StartError::Plan { source, .. } => request_error(&request, source),
+            e => e.into(),
+        })?;
         eprintln!(
-            "{}: board {:016x}, firmware {}, protocol {}; capturing {settings}",
+            "{}: board {:016x}, firmware {}, protocol {}, {}; capturing {plan}",
             link.describe(),
             info.board_id,
             info.firmware_version,
-            info.protocol_version
+            info.protocol_version,
+            sensor_names(&info.sensor_list())
         );
+        watch = args.port.is_some().then_some(plan);
     }
+    let store = match open_store(store) {
+        Ok(store) => store,
+        Err(e) => {
+            if args.port.is_some() {
+                stop_board(link.as_mut());
+            }
+            return Err(e);
+        }
+    };
     let stop = stop_on_ctrl_c()?;
     let options = RecordOptions {
         name: args.name.clone(),
@@ -291,6 +327,27 @@ pub fn run(args: &CaptureArgs, store: Option<&Path>) -> Result<()> {
             session.id
         )),
         _ => Ok(()),
+    }
+}
+
+/// A request a board's sensors cannot take, named by the options that made it.
+fn request_error(request: &Request, e: PlanError) -> anyhow::Error {
+    match e {
+        PlanError::NotStreamable { .. } => anyhow!("--rate {}: {e}", request.rate_hz),
+        e => anyhow!(
+            "--rate {} --bandwidth {}: {e}",
+            request.rate_hz,
+            request.bandwidth_hz
+        ),
+    }
+}
+
+/// The sensors a board lists, in words: "MPU-6050", "ITG-3200 + ADXL345".
+pub fn sensor_names(sensors: &protocol::SensorList) -> String {
+    let names: Vec<&str> = sensors.iter().map(|s| s.kind.name()).collect();
+    match names.is_empty() {
+        true => "no sensor found".to_string(),
+        false => names.join(" + "),
     }
 }
 

@@ -146,6 +146,7 @@ fn paper_experiment(duration: &str, store: &Store) -> Result<()> {
         .collect::<Result<_, _>>()
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let spec = PortSpec {
+        board: imunoise::link::setup::SimulatedBoard::Mpu6050,
         port: "sim",
         speed: Speed::Max,
         model: None,

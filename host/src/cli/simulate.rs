@@ -2,28 +2,22 @@
 //! through the chips' signal chains (DLPF, decimation without anti-aliasing, LSB
 //! quantization), written as CSV in SI units.
 
-use crate::cli::settings::{accel_range, adxl345_range, gyro_range};
+use crate::cli::settings::{accel_range, gyro_range};
 use anyhow::{Context, Result, bail};
 use imunoise::capture::CaptureWriter;
+use imunoise::link::plan::Request;
 use imunoise::link::setup::SIMULATED_BOARD_ID;
 use imunoise::sim::imu::{Imu, SiSample};
 use imunoise::sim::{gy85, model_file};
 use indicatif::ProgressBar;
-use protocol::mpu6050::SensorSettings;
+use protocol::mpu6050::{GyroRange, SensorSettings};
 use protocol::{
     DeviceInfo, DeviceMessage, MAX_SAMPLES_PER_BATCH, PROTOCOL_VERSION, SampleBatch, Status,
 };
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
-/// The boards the simulator has.
-#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Board {
-    /// An MPU-6050 breakout (GY-521)
-    Mpu6050,
-    /// A GY-85: ITG-3200 gyro and ADXL345 accelerometer
-    Gy85,
-}
+pub use imunoise::link::setup::SimulatedBoard as Board;
 
 #[derive(clap::Args, Debug)]
 pub struct SimulateArgs {
@@ -127,17 +121,25 @@ fn write_out(
 fn run_gy85(args: &SimulateArgs, format: Format, seconds: f64) -> Result<()> {
     if matches!(format, Format::Capture) {
         bail!(
-            "--board gy85 --format capture: the board protocol carries the MPU-6050's samples only; use --format csv"
+            "--board gy85 --format capture: a GY-85 capture comes from the virtual board (`imunoise capture --port sim --board gy85`); use --format csv here"
         );
     }
-    let (gyro, mut accel) = gy85::settings(args.rate, args.bandwidth).map_err(|e| {
-        anyhow::anyhow!(
-            "--board gy85 --rate {} --bandwidth {}: {e}",
-            args.rate,
-            args.bandwidth
+    let context = || {
+        format!(
+            "--board gy85 --rate {} --bandwidth {}",
+            args.rate, args.bandwidth
         )
-    })?;
-    accel.range = adxl345_range(args.accel_range)?;
+    };
+    let request = Request {
+        rate_hz: args.rate,
+        bandwidth_hz: args.bandwidth,
+        gyro_range: GyroRange::Dps2000,
+        accel_range: accel_range(args.accel_range)?,
+    };
+    let gyro = request.itg3200().with_context(context)?;
+    let accel = request
+        .adxl345(Some(gyro.output_rate_hz()))
+        .with_context(context)?;
     let model = model_file::load(&args.model)?;
     let mut pair = gy85::Gy85::new(&model, &gyro, &accel, args.seed, seconds);
     let rows = (pair.output_rate_hz() * seconds + 1e-6).floor() as u64;

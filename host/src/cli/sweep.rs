@@ -5,7 +5,7 @@
 
 use crate::cli::analyze::check_plot;
 use crate::cli::capture::{
-    StopRuleArgs, VirtualBoardArgs, open_port, show, stop_failed, stop_on_ctrl_c,
+    SimBoardArgs, StopRuleArgs, VirtualBoardArgs, open_port, show, stop_failed, stop_on_ctrl_c,
 };
 use crate::cli::live_view::{LiveView, Mode};
 use crate::cli::output;
@@ -15,8 +15,8 @@ use crate::cli::stored::open_store;
 use anyhow::{Context, Result, anyhow};
 use imunoise::experiment::sweep::{self, Event, Plan, SweepRow, figures, html, table};
 use imunoise::link::PortSpec;
+use imunoise::link::plan::streamable;
 use imunoise::link::replay::Speed;
-use imunoise::link::setup::streamable;
 use imunoise::recorder::live::LiveOptions;
 use imunoise::report::plot;
 use imunoise::store::Store;
@@ -40,6 +40,8 @@ pub struct SweepArgs {
     pub speed: Speed,
     #[command(flatten)]
     pub virtual_board: VirtualBoardArgs,
+    #[command(flatten)]
+    pub sim_board: SimBoardArgs,
     /// Session names are PREFIX-<rate>hz-<bandwidth>hz
     #[arg(long, default_value = "sweep")]
     pub prefix: String,
@@ -72,7 +74,8 @@ pub fn parse_settings(text: &str) -> Result<Vec<SensorSettings>> {
             let (rate, bw) = (parse(rate)?, parse(bw)?);
             let settings = SensorSettings::for_rate_and_bandwidth(rate, bw)
                 .map_err(|e| anyhow!("--settings {rate}:{bw}: {e}"))?;
-            streamable(&settings).map_err(|e| anyhow!("--settings {rate}:{bw}: {e}"))?;
+            streamable(settings.output_rate_hz())
+                .map_err(|e| anyhow!("--settings {rate}:{bw}: {e}"))?;
             Ok(settings)
         })
         .collect()
@@ -91,6 +94,7 @@ pub fn run(args: &SweepArgs, store: Option<&Path>) -> Result<()> {
     let store = open_store(store)?;
     let spec = PortSpec {
         port: &args.port,
+        board: args.sim_board.board,
         speed: args.speed,
         model: args.virtual_board.model.as_deref(),
         seed: args.virtual_board.seed,

@@ -9,8 +9,10 @@ use crate::analysis::fit::Term;
 use crate::analysis::pipeline::{self, AnalysisError, ChannelResult, Options};
 use crate::analysis::units::{self, rad_to_deg};
 use crate::capture::CaptureError;
+use crate::link::Link;
 use crate::link::board::{Board, BoardError};
-use crate::link::{Link, start_board};
+use crate::link::plan::Request;
+use crate::link::setup::{StartError, start_board_for};
 use crate::recorder::live::LiveOptions;
 use crate::recorder::{self, Ending, Progress, RecordError, RecordOptions};
 use crate::report::plot::{Figure, PlotError};
@@ -19,13 +21,18 @@ use crate::report::{json, sweep_table};
 use crate::sim::chain::white_noise_inflation;
 use crate::sim::dlpf::{DlpfDesign, Sensor};
 use crate::store::{self, Store, StoreError};
-use protocol::SensorSettings;
 use protocol::mpu6050::Hz;
+use protocol::{SensorKind, SensorSettings};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// One setting's session and analysis.
 pub struct SweepRow {
+    /// The setting asked for (a GY-85's gyro has the MPU-6050's DLPF table and divider, so
+    /// its settings are these too; its accelerometer runs at the same rate).
     pub settings: SensorSettings,
+    /// The chip that measured the rates (the datasheet noise and the published values
+    /// beside the sweep are that chip's).
+    pub gyro: SensorKind,
     pub session_id: i64,
     pub session_name: String,
     pub lost: u64,
@@ -112,6 +119,8 @@ pub enum SweepError {
     #[error(transparent)]
     Board(#[from] BoardError),
     #[error(transparent)]
+    Start(#[from] StartError),
+    #[error(transparent)]
     Record(#[from] RecordError),
     #[error(transparent)]
     Store(#[from] StoreError),
@@ -172,13 +181,19 @@ pub fn sweep(
             settings: s,
             link: &link.describe(),
         });
-        start_board(link, *s)?;
+        let (info, board_plan) = start_board_for(link, &Request::of(s))?;
+        let gyro = info
+            .sensor_list()
+            .iter()
+            .map(|sensor| sensor.kind)
+            .find(|kind| *kind != SensorKind::Adxl345)
+            .unwrap_or(SensorKind::Mpu6050);
         let options = RecordOptions {
             name: Some(unique_name(store, &name)?),
             notes: Some(format!("imunoise sweep {}", settings.len())),
             duration_s: Some(plan.seconds),
             keep_samples: true,
-            watch: Some(*s),
+            watch: Some(board_plan),
             live: plan.live.clone(),
         };
         on(Event::Capturing {
@@ -224,6 +239,7 @@ pub fn sweep(
         store.add_analysis(session.id, &provenance, &document)?;
         rows.push(SweepRow {
             settings: *s,
+            gyro,
             session_id: session.id,
             session_name: session.name.clone(),
             lost: outcome.counts.samples_lost,
@@ -304,6 +320,17 @@ pub const PAPER_TABLE_2: [(f64, f64, f64); 4] = [
 /// (InvenSense PS-MPU-6000A-00 rev. 3.4, table 6.1); one-sided, so N = this / sqrt(2).
 pub const DATASHEET_GYRO_DENSITY: f64 = 0.005;
 
+/// The ITG-3200's, deg/s/sqrt(Hz) (PS-ITG-3200A rev. 1.4, 3.1), one-sided like it.
+pub const ITG3200_GYRO_DENSITY: f64 = 0.03;
+
+/// The data sheet's gyro rate noise density of `gyro`, deg/s/sqrt(Hz), one-sided.
+pub fn datasheet_density(gyro: SensorKind) -> f64 {
+    match gyro {
+        SensorKind::Itg3200 => ITG3200_GYRO_DENSITY,
+        _ => DATASHEET_GYRO_DENSITY,
+    }
+}
+
 /// The gyro's white-noise inflation by folding at a setting, N / N0
 /// (`sim::chain::white_noise_inflation`: `sqrt(sum_j |H(j f_s)|^2)`, docs/signal_chain.md).
 pub fn folding_prediction(s: &SensorSettings) -> f64 {
@@ -341,9 +368,11 @@ pub fn paper_comparison(rows: &[SweepRow]) -> Vec<GyroNoise> {
                 rate_hz: rate,
                 bandwidth_hz: bw,
                 folding: predicted,
-                datasheet: DATASHEET_GYRO_DENSITY / 2f64.sqrt() * predicted,
+                datasheet: datasheet_density(row.gyro) / 2f64.sqrt() * predicted,
+                // The study's Table 2 is of an MPU-6050.
                 published: PAPER_TABLE_2
                     .iter()
+                    .filter(|_| row.gyro == SensorKind::Mpu6050)
                     .find(|p| p.0 == rate && p.1 == bw)
                     .map(|p| p.2),
                 measured: simulated,
@@ -383,7 +412,9 @@ pub fn html(rows: &[SweepRow], title: &str) -> Result<String, PlotError> {
         gyro: &gyro,
         published: Published {
             source: "the settings study's Table 2",
-            datasheet_density: DATASHEET_GYRO_DENSITY,
+            datasheet_density: datasheet_density(
+                rows.first().map_or(SensorKind::Mpu6050, |r| r.gyro),
+            ),
         },
         // sweep() analyses every setting with the default options.
         options: &Options::default(),
@@ -405,6 +436,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let store = Store::open(dir.path()).unwrap();
         let mut opened = crate::link::open(&crate::link::PortSpec {
+            board: crate::link::setup::SimulatedBoard::Mpu6050,
             port: crate::link::setup::VIRTUAL_PORT,
             speed: crate::link::replay::Speed::Max,
             model: None,
@@ -443,6 +475,7 @@ mod tests {
             .iter()
             .map(|&(rate, bw, _)| SweepRow {
                 settings: SensorSettings::for_rate_and_bandwidth(rate, bw).unwrap(),
+                gyro: SensorKind::Mpu6050,
                 session_id: 0,
                 session_name: String::new(),
                 lost: 0,
@@ -522,6 +555,7 @@ mod tests {
                 };
                 SweepRow {
                     settings,
+                    gyro: SensorKind::Mpu6050,
                     session_id: i as i64,
                     session_name: String::new(),
                     lost: 0,

@@ -395,14 +395,7 @@ fn capture_table(
 
 /// Each sensor's settings, in words.
 fn describe_configs(configs: &[SensorConfig]) -> String {
-    let described: Vec<String> = configs
-        .iter()
-        .map(|c| match c {
-            SensorConfig::Mpu6050(s) => s.to_string(),
-            SensorConfig::Itg3200(s) => format!("ITG-3200 {s}"),
-            SensorConfig::Adxl345(s) => format!("ADXL345 {s}"),
-        })
-        .collect();
+    let described: Vec<String> = configs.iter().map(SensorConfig::to_string).collect();
     described.join("; ")
 }
 

@@ -122,7 +122,7 @@ impl<'a> Board<'a> {
     }
 
     /// Send a command and wait for its ack.
-    fn command(&mut self, command: Command, name: &'static str) -> Result<(), BoardError> {
+    pub fn command(&mut self, command: Command, name: &'static str) -> Result<(), BoardError> {
         let seq = self.send(command)?;
         let mut outcome = None;
         self.wait(|body| match postcard::from_bytes::<DeviceMessage>(body) {

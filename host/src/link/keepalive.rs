@@ -14,9 +14,10 @@
 //! capture's own commands wait for.
 
 use super::Link;
+use super::plan::Plan;
 use crate::capture::{HostNote, StreamDecoder};
 use protocol::frame::{self, MAX_WIRE_LEN};
-use protocol::{Command, Request, SensorSettings};
+use protocol::{Command, Request};
 use std::time::Duration;
 
 /// Silence after which the board is asked whether it still streams: longer than any gap a
@@ -39,7 +40,7 @@ pub enum Action {
 
 /// The watcher of one capture (module docs).
 pub struct Keepalive {
-    settings: SensorSettings,
+    plan: Plan,
     last_heard_us: u64,
     /// When the Status was asked for, and how many had been seen before.
     asked: Option<(u64, u64)>,
@@ -51,10 +52,10 @@ pub struct Keepalive {
 }
 
 impl Keepalive {
-    /// A watcher for a board streaming `settings`, heard from at `now_us`.
-    pub fn new(settings: SensorSettings, now_us: u64) -> Self {
+    /// A watcher for a board streaming as `plan` set it, heard from at `now_us`.
+    pub fn new(plan: Plan, now_us: u64) -> Self {
         Keepalive {
-            settings,
+            plan,
             last_heard_us: now_us,
             asked: None,
             seq: FIRST_SEQ,
@@ -93,11 +94,11 @@ impl Keepalive {
                 self.fruitless += 1;
                 self.expected_at_restart = expected;
                 self.last_heard_us = now_us;
-                for command in [
-                    Command::Configure(self.settings),
-                    Command::GetInfo,
-                    Command::Start,
-                ] {
+                let commands: Vec<Command> = self.plan.commands().collect();
+                for command in commands
+                    .into_iter()
+                    .chain([Command::GetInfo, Command::Start])
+                {
                     self.send(link, command)?;
                 }
                 return Ok(Action::Note(HostNote::BoardRestarted { silent_us }.frame()));

@@ -4,13 +4,12 @@
 
 use super::Link;
 use super::board::{Board, BoardError};
+use super::plan::{Plan, PlanError, Request};
 use super::replay::Speed;
 use super::serial::{SerialError, SerialLink};
 use super::shared_bus::SharedBus;
 use super::virtual_board::VirtualBoard;
 use crate::sim::model_file::{self, FaultPlan, ModelFile, ModelFileError};
-use firmware::acquire::MAX_RATE_HZ;
-use protocol::mpu6050::Hz;
 use protocol::{DeviceInfo, ErrorCode, SensorSettings};
 use std::path::Path;
 use std::time::Duration;
@@ -25,11 +24,35 @@ pub const SIMULATED_BOARD_ID: u64 = 0x5349_4D00_0000_0000;
 /// The port name of the virtual board.
 pub const VIRTUAL_PORT: &str = "sim";
 
+/// The boards the simulator has (the virtual board's sensors, `simulate`'s outputs).
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SimulatedBoard {
+    /// An MPU-6050 breakout (GY-521)
+    #[default]
+    Mpu6050,
+    /// A GY-85: ITG-3200 gyro and ADXL345 accelerometer
+    Gy85,
+}
+
+impl SimulatedBoard {
+    /// The sensors the board lists, in order.
+    pub fn sensors(self) -> &'static [protocol::SensorKind] {
+        use protocol::SensorKind::*;
+        match self {
+            SimulatedBoard::Mpu6050 => &[Mpu6050],
+            SimulatedBoard::Gy85 => &[Itg3200, Adxl345],
+        }
+    }
+}
+
 /// A board to capture from: which port, which model and seed if it is the virtual one.
 #[derive(Debug, Clone, Copy)]
 pub struct PortSpec<'a> {
     /// A serial port's name, or [`VIRTUAL_PORT`].
     pub port: &'a str,
+    /// The virtual board's sensors.
+    pub board: SimulatedBoard,
     /// How fast the virtual board runs.
     pub speed: Speed,
     /// The virtual board's model file (default: the built-in example, which has no faults).
@@ -76,60 +99,77 @@ pub fn open(spec: &PortSpec) -> Result<Opened, OpenError> {
     })
 }
 
-/// The virtual board of `spec`: its model file's model and `[faults]` (or the built-in
-/// example, which has none), and seed.
+/// The virtual board of `spec`: its model file's model and `[faults]` (or the board's
+/// built-in example, `examples/mpu6050.toml` or `examples/gy85.toml`, which have none), and
+/// seed.
 pub fn virtual_board(spec: &PortSpec) -> Result<VirtualBoard, ModelFileError> {
     let file = match spec.model {
         Some(path) => model_file::load_file(path)?,
         None => ModelFile {
-            model: model_file::example(),
+            model: match spec.board {
+                SimulatedBoard::Mpu6050 => model_file::example(),
+                SimulatedBoard::Gy85 => model_file::example_gy85(),
+            },
             faults: FaultPlan::default(),
         },
     };
-    Ok(VirtualBoard::with_faults(
-        file.model,
-        spec.seed,
-        SIMULATED_BOARD_ID | spec.seed,
-        spec.speed,
-        &file.faults,
-    ))
+    let board_id = SIMULATED_BOARD_ID | spec.seed;
+    let (model, seed, faults) = (file.model, spec.seed, &file.faults);
+    Ok(match spec.board {
+        SimulatedBoard::Mpu6050 => {
+            VirtualBoard::with_faults(model, seed, board_id, spec.speed, faults)
+        }
+        SimulatedBoard::Gy85 => VirtualBoard::gy85(model, seed, board_id, spec.speed, faults),
+    })
 }
 
-/// A setting the sensor takes but the board's firmware does not stream.
-#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
-#[error(
-    "{} Hz is above the board firmware's output-rate limit of {} Hz (the MPU-6050 itself can \
-     be set to it: `imunoise settings` shows how)",
-    Hz(*.rate_hz),
-    Hz(MAX_RATE_HZ)
-)]
-pub struct NotStreamable {
-    pub rate_hz: f64,
-}
-
-/// Whether the board's firmware streams `settings`: the sensor may be set faster than the
-/// firmware's output-rate limit, the board not.
-pub fn streamable(settings: &SensorSettings) -> Result<(), NotStreamable> {
-    let rate_hz = settings.output_rate_hz();
-    if rate_hz > MAX_RATE_HZ {
-        return Err(NotStreamable { rate_hz });
-    }
-    Ok(())
-}
-
-/// Handshake (protocol version), configure and start a board; the capture loop then records
-/// its `Info`, the acks and the samples.
+/// Handshake (protocol version), configure an MPU-6050 board to `settings` and start it;
+/// the capture loop then records its `Info`, the acks and the samples. A board whose
+/// sensor 0 is no MPU-6050 refuses the settings ([`start_board_for`] sets any board).
 pub fn start_board(
     link: &mut dyn Link,
     settings: SensorSettings,
 ) -> Result<DeviceInfo, BoardError> {
     let mut board = Board::new(link);
     let info = board.handshake()?;
+    set_and_start(&mut board, &Plan::mpu6050(settings))?;
+    Ok(info)
+}
+
+/// Why a board could not be started.
+#[derive(Debug, thiserror::Error)]
+pub enum StartError {
+    #[error(transparent)]
+    Board(#[from] BoardError),
+    /// The request means nothing to one of the board's sensors.
+    #[error("{link}: {source}")]
+    Plan { link: String, source: PlanError },
+}
+
+/// Handshake, set every sensor the board lists from `request` ([`Plan::for_sensors`]) and
+/// start it; the board's Info and the plan it was set to.
+pub fn start_board_for(
+    link: &mut dyn Link,
+    request: &Request,
+) -> Result<(DeviceInfo, Plan), StartError> {
+    let describe = link.describe();
+    let mut board = Board::new(link);
+    let info = board.handshake()?;
+    let plan =
+        Plan::for_sensors(request, &info.sensor_list()).map_err(|source| StartError::Plan {
+            link: describe,
+            source,
+        })?;
+    set_and_start(&mut board, &plan)?;
+    Ok((info, plan))
+}
+
+/// Set a handshaken board to `plan` and start it.
+fn set_and_start(board: &mut Board, plan: &Plan) -> Result<(), BoardError> {
     // A board left streaming by an interrupted run must stop before it takes settings.
     board.stop()?;
-    board.configure(settings)?;
-    board.begin_stream()?;
-    Ok(info)
+    plan.apply(board)?;
+    board.begin_stream()
 }
 
 #[cfg(test)]
@@ -140,6 +180,7 @@ mod tests {
     fn the_virtual_board_opens_with_its_sensor_and_starts() {
         let mut opened = open(&PortSpec {
             port: VIRTUAL_PORT,
+            board: SimulatedBoard::Mpu6050,
             speed: Speed::Max,
             model: None,
             seed: 7,
@@ -149,14 +190,5 @@ mod tests {
         assert_eq!(opened.boot_error, None);
         let info = start_board(opened.link.as_mut(), SensorSettings::default()).unwrap();
         assert_eq!(info.board_id, SIMULATED_BOARD_ID | 7);
-    }
-
-    #[test]
-    fn rates_above_the_firmware_limit_are_refused() {
-        let fast = SensorSettings::for_rate_and_bandwidth(2000.0, 256.0).unwrap();
-        let e = streamable(&fast).unwrap_err();
-        assert_eq!(e.rate_hz, 2000.0);
-        assert!(e.to_string().starts_with("2000 Hz is above"), "{e}");
-        assert_eq!(streamable(&SensorSettings::default()), Ok(()));
     }
 }

@@ -17,11 +17,90 @@ use crate::analysis::precision::{Status, StopRule};
 use crate::capture::{Capture, StreamDecoder};
 use crate::record::Record;
 use crate::sim::dlpf::Sensor;
+use protocol::{RawSample, SensorConfig};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// The axes the accumulators follow, in [`crate::capture`]'s record order.
 pub const AXES: [&str; 6] = ["gx", "gy", "gz", "ax", "ay", "az"];
+
+/// One sensor's accumulators: the axes it measures, in SI units, with its own filter.
+struct SensorLive {
+    /// The run the accumulators follow (its number, [`StreamDecoder::take_tapped_of`]).
+    run: usize,
+    live: Option<Live>,
+}
+
+impl SensorLive {
+    fn feed(&mut self, config: &SensorConfig, run: usize, samples: &[RawSample], longest_s: f64) {
+        let axes = LiveAxes::of(config);
+        if run != self.run || self.live.is_none() {
+            let tau0 = 1.0 / config.output_rate_hz();
+            self.live = Live::new(&axes.names, tau0, longest_s).ok();
+            if let Some(live) = self.live.as_mut() {
+                let filters = KnownFilters::of(&[*config]);
+                for (i, name) in axes.names.iter().enumerate() {
+                    let (settings, sensor) = match name.starts_with('g') {
+                        true => (filters.gyro, Sensor::Gyro),
+                        false => (filters.accel, Sensor::Accel),
+                    };
+                    live.set_low_pass(i, settings.and_then(|s| LowPass::mpu6050(&s, sensor)));
+                }
+            }
+            self.run = run;
+        }
+        let Some(live) = self.live.as_mut() else {
+            return;
+        };
+        for s in samples {
+            live.push(&axes.values(s));
+        }
+    }
+}
+
+/// What a sensor gives the live view: its axes' names and values in SI units. Their
+/// filters are the board's DLPF, as `analyze` models it for a stored session.
+struct LiveAxes {
+    names: Vec<&'static str>,
+    /// Per axis: gyro (true) or accel, the axis (0..3), SI units per count.
+    scales: Vec<(bool, usize, f64)>,
+}
+
+impl LiveAxes {
+    fn of(config: &SensorConfig) -> LiveAxes {
+        let (gyro_lsb, accel_lsb) = match config {
+            SensorConfig::Mpu6050(s) => (
+                Some(s.gyro_range.rad_s_per_lsb()),
+                Some(s.accel_range.m_s2_per_lsb()),
+            ),
+            SensorConfig::Itg3200(_) => (Some(protocol::itg3200::rad_s_per_lsb()), None),
+            SensorConfig::Adxl345(_) => (None, Some(protocol::adxl345::m_s2_per_lsb())),
+        };
+        let gyro = gyro_lsb.map(|lsb| (true, &AXES[..3], lsb));
+        let accel = accel_lsb.map(|lsb| (false, &AXES[3..], lsb));
+        let mut axes = LiveAxes {
+            names: Vec::new(),
+            scales: Vec::new(),
+        };
+        for (is_gyro, names, lsb) in gyro.into_iter().chain(accel) {
+            for (i, name) in names.iter().enumerate() {
+                axes.names.push(name);
+                axes.scales.push((is_gyro, i, lsb));
+            }
+        }
+        axes
+    }
+
+    fn values(&self, r: &RawSample) -> Vec<f64> {
+        self.scales
+            .iter()
+            .map(|&(is_gyro, i, lsb)| {
+                let counts = if is_gyro { r.gyro[i] } else { r.accel[i] };
+                f64::from(counts) * lsb
+            })
+            .collect()
+    }
+}
 
 /// The axes a stop rule applies to: `gyro` (gx, gy, gz; the default), `accel` (ax, ay, az),
 /// `all`, or a comma-separated list of axes (`gz,az`).
@@ -167,9 +246,8 @@ fn axis_text(axis: &str, statuses: &[Status]) -> String {
 pub(super) struct Watcher {
     options: LiveOptions,
     fit: FitOptions,
-    live: Option<Live>,
-    /// The run the accumulators follow (its number, [`StreamDecoder::take_tapped`]).
-    run: usize,
+    /// One per sensor of the board, by number.
+    sensors: Vec<SensorLive>,
     next_sample_s: f64,
     last_wall: Instant,
     /// No confirmation before this much sample time (see [`CONFIRM_GROWTH`]).
@@ -185,8 +263,7 @@ impl Watcher {
         Watcher {
             options,
             fit,
-            live: None,
-            run: 0,
+            sensors: Vec::new(),
             next_sample_s: SAMPLE_EVERY_S,
             last_wall: Instant::now(),
             next_confirm_s: 0.0,
@@ -195,51 +272,38 @@ impl Watcher {
 
     /// Feed what the decoder took since the last call; a snapshot when one is due.
     pub(super) fn after_feed(&mut self, decoder: &mut StreamDecoder) -> Option<Snapshot> {
-        let settings = decoder.settings()?;
-        let (number, samples) = decoder.take_tapped()?;
-        if number != self.run || self.live.is_none() {
-            let tau0 = 1.0 / settings.output_rate_hz();
-            self.live = Live::new(&AXES, tau0, self.options.longest_s).ok();
-            if let Some(live) = self.live.as_mut() {
-                // The board's DLPF, as `analyze` models it for a stored session.
-                for (i, sensor) in [Sensor::Gyro; 3]
-                    .into_iter()
-                    .chain([Sensor::Accel; 3])
-                    .enumerate()
-                {
-                    live.set_low_pass(i, LowPass::mpu6050(&settings, sensor));
-                }
-            }
-            self.run = number;
-            self.next_sample_s = SAMPLE_EVERY_S;
+        let configs = decoder.configs();
+        self.sensors
+            .resize_with(configs.len(), || SensorLive { run: 0, live: None });
+        for (k, (sensor, config)) in self.sensors.iter_mut().zip(configs).enumerate() {
+            let (Some(config), Some((number, samples))) = (config, decoder.take_tapped_of(k))
+            else {
+                continue;
+            };
+            sensor.feed(&config, number, &samples, self.options.longest_s);
         }
-        let live = self.live.as_mut()?;
-        let (g, a) = (
-            settings.gyro_range.rad_s_per_lsb(),
-            settings.accel_range.m_s2_per_lsb(),
-        );
-        for s in &samples {
-            let v = [
-                f64::from(s.gyro[0]) * g,
-                f64::from(s.gyro[1]) * g,
-                f64::from(s.gyro[2]) * g,
-                f64::from(s.accel[0]) * a,
-                f64::from(s.accel[1]) * a,
-                f64::from(s.accel[2]) * a,
-            ];
-            live.push(&v);
-        }
-        let elapsed = live.elapsed_s();
+        let lives: Vec<&Live> = self
+            .sensors
+            .iter()
+            .filter_map(|s| s.live.as_ref())
+            .collect();
+        let elapsed = lives.iter().map(|l| l.elapsed_s()).reduce(f64::min)?;
         if elapsed < self.next_sample_s && self.last_wall.elapsed() < WALL_EVERY {
             return None;
         }
         self.next_sample_s = (elapsed * (1.0 + SAMPLE_GROWTH)).max(elapsed + SAMPLE_EVERY_S);
         self.last_wall = Instant::now();
-        Some(live.snapshot(
-            self.options.rule.as_ref(),
-            self.options.rule_axes.names(),
-            &self.fit,
-        ))
+        let rule = self.options.rule.as_ref();
+        let axes = self.options.rule_axes.names();
+        let mut snapshots = lives.iter().map(|l| l.snapshot(rule, axes, &self.fit));
+        let mut all = snapshots.next()?;
+        for other in snapshots {
+            all.elapsed_s = all.elapsed_s.min(other.elapsed_s);
+            all.channels.extend(other.channels);
+        }
+        all.channels
+            .sort_by_key(|c| AXES.iter().position(|a| *a == c.name));
+        Some(all)
     }
 
     /// Whether `snapshot` meets the rule and a confirmation is due (see [`CONFIRM_GROWTH`]):

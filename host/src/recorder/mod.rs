@@ -9,8 +9,8 @@ use crate::analysis::live::Snapshot;
 use crate::capture::{BoardReport, Capture, RecoveryReport, StreamDecoder};
 use crate::link::Link;
 use crate::link::keepalive::{Action, Keepalive};
+use crate::link::plan::Plan;
 use crate::store::{Counts, End, SessionWriter, Store, StoreError};
-use protocol::SensorSettings;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -34,7 +34,7 @@ pub struct RecordOptions {
     /// The settings a live board was started with: the loop then watches it and, if it
     /// restarts, sets them again and starts it ([`crate::link::keepalive`]). `None` for a
     /// replayed file.
-    pub watch: Option<SensorSettings>,
+    pub watch: Option<Plan>,
     /// The live view (snapshots in the progress reports) and the stop rule.
     pub live: Option<live::LiveOptions>,
 }
@@ -150,7 +150,8 @@ fn run(
     let started_us = link.clock_us();
     let mut keepalive = options
         .watch
-        .map(|settings| Keepalive::new(settings, started_us));
+        .clone()
+        .map(|plan| Keepalive::new(plan, started_us));
     let mut board_errors_shown = 0;
     let mut recoveries_shown = 0;
     let mut watcher = options.live.clone().map(live::Watcher::new);
@@ -198,7 +199,7 @@ fn run(
             Err(e) => warn_catalog(&mut catalog_warned, &mut catalog_warning, &e),
             Ok(()) => {}
         }
-        let rate_hz = decoder.info_seen().map(|i| i.settings.output_rate_hz());
+        let rate_hz = decoder.rate_hz();
         let wanted = options
             .duration_s
             .zip(rate_hz)
@@ -236,7 +237,7 @@ fn run(
         if let Some(met) = met {
             break Ending::RuleMet(met);
         }
-        if wanted.is_some_and(|w| expected >= w) {
+        if options.duration_s.is_some_and(|d| decoder.covers(d)) {
             break Ending::DurationReached;
         }
         // A board that brings nothing (its sensor gone for good) must not hold the capture
@@ -321,6 +322,7 @@ mod tests {
     use crate::link::virtual_board::{Speed, VirtualBoard};
     use crate::sim::device::{Outage, SensorClock};
     use crate::sim::model_file::{self, FaultPlan};
+    use protocol::SensorSettings;
 
     /// A watched capture of `duration_s` into `store`.
     fn watched(
@@ -332,7 +334,7 @@ mod tests {
         let options = RecordOptions {
             duration_s: Some(duration_s),
             keep_samples: true,
-            watch: Some(settings),
+            watch: Some(Plan::mpu6050(settings)),
             ..RecordOptions::default()
         };
         let stop = AtomicBool::new(false);

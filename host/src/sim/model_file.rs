@@ -205,6 +205,17 @@ struct CycleSpec {
 /// virtual board run anywhere.
 pub const EXAMPLE: &str = include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/mpu6050.toml"));
 
+/// The GY-85's example model (`examples/gy85.toml`): `[gyro]` the ITG-3200's, `[accel]`
+/// the ADXL345's.
+pub const EXAMPLE_GY85: &str =
+    include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/gy85.toml"));
+
+/// [`EXAMPLE_GY85`], parsed (the default model of the virtual GY-85 board).
+pub fn example_gy85() -> ImuModel {
+    // Tested like the MPU-6050's (`the_example_model_parses`).
+    parse(EXAMPLE_GY85, Path::new("examples/gy85.toml")).unwrap_or_default()
+}
+
 /// [`EXAMPLE`], parsed.
 pub fn example() -> ImuModel {
     // The example is part of the build and tested (`the_example_model_parses`); a failure here
@@ -502,6 +513,7 @@ impl Checker<'_> {
 mod tests {
     #[test]
     fn the_example_model_parses() {
+        super::parse(super::EXAMPLE_GY85, std::path::Path::new("gy85")).unwrap();
         let model = super::parse(super::EXAMPLE, std::path::Path::new("example")).unwrap();
         assert_eq!(model.gyro.noise.n, 1.5e-4);
     }

@@ -1,7 +1,7 @@
 //! A session as the catalog describes it, and the counts a capture keeps up to date.
 
 use crate::capture::StreamDecoder;
-use protocol::{DeviceInfo, Status};
+use protocol::{DeviceInfo, SensorConfig, SensorKind, SensorSettings, Status};
 use rusqlite::Row;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -52,13 +52,56 @@ pub struct Board {
 }
 
 impl Board {
+    /// The board and its sensors' settings as its Info states them. A GY-85 board's gyro
+    /// columns are the ITG-3200's (rate, DLPF row, divider, its fixed 2000 deg/s range),
+    /// its accel columns the ADXL345's (bandwidth rate / 2, range).
     pub fn of(info: &DeviceInfo) -> Board {
-        let s = info.settings;
-        let row = s.dlpf.row();
-        Board {
+        let mut board = Board {
             board_id: format!("{:#018x}", info.board_id),
             firmware_version: info.firmware_version.to_string(),
             protocol_version: info.protocol_version,
+            ..Board::mpu6050(&info.settings)
+        };
+        let sensors = info.sensor_list();
+        let gyro_listed = sensors.iter().any(|s| s.kind != SensorKind::Adxl345);
+        let listed: Vec<_> = sensors.iter().collect();
+        for sensor in listed.into_iter().rev() {
+            match sensor.config {
+                SensorConfig::Mpu6050(s) => {
+                    let mpu = Board::mpu6050(&s);
+                    board = Board {
+                        board_id: board.board_id,
+                        firmware_version: board.firmware_version,
+                        protocol_version: board.protocol_version,
+                        ..mpu
+                    };
+                }
+                SensorConfig::Itg3200(s) => {
+                    board.rate_hz = s.output_rate_hz();
+                    board.gyro_bandwidth_hz = s.bandwidth_hz();
+                    board.dlpf_cfg = s.dlpf.bits();
+                    board.smplrt_div = s.smplrt_div;
+                    board.gyro_range_dps = protocol::itg3200::FULL_SCALE_DPS;
+                }
+                SensorConfig::Adxl345(s) => {
+                    board.accel_bandwidth_hz = Some(s.bandwidth_hz());
+                    board.accel_range_g = f64::from(s.range.full_scale_g());
+                    if !gyro_listed {
+                        board.rate_hz = s.output_rate_hz();
+                    }
+                }
+            }
+        }
+        board
+    }
+
+    /// The settings columns of an MPU-6050 at `s`.
+    fn mpu6050(s: &SensorSettings) -> Board {
+        let row = s.dlpf.row();
+        Board {
+            board_id: String::new(),
+            firmware_version: String::new(),
+            protocol_version: 0,
             rate_hz: s.output_rate_hz(),
             gyro_bandwidth_hz: row.map(|r| r.gyro_bandwidth_hz),
             accel_bandwidth_hz: row.map(|r| r.accel_bandwidth_hz),

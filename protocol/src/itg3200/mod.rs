@@ -39,6 +39,9 @@ pub fn is_itg3200(who_am_i: u8) -> bool {
     who_am_i & WHO_AM_I_MASK == WHO_AM_I_VALUE
 }
 
+/// The full scale, deg/s: FS_SEL = 3 is the only valid range \[IT, reg 22\].
+pub const FULL_SCALE_DPS: f64 = 2000.0;
+
 /// Sensitivity, LSB per deg/s, with FS_SEL = 3 (+/-2000 deg/s, the only valid range) \[IT,
 /// 3.1\].
 pub const LSB_PER_DPS: f64 = 14.375;

@@ -26,6 +26,7 @@ impl Bench {
             board_settings(args.rate, args.bandwidth, args.gyro_range, args.accel_range)?;
         let opened = open_port(&PortSpec {
             port,
+            board: imunoise::link::setup::SimulatedBoard::Mpu6050,
             speed: args.speed,
             model: args.virtual_board.model.as_deref(),
             seed: args.virtual_board.seed,

@@ -36,7 +36,7 @@ pub(super) fn run(args: &SettingsArgs) -> Result<String> {
 }
 
 /// `--accel-range G` for the ADXL345.
-pub fn range(g: u32) -> Result<Adxl345Range> {
+fn range(g: u32) -> Result<Adxl345Range> {
     Adxl345Range::from_full_scale_g(g)
         .ok_or_else(|| anyhow!("--accel-range {g}: the ADXL345's ranges are 2, 4, 8 and 16 g"))
 }

@@ -6,7 +6,6 @@ mod adxl345;
 mod itg3200;
 mod mpu6050;
 
-pub use adxl345::range as adxl345_range;
 pub use mpu6050::{accel_range, gyro_range};
 
 use anyhow::{Result, bail};
