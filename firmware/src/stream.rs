@@ -67,14 +67,6 @@ impl<S: SensorChip> SensorStream<S> {
         self.state.number
     }
 
-    pub fn settings(&self) -> S::Settings {
-        self.settings
-    }
-
-    pub fn device_mut(&mut self) -> &mut S {
-        &mut self.dev
-    }
-
     /// Streaming as the host sees it: a run, or a run being recovered.
     pub fn streaming(&self) -> bool {
         self.state.streaming()

@@ -1,7 +1,8 @@
 //! The portable firmware on a GY-85 board (an ITG-3200 and an ADXL345 on one simulated I2C
 //! bus): what the probe finds where, the sensor list and per-sensor settings, both sensors
 //! streamed without a loss at equal and at different rates, a fault of one sensor that the
-//! other does not see, and a sensor whose clock runs fast.
+//! other does not see (recovered, or given up on), a Start that starts both or neither, and
+//! a sensor whose clock runs fast.
 
 use firmware::{BoardConfig, Firmware};
 use imunoise::link::accounting::SampleAccounting;
@@ -67,6 +68,15 @@ fn configured(gyro: Itg3200Settings, accel: Adxl345Settings) -> Board {
         config: SensorConfig::Adxl345(accel),
     });
     b
+}
+
+/// A GY-85 board streaming both sensors at 50 Hz, and when it started.
+fn streaming_at_50_hz() -> (Board, u64) {
+    let (gyro, accel) = at_50_hz();
+    let mut b = configured(gyro, accel);
+    b.ack(Command::Start);
+    let t0 = b.now();
+    (b, t0)
 }
 
 /// A board: firmware on the shared bus, and what the host decoded, per sensor.
@@ -412,10 +422,7 @@ fn sensors_at_different_rates_keep_their_own_numbering() {
 /// ITG-3200's stream goes on without a gap.
 #[test]
 fn a_fault_of_the_accelerometer_leaves_the_gyro_streaming() {
-    let (gyro, accel) = at_50_hz();
-    let mut b = configured(gyro, accel);
-    b.ack(Command::Start);
-    let t0 = b.now();
+    let (mut b, t0) = streaming_at_50_hz();
     {
         let mut bus = b.bus.lock();
         let chip = bus.adxl345_mut().unwrap();
@@ -500,4 +507,83 @@ fn a_fast_clock_on_one_chip_moves_only_its_count() {
     let expected = (phase(t1_s) - phase(t0_s)) * 50.0;
     assert!((n1 - expected).abs() <= 1.0, "{n1} against {expected}");
     assert!(n1 - n0 >= 44.0, "0.3 % of 15000 samples: {n0} and {n1}");
+}
+
+/// An ADXL345 that never comes back: after `GAVE_UP_AFTER_S` of attempts sensor 1 gives up,
+/// and the ITG-3200 streams on until Stop, every sample delivered.
+#[test]
+fn a_sensor_given_up_on_leaves_the_other_streaming() {
+    let (mut b, t0) = streaming_at_50_hz();
+    b.bus
+        .lock()
+        .adxl345_mut()
+        .unwrap()
+        .faults_mut()
+        .nack_address = u32::MAX;
+    let give_up_s = u64::from(protocol::GAVE_UP_AFTER_S);
+    b.run_for((give_up_s + 60) * 1_000_000, 2_000);
+    assert!(b.fw.streaming(), "sensor 0 still streams");
+    let gave_up: Vec<_> = b
+        .replies
+        .iter()
+        .filter_map(|m| match m {
+            DeviceMessage::SensorFault {
+                sensor,
+                error: ErrorCode::GaveUp { .. },
+            } => Some(*sensor),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(gave_up, [1]);
+    b.ack(Command::Stop);
+    let elapsed_s = (b.now() - t0) as f64 / 1e6;
+    assert!(accounting(&b, 0).gaps().is_empty());
+    let n0 = delivered(&b, 0) as f64;
+    assert!((n0 - elapsed_s * 50.0).abs() <= 1.0, "{n0}");
+    // Sensor 1: what it made until the board gave up is delivered or counted lost.
+    let status = b.status();
+    let n1 = (delivered(&b, 1) + status.samples_lost) as f64;
+    let until_s = give_up_s as f64 + 0.5;
+    assert!(
+        n1 >= until_s * 50.0 && n1 <= (until_s + 1.0) * 50.0,
+        "{n1} samples of sensor 1 in about {until_s} s"
+    );
+}
+
+/// Start starts every sensor or none: an ADXL345 that does not answer refuses the Start,
+/// and the ITG-3200 is left stopped.
+#[test]
+fn start_is_all_or_nothing() {
+    let (gyro, accel) = at_50_hz();
+    let mut b = configured(gyro, accel);
+    b.bus
+        .lock()
+        .adxl345_mut()
+        .unwrap()
+        .faults_mut()
+        .nack_address = u32::MAX;
+    let replies = b.command(Command::Start);
+    assert!(
+        matches!(
+            replies[..],
+            [DeviceMessage::Nack {
+                error: ErrorCode::SensorNotResponding,
+                ..
+            }]
+        ),
+        "{replies:?}"
+    );
+    assert!(!b.fw.streaming());
+    b.run_for(1_000_000, 2_000);
+    assert!(b.batches.iter().all(Vec::is_empty));
+    b.bus
+        .lock()
+        .adxl345_mut()
+        .unwrap()
+        .faults_mut()
+        .nack_address = 0;
+    b.ack(Command::Start);
+    b.run_for(1_000_000, 2_000);
+    b.ack(Command::Stop);
+    assert!(delivered(&b, 0) >= 49 && delivered(&b, 1) >= 49);
 }
