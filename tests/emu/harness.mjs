@@ -2,9 +2,10 @@
 // Run the emulated board by hand, until Ctrl-C:
 //
 //   node tests/emu/harness.mjs [--elf ELF] [--imunoise BIN] [--pty PATH] [--seed N]
-//                               [--model FILE] [--journal FILE]
+//                               [--board mpu6050|gy85] [--model FILE] [--journal FILE]
 //
 // then, in another terminal: imunoise capture --port PATH --rate 200 --bandwidth 42
+// (the GY-85's chips: --rate 50 --bandwidth 20)
 // Defaults are those `tests/emu/run` builds (see docs/guide/emulated-board.md).
 
 import os from 'node:os';
@@ -20,6 +21,7 @@ const { values } = parseArgs({
     imunoise: { type: 'string', default: defaults.imunoise },
     pty: { type: 'string', default: path.join(os.tmpdir(), 'imunoise-emu-tty') },
     seed: { type: 'string', default: '1' },
+    board: { type: 'string', default: 'mpu6050' },
     model: { type: 'string' },
     journal: { type: 'string' },
     'defmt-print': { type: 'string', default: defaults.defmtPrint },
@@ -32,6 +34,7 @@ const board = new EmulatedBoard({
   imunoise: values.imunoise,
   dir,
   pty: values.pty,
+  board: values.board,
   seed: Number(values.seed),
   model: values.model,
   journal: values.journal,

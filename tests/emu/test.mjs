@@ -16,113 +16,25 @@
 
 import { after, before, test } from 'node:test';
 import assert from 'node:assert/strict';
-import { spawn } from 'node:child_process';
-import fs from 'node:fs';
-import os from 'node:os';
-import path from 'node:path';
-import { EmulatedBoard } from './lib/board.mjs';
-import { defaults } from './lib/paths.mjs';
+import { Testbed } from './lib/testbed.mjs';
 import { COMMAND, frame, requests, varint } from './lib/frames.mjs';
 import { compare, readCounts, readJournal } from './lib/journal.mjs';
 
-const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'imunoise-emu-test-'));
-const store = path.join(dir, 'store');
-const pty = path.join(dir, 'tty');
-const journalFile = path.join(dir, 'journal.csv');
-let board;
-let finished = false;
-let running;
-const speed = { emulatedS: 0, wallS: 0 };
-
-/** Run imunoise without blocking the event loop (the emulator runs meanwhile). */
-function imunoise(args, { onSpawn } = {}) {
-  return new Promise((resolve, reject) => {
-    const child = spawn(defaults.imunoise, [...args, '--store', store], {
-      stdio: ['ignore', 'pipe', 'pipe'],
-    });
-    let stdout = '';
-    let stderr = '';
-    child.stdout.on('data', (d) => (stdout += d));
-    child.stderr.on('data', (d) => (stderr += d));
-    child.on('error', reject);
-    child.on('exit', (code) => {
-      if (code !== 0) reject(new Error(`imunoise ${args.join(' ')} exited ${code}:\n${stderr}`));
-      else resolve({ stdout, stderr });
-    });
-    onSpawn?.(child);
-  });
-}
-
-const json = async (args) => JSON.parse((await imunoise([...args, '--json'])).stdout);
-
-/** Resolves once the emulated clock passes `us`. */
-function emulatedTime(us) {
-  return new Promise((resolve) => {
-    const check = () => (board.nowUs() >= us ? resolve() : setTimeout(check, 20));
-    check();
-  });
-}
-
-/** Capture with the given options, timing it in emulated and wall seconds. */
-async function capture(name, rate, bandwidth, duration, during) {
-  const startUs = board.nowUs();
-  const wallStart = performance.now();
-  let child;
-  const done = imunoise(
-    ['capture', '--port', pty, '--rate', String(rate), '--bandwidth', String(bandwidth), '--duration', duration, '--name', name],
-    { onSpawn: (c) => (child = c) },
-  );
-  await during?.(child);
-  const result = await done;
-  const emulatedS = (board.nowUs() - startUs) / 1e6;
-  const wallS = (performance.now() - wallStart) / 1e3;
-  speed.emulatedS += emulatedS;
-  speed.wallS += wallS;
-  console.error(`[test] ${name}: ${emulatedS.toFixed(2)} s emulated in ${wallS.toFixed(1)} s wall`);
-  return result;
-}
+const bed = new Testbed({ seed: 7 });
+const { pty, journalFile } = bed;
+const board = bed.board;
+const json = (args) => bed.json(args);
+const emulatedTime = (us) => bed.emulatedTime(us);
+const capture = (...args) => bed.capture(...args);
 
 /** A session's samples as raw counts, held against what the simulated device made. */
 async function received(name) {
-  board.device.ask(`f ${board.nowUs()}`);
-  const { stdout } = await imunoise(['export', name, '--units', 'counts']);
-  const counts = readCounts(stdout);
+  const counts = readCounts(await bed.counts(name));
   return { ...counts, ...compare(counts.rows, readJournal(journalFile)) };
 }
 
-before(async () => {
-  board = new EmulatedBoard({
-    elf: defaults.elf,
-    imunoise: defaults.imunoise,
-    dir,
-    pty,
-    seed: 7,
-    journal: journalFile,
-    defmtPrint: defaults.defmtPrint,
-  });
-  await board.openPty();
-  let lastState = performance.now();
-  running = board.run({
-    until: () => {
-      if (process.env.EMU_VERBOSE && performance.now() - lastState > 5000) {
-        lastState = performance.now();
-        console.error(`[emu] ${board.state()}`);
-      }
-      return finished;
-    },
-  });
-  await board.usbConnected;
-});
-
-after(async () => {
-  finished = true;
-  await running;
-  await board.close();
-  console.error(
-    `[test] emulation speed while capturing: ${speed.emulatedS.toFixed(1)} s emulated in ${speed.wallS.toFixed(1)} s wall = ${(speed.emulatedS / speed.wallS).toFixed(2)} emulated s per wall s`,
-  );
-  fs.rmSync(dir, { recursive: true, force: true });
-});
+before(() => bed.start());
+after(() => bed.stop());
 
 test('1. handshake: info and protocol version through the pty', async () => {
   const info = await json(['info', '--port', pty]);
@@ -260,9 +172,7 @@ test('5. an I2C outage and a sensor reset: reported, recovered, the gaps are the
   // most one backoff step; the reset: found within a drain or a second's read-back.
   assert.ok(outage >= rate && outage <= 2.5 * rate, `outage cost ${outage} samples`);
   assert.ok(reset <= 1.5 * rate, `reset cost ${reset} samples`);
-  board.device.ask(`f ${board.nowUs()}`);
-  const { stdout } = await imunoise(['export', 'emu-faults', '--units', 'counts']);
-  const rows = readCounts(stdout).rows;
+  const rows = readCounts(await bed.counts('emu-faults')).rows;
   const epochs = readJournal(journalFile);
   const parts = pieces(rows, gaps, epochs);
   for (const part of parts) {

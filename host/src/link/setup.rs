@@ -44,6 +44,18 @@ impl SimulatedBoard {
             SimulatedBoard::Gy85 => &[Itg3200, Adxl345],
         }
     }
+
+    /// The board's model file given none: its built-in example (`examples/mpu6050.toml` or
+    /// `examples/gy85.toml`), which has no faults.
+    pub fn example_model_file(self) -> ModelFile {
+        ModelFile {
+            model: match self {
+                SimulatedBoard::Mpu6050 => model_file::example(),
+                SimulatedBoard::Gy85 => model_file::example_gy85(),
+            },
+            faults: FaultPlan::default(),
+        }
+    }
 }
 
 /// A board to capture from: which port, which model and seed if it is the virtual one.
@@ -100,18 +112,11 @@ pub fn open(spec: &PortSpec) -> Result<Opened, OpenError> {
 }
 
 /// The virtual board of `spec`: its model file's model and `[faults]` (or the board's
-/// built-in example, `examples/mpu6050.toml` or `examples/gy85.toml`, which have none), and
-/// seed.
+/// built-in example, [`SimulatedBoard::example_model_file`]), and seed.
 pub fn virtual_board(spec: &PortSpec) -> Result<VirtualBoard, ModelFileError> {
     let file = match spec.model {
         Some(path) => model_file::load_file(path)?,
-        None => ModelFile {
-            model: match spec.board {
-                SimulatedBoard::Mpu6050 => model_file::example(),
-                SimulatedBoard::Gy85 => model_file::example_gy85(),
-            },
-            faults: FaultPlan::default(),
-        },
+        None => spec.board.example_model_file(),
     };
     let board_id = SIMULATED_BOARD_ID | spec.seed;
     let (model, seed, faults) = (file.model, spec.seed, &file.faults);

@@ -17,7 +17,8 @@
 //! and reports it on the next Configure or Start.
 
 use super::shared_bus::SharedBus;
-use crate::sim::device::{BusChip, SimAdxl345, SimBus, SimItg3200, SimMpu6050};
+use crate::sim::boards;
+use crate::sim::device::SimBus;
 use crate::sim::imu::ImuModel;
 use crate::sim::model_file::FaultPlan;
 use firmware::{BoardConfig, Firmware};
@@ -26,9 +27,6 @@ use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 pub use super::transport::Speed;
-
-/// How the ADXL345's seed follows from the board's: the two chips draw their own noise.
-const ACCEL_SEED: u64 = 0xAD_1345;
 
 struct NoDelay;
 impl embedded_hal::delay::DelayNs for NoDelay {
@@ -78,10 +76,8 @@ impl VirtualBoard {
         speed: Speed,
         faults: &FaultPlan,
     ) -> Self {
-        let mut sim = SimMpu6050::new(model, seed);
-        faults.apply_to_sensor(&mut sim);
         Self::on_bus(
-            SimBus::new(vec![BusChip::Mpu6050(sim)]),
+            boards::mpu6050(model, seed, faults),
             board_id,
             speed,
             faults,
@@ -99,16 +95,7 @@ impl VirtualBoard {
         speed: Speed,
         faults: &FaultPlan,
     ) -> Self {
-        let mut gyro = SimItg3200::new(model, seed);
-        let mut accel = SimAdxl345::new(model, seed ^ ACCEL_SEED);
-        faults.apply_to_sensor(&mut gyro);
-        let accel_faults = FaultPlan {
-            who_am_i: None,
-            ..faults.clone()
-        };
-        accel_faults.apply_to_sensor(&mut accel);
-        let bus = SimBus::new(vec![BusChip::Itg3200(gyro), BusChip::Adxl345(accel)]);
-        Self::on_bus(bus, board_id, speed, faults)
+        Self::on_bus(boards::gy85(model, seed, faults), board_id, speed, faults)
     }
 
     /// The firmware started on `bus`, with the board's reboots from `faults`.

@@ -1,5 +1,5 @@
 // The emulated board: the release firmware ELF on rp2040js, its I2C0 wired to the simulated
-// MPU-6050 (sim-device.mjs), its USB CDC bridged to a pseudo-terminal made by socat, and
+// chips (sim-device.mjs: an MPU-6050, or a GY-85's ITG-3200 and ADXL345), its USB CDC bridged to a pseudo-terminal made by socat, and
 // its defmt log (the RTT up-buffer in emulated RAM) decoded by defmt-print.
 //
 // rp2040js quirks handled here (docs/ARCHITECTURE.md, "Testing architecture"):
@@ -31,12 +31,13 @@ export class EmulatedBoard {
   /**
    * @param {object} o
    * @param {string} o.elf the firmware (built with --features emulator)
-   * @param {string} o.imunoise the imunoise binary (serves the simulated MPU-6050)
+   * @param {string} o.imunoise the imunoise binary (serves the simulated chips)
    * @param {string} o.dir a private working folder
    * @param {string} o.pty path of the pseudo-terminal link the host opens
-   * @param {number} [o.seed] the simulated sensor's seed
-   * @param {string} [o.model] the simulated sensor's noise model file
-   * @param {string} [o.journal] where the simulated sensor writes what it made
+   * @param {string} [o.board] the chips on the bus: 'mpu6050' (default) or 'gy85'
+   * @param {number} [o.seed] the simulated chips' seed
+   * @param {string} [o.model] the simulated chips' noise model file
+   * @param {string} [o.journal] where the simulated chips write what they made
    * @param {string} [o.defmtPrint] the defmt-print binary ('' to show raw RTT bytes' count only)
    * @param {(line: string) => void} [o.log] where the firmware's log lines go
    */
@@ -71,6 +72,7 @@ export class EmulatedBoard {
     this.device = new SimDevice({
       imunoise: o.imunoise,
       dir: o.dir,
+      board: o.board,
       seed: o.seed ?? 1,
       model: o.model,
       journal: o.journal,

@@ -1,5 +1,6 @@
-// The MPU-6050 on the emulated I2C bus is imunoise's own simulated device (host/src/sim),
-// served by `imunoise sim-device --stdio` in a child process, one line per bus event
+// The chips on the emulated I2C bus (an MPU-6050, or a GY-85's ITG-3200 and ADXL345) are
+// imunoise's own simulated ones (host/src/sim), served by `imunoise sim-device --stdio` in a
+// child process, one line per bus event
 // (protocol: host/src/sim/bus_server.rs). The emulator waits for each reply synchronously
 // (blocking reads on named pipes), so emulated time stands still during a round trip and
 // every event is stamped with the emulated time at which the firmware caused it.
@@ -13,17 +14,18 @@ export class SimDevice {
    * @param {object} o
    * @param {string} o.imunoise path of the imunoise binary
    * @param {string} o.dir a private folder for the two named pipes
+   * @param {string} [o.board] the chips on the bus: 'mpu6050' (default) or 'gy85'
    * @param {number} o.seed the device's random seed
    * @param {string} [o.model] a noise model file (default: the built-in example)
-   * @param {string} [o.journal] where the device writes every FIFO reset and sample it made
+   * @param {string} [o.journal] where the chips write every FIFO reset and sample they made
    */
-  constructor({ imunoise, dir, seed, model, journal }) {
+  constructor({ imunoise, dir, board = 'mpu6050', seed, model, journal }) {
     if (!fs.existsSync(imunoise)) throw new Error(`no imunoise binary at ${imunoise}`);
     const requests = path.join(dir, 'i2c-requests');
     const replies = path.join(dir, 'i2c-replies');
     for (const fifo of [requests, replies]) fs.rmSync(fifo, { force: true });
     execFileSync('mkfifo', [requests, replies]);
-    const args = ['sim-device', '--stdio', '--seed', String(seed)];
+    const args = ['sim-device', '--stdio', '--board', board, '--seed', String(seed)];
     if (model) args.push('--model', model);
     if (journal) args.push('--journal', journal);
     // The shell opens the pipes in the order this process opens their other ends.

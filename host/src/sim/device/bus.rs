@@ -1,10 +1,12 @@
 //! The chips on the bus: each alone as an `embedded_hal` I2C bus (a board with one sensor),
 //! and [`SimBus`], several chips at their own addresses on one bus (a GY-85's ITG-3200 and
 //! ADXL345). A transaction's bus events ([`super::RegisterChip`]) go to the chip addressed;
-//! an address no chip has is not acknowledged.
+//! an address no chip has is not acknowledged. The bus takes those events one by one too
+//! ([`SimBus::bus_start`] ...), for a bus model in another process ([`crate::sim::bus_server`]).
 
 use super::{
-    RegisterChip, SampledChip, SimAdxl345, SimI2cError, SimItg3200, SimMpu6050, transaction,
+    JournalEntry, RegisterChip, SampledChip, SimAdxl345, SimI2cError, SimItg3200, SimMpu6050,
+    transaction,
 };
 use crate::sim::imu::TrueInput;
 use embedded_hal::i2c::{ErrorType, I2c, NoAcknowledgeSource, Operation};
@@ -69,11 +71,80 @@ impl BusChip {
 pub struct SimBus {
     chips: Vec<BusChip>,
     time_us: u64,
+    /// The chip that acknowledged the last start: where written and read bytes go until the
+    /// next start or the stop.
+    addressed: Option<usize>,
 }
 
 impl SimBus {
     pub fn new(chips: Vec<BusChip>) -> Self {
-        SimBus { chips, time_us: 0 }
+        SimBus {
+            chips,
+            time_us: 0,
+            addressed: None,
+        }
+    }
+
+    /// The chips' addresses, in the bus's order.
+    pub fn addresses(&self) -> Vec<u8> {
+        self.chips.iter().map(|c| c.chip_ref().address()).collect()
+    }
+
+    /// The chip at `address`, if the bus has one.
+    pub fn chip_at(&mut self, address: u8) -> Option<&mut dyn RegisterChip> {
+        self.chips
+            .iter_mut()
+            .map(BusChip::chip)
+            .find(|c| c.address() == address)
+    }
+
+    /// A start (or repeated start) addressed to `address`: the chip there answers it (it may
+    /// refuse, in an outage); no chip there, no acknowledge.
+    pub fn bus_start(&mut self, address: u8, repeated: bool) -> Result<(), SimI2cError> {
+        self.addressed = None;
+        let k = self
+            .chips
+            .iter()
+            .position(|c| c.chip_ref().address() == address)
+            .ok_or(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Address))?;
+        self.chips[k].chip().bus_start(address, repeated)?;
+        self.addressed = Some(k);
+        Ok(())
+    }
+
+    /// A written byte, to the chip addressed; with none, nobody acknowledges it.
+    pub fn bus_write(&mut self, byte: u8) -> Result<(), SimI2cError> {
+        match self.addressed {
+            Some(k) => self.chips[k].chip().bus_write(byte),
+            None => Err(SimI2cError::NoAcknowledge(NoAcknowledgeSource::Data)),
+        }
+    }
+
+    /// A read byte, from the chip addressed; with none, the pull-ups' 0xFF.
+    pub fn bus_read(&mut self) -> u8 {
+        match self.addressed {
+            Some(k) => self.chips[k].chip().bus_read(),
+            None => 0xFF,
+        }
+    }
+
+    /// Keep every chip's journal.
+    pub fn keep_journals(&mut self) {
+        for chip in &mut self.chips {
+            chip.chip().keep_journal();
+        }
+    }
+
+    /// Every chip's journal entries since the last call, each with the chip's address, chip
+    /// by chip in the bus's order.
+    pub fn take_journals(&mut self) -> Vec<(u8, JournalEntry)> {
+        let mut entries = Vec::new();
+        for chip in &mut self.chips {
+            let chip = chip.chip();
+            let address = chip.address();
+            entries.extend(chip.take_journal().into_iter().map(|e| (address, e)));
+        }
+        entries
     }
 
     /// The bus's time, us.
@@ -97,6 +168,7 @@ impl SimBus {
 
     /// End any transaction every chip is in: what nine clocks and a STOP do to real ones.
     pub fn bus_stop(&mut self) {
+        self.addressed = None;
         for chip in &mut self.chips {
             chip.chip().bus_stop();
         }
