@@ -1,6 +1,7 @@
 // The emulated board: the release firmware ELF on rp2040js, its I2C0 wired to the simulated
-// chips (sim-device.mjs: an MPU-6050, or a GY-85's ITG-3200 and ADXL345), its USB CDC bridged to a pseudo-terminal made by socat, and
-// its defmt log (the RTT up-buffer in emulated RAM) decoded by defmt-print.
+// chips (sim-device.mjs: an MPU-6050, or a GY-85's ITG-3200 and ADXL345), its USB CDC
+// bridged to a pseudo-terminal made by socat, and its defmt log (the RTT up-buffer in
+// emulated RAM) decoded by defmt-print.
 //
 // rp2040js quirks handled here (docs/ARCHITECTURE.md, "Testing architecture"):
 // - no bootrom: the flash image is loaded directly, VTOR set past boot2, SP and PC taken

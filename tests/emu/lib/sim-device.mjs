@@ -1,9 +1,9 @@
 // The chips on the emulated I2C bus (an MPU-6050, or a GY-85's ITG-3200 and ADXL345) are
 // imunoise's own simulated ones (host/src/sim), served by `imunoise sim-device --stdio` in a
-// child process, one line per bus event
-// (protocol: host/src/sim/bus_server.rs). The emulator waits for each reply synchronously
-// (blocking reads on named pipes), so emulated time stands still during a round trip and
-// every event is stamped with the emulated time at which the firmware caused it.
+// child process, one line per bus event (protocol: host/src/sim/bus_server.rs). The
+// emulator waits for each reply synchronously (blocking reads on named pipes), so emulated
+// time stands still during a round trip and every event is stamped with the emulated time
+// at which the firmware caused it.
 
 import { execFileSync, spawn } from 'node:child_process';
 import fs from 'node:fs';
