@@ -534,8 +534,14 @@ mod tests {
             assert_eq!(row.published, None);
         }
         let text = sweep_table::paper_table(&table);
-        assert!(text.contains("beside the datasheet and the folding prediction"), "{text}");
-        assert!(text.contains("0.0300 deg/s/sqrt(Hz) one-sided (N0 = 0.0212)"), "{text}");
+        assert!(
+            text.contains("beside the datasheet and the folding prediction"),
+            "{text}"
+        );
+        assert!(
+            text.contains("0.0300 deg/s/sqrt(Hz) one-sided (N0 = 0.0212)"),
+            "{text}"
+        );
         assert!(!text.contains("The study agrees"), "{text}");
     }
 
