@@ -35,8 +35,10 @@ class Record:
     source : str
         Where it came from (the path, or the session's id and name).
     settings : dict or None
-        The sensor settings a capture states (its low-pass is then the one the analysis
-        fits), else None.
+        The filters a capture's sensor settings give, ``{"gyro": ..., "accel": ...}``, each
+        the MPU-6050 settings whose chain filters those channels (a GY-85's ITG-3200 gives
+        ``gyro``; its ADXL345's filter is detected, ``accel`` None); the analysis then
+        models them. None when the input states no settings.
     notes : list of str
         What the reader has to say (losses, the run chosen).
     input : dict

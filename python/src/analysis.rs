@@ -3,7 +3,7 @@
 //! is given and Kalibr's YAML.
 
 use crate::{check_rate, error_chain, samples, value_error};
-use imunoise::analysis::pipeline::{self, Bandwidth, Request};
+use imunoise::analysis::pipeline::{self, Bandwidth, KnownFilters, Request};
 use imunoise::analysis::{DataType, Estimator, filter};
 use imunoise::record::{Channel, Record};
 use imunoise::report;
@@ -108,11 +108,16 @@ pub fn segment_len(segment: i64, samples: usize, what: &str) -> PyResult<usize> 
         })
 }
 
-/// The sensor settings a loaded capture states, from their JSON.
-pub fn sensor_settings(settings: Option<&str>) -> PyResult<Option<SensorSettings>> {
-    settings
-        .map(serde_json::from_str)
-        .transpose()
+/// The filters a loaded capture's settings give (`{"gyro": ..., "accel": ...}`, each an
+/// MPU-6050 settings object or null), from their JSON; an MPU-6050's settings alone are
+/// taken for both of its chains.
+pub fn sensor_settings(settings: Option<&str>) -> PyResult<Option<KnownFilters>> {
+    let Some(text) = settings else {
+        return Ok(None);
+    };
+    serde_json::from_str::<KnownFilters>(text)
+        .or_else(|_| serde_json::from_str::<SensorSettings>(text).map(KnownFilters::from))
+        .map(Some)
         .map_err(|e| value_error(format!("settings: {e}")))
 }
 

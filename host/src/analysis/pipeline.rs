@@ -103,7 +103,7 @@ impl std::str::FromStr for Bandwidth {
 /// the same DLPF_CFG and SMPLRT_DIV (one InvenSense design, one table); the ADXL345's
 /// decimation filter is not modelled (its data sheet gives only its bandwidth, rate / 2), so
 /// its channels' roll-off is detected as for an unknown sensor.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct KnownFilters {
     pub gyro: Option<SensorSettings>,
     pub accel: Option<SensorSettings>,

@@ -14,8 +14,8 @@
 //! dropped for back-pressure, frames damaged on the line) are counted and listed, never
 //! bridged; the analysis refuses gapped data unless asked to take the longest gap-free run.
 
-mod record;
-mod stream;
+pub mod record;
+pub mod stream;
 
 pub use record::{SensorRecord, itg3200_as_mpu6050};
 pub use stream::{Run, SensorCapture};

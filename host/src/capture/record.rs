@@ -36,7 +36,7 @@ pub struct SensorRecord {
 }
 
 impl Capture {
-    /// The samples as a record in SI units ([`record`](self) module docs): all of them if
+    /// The samples as a record in SI units ([`record`](crate::capture::record)'s docs): all of them if
     /// no sensor has a gap or a restart, else an error (or, with `longest_run`, each
     /// sensor's longest gap-free run).
     pub fn to_record(&self, source: &str, longest_run: bool) -> Result<Record, CaptureError> {
@@ -185,7 +185,7 @@ impl Span {
     }
 }
 
-/// A sensor's samples in SI units, by its kind ([`record`](self) module docs).
+/// A sensor's samples in SI units, by its kind (module docs).
 fn channels_of(config: &SensorConfig, id: u8, samples: &[RawSample]) -> Vec<Channel> {
     let mut channels = Vec::new();
     match config {

@@ -1,4 +1,4 @@
-//! One sensor's samples within a capture ([`SensorStream`] while decoding, [`SensorCapture`]
+//! One sensor's samples within a capture (`SensorStream` while decoding, [`SensorCapture`]
 //! when done): a board with several sensors numbers each one's samples from 0 at Start, at
 //! its own rate, so every sensor has its own runs, loss accounting and segments. Board
 //! events (a restart, a silence the host measured) reach every stream.

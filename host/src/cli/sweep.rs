@@ -160,10 +160,10 @@ pub fn run_sweep(
             Event::Setting {
                 index,
                 count,
-                settings,
+                plan,
                 link,
             } => eprintln!(
-                "setting {}/{count}: {settings} for {seconds} s ({link})",
+                "setting {}/{count}: {plan} for {seconds} s ({link})",
                 index + 1
             ),
             Event::Capturing { samples } => {

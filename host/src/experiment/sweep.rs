@@ -11,7 +11,7 @@ use crate::analysis::units::{self, rad_to_deg};
 use crate::capture::CaptureError;
 use crate::link::Link;
 use crate::link::board::{Board, BoardError};
-use crate::link::plan::Request;
+use crate::link::plan::{Plan as BoardPlan, Request};
 use crate::link::setup::{StartError, start_board_for};
 use crate::recorder::live::LiveOptions;
 use crate::recorder::{self, Ending, Progress, RecordError, RecordOptions};
@@ -95,11 +95,12 @@ pub struct Plan<'a> {
 
 /// What happens during a sweep, for a caller to show.
 pub enum Event<'a> {
-    /// Setting `index` (from 0) of `count` begins on the link `link`.
+    /// Setting `index` (from 0) of `count` begins on the link `link`, its sensors set as
+    /// `plan` says.
     Setting {
         index: usize,
         count: usize,
-        settings: &'a SensorSettings,
+        plan: &'a BoardPlan,
         link: &'a str,
     },
     /// A capture of `samples` samples into the store begins.
@@ -175,13 +176,13 @@ pub fn sweep(
             Hz(s.output_rate_hz()),
             Hz(bandwidth(s))
         );
+        let (info, board_plan) = start_board_for(link, &Request::of(s))?;
         on(Event::Setting {
             index: i,
             count: settings.len(),
-            settings: s,
+            plan: &board_plan,
             link: &link.describe(),
         });
-        let (info, board_plan) = start_board_for(link, &Request::of(s))?;
         let gyro = info
             .sensor_list()
             .iter()
@@ -406,15 +407,19 @@ pub fn settings_of(rows: &[SweepRow]) -> Vec<Setting<'_>> {
 pub fn html(rows: &[SweepRow], title: &str) -> Result<String, PlotError> {
     let settings = settings_of(rows);
     let gyro = paper_comparison(rows);
+    let gyro_chip = rows.first().map_or(SensorKind::Mpu6050, |r| r.gyro);
+    let sensor = match gyro_chip {
+        SensorKind::Itg3200 => "the GY-85's ITG-3200 (its ADXL345 at the same output rate)",
+        _ => "the MPU-6050",
+    };
     sweep_page::page(&SweepPage {
         title,
+        sensor,
         settings: &settings,
         gyro: &gyro,
         published: Published {
             source: "the settings study's Table 2",
-            datasheet_density: datasheet_density(
-                rows.first().map_or(SensorKind::Mpu6050, |r| r.gyro),
-            ),
+            datasheet_density: datasheet_density(gyro_chip),
         },
         // sweep() analyses every setting with the default options.
         options: &Options::default(),
@@ -511,6 +516,33 @@ mod tests {
         let text = sweep_table::paper_table(&table);
         assert!(text.contains("0.00955") && text.contains("+53 %") && text.contains("-44 %"));
         assert!(text.contains("2.83") && text.contains("0.84"), "{text}");
+        assert!(text.contains("The study agrees"), "{text}");
+
+        // A GY-85 sweep: the ITG-3200's datasheet density (0.03 deg/s/sqrt(Hz) one-sided)
+        // times the same folding, and no published value (the study's is an MPU-6050's).
+        let gy85: Vec<SweepRow> = rows
+            .into_iter()
+            .map(|r| SweepRow {
+                gyro: SensorKind::Itg3200,
+                ..r
+            })
+            .collect();
+        let table = paper_comparison(&gy85);
+        for (row, (fold, ..)) in table.iter().zip(expected) {
+            let want = ITG3200_GYRO_DENSITY / 2f64.sqrt() * fold;
+            assert!((row.datasheet / want - 1.0).abs() < 1e-3, "{row:?}");
+            assert_eq!(row.published, None);
+        }
+        let text = sweep_table::paper_table(&table);
+        assert!(
+            text.contains("beside the datasheet and the folding prediction"),
+            "{text}"
+        );
+        assert!(
+            text.contains("0.0300 deg/s/sqrt(Hz) one-sided (N0 = 0.0212)"),
+            "{text}"
+        );
+        assert!(!text.contains("The study agrees"), "{text}");
     }
 
     /// White gyro noise (N0 = 1.5e-4 rad/s/sqrt(Hz), the example model's) through the

@@ -69,6 +69,8 @@ pub struct Published<'a> {
 #[derive(Debug, Clone, Copy)]
 pub struct SweepPage<'a> {
     pub title: &'a str,
+    /// The sensor the settings are of, in words ("the MPU-6050").
+    pub sensor: &'a str,
     pub settings: &'a [Setting<'a>],
     /// One row per setting, in the order of `settings`.
     pub gyro: &'a [GyroNoise],
@@ -133,9 +135,10 @@ fn intro(h: &mut String, p: &SweepPage) {
     let folding = p.settings.iter().any(|s| s.folds);
     let _ = writeln!(
         h,
-        "<p>{} setting(s) of the MPU-6050, one stored session each (output rate / gyro DLPF \
+        "<p>{} setting(s) of {}, one stored session each (output rate / gyro DLPF \
          bandwidth), each analysed on its own. Intervals: {} % two-sided.{}</p>",
         p.settings.len(),
+        escape(p.sensor),
         sig(p.options.confidence * 100.0, 3),
         if folding {
             " Settings marked * have the bandwidth above half the output rate: the chip \
@@ -725,6 +728,7 @@ mod tests {
         ];
         let gyro = gyro_rows(published);
         let html = page(&SweepPage {
+            sensor: "the MPU-6050",
             title: "imunoise sweep",
             settings: &settings,
             gyro: &gyro,

@@ -75,13 +75,21 @@ pub fn table(settings: &[Setting], gyro: &[GyroNoise]) -> String {
     out + &paper_table(gyro)
 }
 
-/// The gyro's N per setting beside the study's Table 2, as text: absolute values, and
-/// ratios to the 200 Hz / 42 Hz setting (where nothing folds) when it is in the sweep.
+/// The gyro's N per setting beside the study's Table 2 (an MPU-6050's; a board with
+/// another gyro has no published values), as text: absolute values, and ratios to the
+/// 200 Hz / 42 Hz setting (where nothing folds) when it is in the sweep.
 pub fn paper_table(rows: &[GyroNoise]) -> String {
-    let mut out = format!(
-        "\nGyro ARW beside the settings study's Table 2, in {PAPER_ARW_UNIT} (= deg/s/sqrt(Hz), the \
-         Allan deviation at 1 s; the study's unit is assumed: docs/signal_chain.md)\n"
-    );
+    let published = rows.iter().any(|r| r.published.is_some());
+    let mut out = match published {
+        true => format!(
+            "\nGyro ARW beside the settings study's Table 2, in {PAPER_ARW_UNIT} (= deg/s/sqrt(Hz), \
+             the Allan deviation at 1 s; the study's unit is assumed: docs/signal_chain.md)\n"
+        ),
+        false => format!(
+            "\nGyro ARW beside the datasheet and the folding prediction, in {PAPER_ARW_UNIT} (= \
+             deg/s/sqrt(Hz), the Allan deviation at 1 s)\n"
+        ),
+    };
     let _ = writeln!(
         out,
         "{:<12} {:>8} {:>10} {:>8} {:>8} {:>28} | {:>8} {:>6} {:>6}",
@@ -132,12 +140,21 @@ pub fn paper_table(rows: &[GyroNoise]) -> String {
             ),
         );
     }
-    out.push_str(
-        "folding: predicted N / N0; datasheet: 0.005 deg/s/sqrt(Hz) one-sided (N0 = 0.00354) x \
-         folding; vs ds: study / datasheet; after |: ratios to 200/42 Hz.\nThe study agrees with \
-         datasheet x folding within 5 % at 200/42 and 50/256, not at 200/256 or 50/42; its \
-         50/42 below 200/42 is impossible for any stationary input through one filter \
-         (docs/signal_chain.md).\n",
+    // Each row's datasheet value is N0 times its folding.
+    let n0 = rows.first().map_or(0.0, |r| r.datasheet / r.folding);
+    let _ = writeln!(
+        out,
+        "folding: predicted N / N0; datasheet: {} deg/s/sqrt(Hz) one-sided (N0 = {}) x \
+         folding; vs ds: study / datasheet; after |: ratios to 200/42 Hz.",
+        sig(n0 * 2f64.sqrt(), 3),
+        sig(n0, 3)
     );
+    if published {
+        out.push_str(
+            "The study agrees with datasheet x folding within 5 % at 200/42 and 50/256, not at \
+             200/256 or 50/42; its 50/42 below 200/42 is impossible for any stationary input \
+             through one filter (docs/signal_chain.md).\n",
+        );
+    }
     out
 }

@@ -56,26 +56,21 @@ impl Board {
     /// columns are the ITG-3200's (rate, DLPF row, divider, its fixed 2000 deg/s range),
     /// its accel columns the ADXL345's (bandwidth rate / 2, range).
     pub fn of(info: &DeviceInfo) -> Board {
+        let sensors = info.sensor_list();
+        let mpu6050 = sensors.iter().find_map(|s| match s.config {
+            SensorConfig::Mpu6050(settings) => Some(settings),
+            _ => None,
+        });
         let mut board = Board {
             board_id: format!("{:#018x}", info.board_id),
             firmware_version: info.firmware_version.to_string(),
             protocol_version: info.protocol_version,
-            ..Board::mpu6050(&info.settings)
+            ..Board::mpu6050(&mpu6050.unwrap_or(info.settings))
         };
-        let sensors = info.sensor_list();
         let gyro_listed = sensors.iter().any(|s| s.kind != SensorKind::Adxl345);
-        let listed: Vec<_> = sensors.iter().collect();
-        for sensor in listed.into_iter().rev() {
+        for sensor in sensors.iter() {
             match sensor.config {
-                SensorConfig::Mpu6050(s) => {
-                    let mpu = Board::mpu6050(&s);
-                    board = Board {
-                        board_id: board.board_id,
-                        firmware_version: board.firmware_version,
-                        protocol_version: board.protocol_version,
-                        ..mpu
-                    };
-                }
+                SensorConfig::Mpu6050(_) => {}
                 SensorConfig::Itg3200(s) => {
                     board.rate_hz = s.output_rate_hz();
                     board.gyro_bandwidth_hz = s.bandwidth_hz();
