@@ -111,21 +111,7 @@ fn an_unstreamable_setting_is_refused_naming_the_firmwares_limit() {
 fn the_sweep_reproduces_the_settings_studys_finding() {
     let store = TempStore::new();
     let report = store.file("board-sweep.html");
-    let out = store.ok(&[
-        "sweep",
-        "--port",
-        "sim",
-        "--settings",
-        "200:42,50:256",
-        "--duration",
-        "10m",
-        "--speed",
-        "max",
-        "--report",
-        report.to_str().unwrap(),
-        "--json",
-    ]);
-    let doc = json(&out);
+    let doc = sweep_json(&store, &[], "10m", &report);
     let html = std::fs::read_to_string(&report).unwrap();
     // Sessions, gyro, accelerometer and temperature terms, folding, the unit readings and the
     // study's Table 2; a figure per sensor.
@@ -241,23 +227,7 @@ fn a_gy85_capture_keeps_both_sensors_and_analyses_as_one_record() {
 fn the_sweep_on_a_gy85_follows_the_folding_of_its_gyro() {
     let store = TempStore::new();
     let report = store.file("gy85-sweep.html");
-    let out = store.ok(&[
-        "sweep",
-        "--port",
-        "sim",
-        "--board",
-        "gy85",
-        "--settings",
-        "200:42,50:256",
-        "--duration",
-        "5m",
-        "--speed",
-        "max",
-        "--report",
-        report.to_str().unwrap(),
-        "--json",
-    ]);
-    let doc = json(&out);
+    let doc = sweep_json(&store, &["--board", "gy85"], "5m", &report);
     let rows = doc["settings"].as_array().unwrap();
     let mean_gyro_n = |row: &Value| -> f64 {
         let channels = row["analysis"]["channels"].as_array().unwrap();
@@ -293,4 +263,25 @@ fn the_sweep_on_a_gy85_follows_the_folding_of_its_gyro() {
         !html.contains("<td>0.01197</td>"),
         "no published table beside a GY-85"
     );
+}
+
+/// `sweep --port sim` of the first paper's 200:42 and 50:256 for `duration`, with the page
+/// written to `report`, as JSON (`extra` options before the settings).
+fn sweep_json(
+    store: &TempStore,
+    extra: &[&str],
+    duration: &str,
+    report: &std::path::Path,
+) -> Value {
+    let mut args = vec!["sweep", "--port", "sim"];
+    args.extend(extra);
+    args.extend(["--settings", "200:42,50:256", "--duration", duration]);
+    args.extend([
+        "--speed",
+        "max",
+        "--report",
+        report.to_str().unwrap(),
+        "--json",
+    ]);
+    json(&store.ok(&args))
 }
