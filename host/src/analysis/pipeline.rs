@@ -124,29 +124,20 @@ impl KnownFilters {
     /// measures it.
     pub fn of(configs: &[protocol::SensorConfig]) -> KnownFilters {
         use protocol::SensorConfig::*;
-        let mut filters = KnownFilters {
-            gyro: None,
-            accel: None,
-        };
-        let mut accel_seen = false;
-        for config in configs {
-            match config {
-                Mpu6050(s) => {
-                    filters.gyro.get_or_insert(*s);
-                    if !accel_seen {
-                        filters.accel = Some(*s);
-                    }
-                    accel_seen = true;
-                }
-                Itg3200(s) => {
-                    filters
-                        .gyro
-                        .get_or_insert(crate::capture::itg3200_as_mpu6050(s));
-                }
-                Adxl345(_) => accel_seen = true,
-            }
-        }
-        filters
+        let gyro = configs.iter().find_map(|config| match config {
+            Mpu6050(s) => Some(*s),
+            Itg3200(s) => Some(crate::capture::itg3200_as_mpu6050(s)),
+            Adxl345(_) => None,
+        });
+        // The first accelerometer's: an MPU-6050's chain, an ADXL345's unknown.
+        let accel = configs
+            .iter()
+            .find(|config| !matches!(config, Itg3200(_)))
+            .and_then(|config| match config {
+                Mpu6050(s) => Some(*s),
+                _ => None,
+            });
+        KnownFilters { gyro, accel }
     }
 
     /// The MPU-6050 settings whose `sensor` chain filters a channel of that kind.

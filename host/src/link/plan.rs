@@ -135,26 +135,24 @@ impl Plan {
         if sensors.is_empty() {
             return Err(PlanError::NoSensor);
         }
-        // The gyro's rate is the board's: set the gyros first.
-        let mut gyro_hz = None;
-        let mut configs = Vec::new();
-        for sensor in sensors.iter() {
-            let config = match sensor.kind {
-                SensorKind::Mpu6050 => SensorConfig::Mpu6050(request.mpu6050()?),
-                SensorKind::Itg3200 => SensorConfig::Itg3200(request.itg3200()?),
-                SensorKind::Adxl345 => continue,
-            };
-            gyro_hz.get_or_insert(config.output_rate_hz());
-            configs.push(config);
-        }
-        let mut plan = Vec::new();
-        for sensor in sensors.iter() {
-            plan.push(match sensor.kind {
-                SensorKind::Adxl345 => SensorConfig::Adxl345(request.adxl345(gyro_hz)?),
-                _ => configs.remove(0),
-            });
-        }
-        Ok(Plan { configs: plan })
+        let gyro = |kind| match kind {
+            SensorKind::Mpu6050 => request.mpu6050().map(SensorConfig::Mpu6050),
+            SensorKind::Itg3200 => request.itg3200().map(SensorConfig::Itg3200),
+            SensorKind::Adxl345 => Err(PlanError::NoSensor),
+        };
+        // The first gyro's rate is the board's, which an accelerometer must share.
+        let gyro_hz = match sensors.iter().find(|s| s.kind != SensorKind::Adxl345) {
+            Some(sensor) => Some(gyro(sensor.kind)?.output_rate_hz()),
+            None => None,
+        };
+        let configs = sensors
+            .iter()
+            .map(|sensor| match sensor.kind {
+                SensorKind::Adxl345 => request.adxl345(gyro_hz).map(SensorConfig::Adxl345),
+                kind => gyro(kind),
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Plan { configs })
     }
 
     /// The plan for a board of these sensors (a request checked before a board is asked).

@@ -52,8 +52,10 @@ impl SensorLive {
         let Some(live) = self.live.as_mut() else {
             return;
         };
+        let mut values = [0.0; AXES.len()];
         for s in samples {
-            live.push(&axes.values(s));
+            let n = axes.values(s, &mut values);
+            live.push(&values[..n]);
         }
     }
 }
@@ -91,14 +93,13 @@ impl LiveAxes {
         axes
     }
 
-    fn values(&self, r: &RawSample) -> Vec<f64> {
-        self.scales
-            .iter()
-            .map(|&(is_gyro, i, lsb)| {
-                let counts = if is_gyro { r.gyro[i] } else { r.accel[i] };
-                f64::from(counts) * lsb
-            })
-            .collect()
+    /// One sample's axes in SI units into `out`; how many there are.
+    fn values(&self, r: &RawSample, out: &mut [f64; AXES.len()]) -> usize {
+        for (v, &(is_gyro, i, lsb)) in out.iter_mut().zip(&self.scales) {
+            let counts = if is_gyro { r.gyro[i] } else { r.accel[i] };
+            *v = f64::from(counts) * lsb;
+        }
+        self.scales.len()
     }
 }
 
