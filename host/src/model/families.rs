@@ -90,9 +90,24 @@ fn baseline_avar(t: &NoiseTerms, tau: f64) -> f64 {
     t.n * t.n / tau + 2.0 * 2f64.ln() / PI * t.b * t.b + t.k * t.k * tau / 3.0
 }
 
+/// A generated record and what was hidden in it.
+pub struct Hidden {
+    pub record: Record,
+    /// The baseline's terms (Gauss-Markov included for that kind; N is the white level
+    /// before any low-pass filter).
+    pub terms: NoiseTerms,
+    /// The ramp's slope, rad/s/s, for the ramp kinds.
+    pub slope: Option<f64>,
+}
+
 /// A record of `kind` with everything drawn from `seed`; the channel is `gx` (rad/s), plus
 /// `temp` (degC) for the temperature kinds.
 pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
+    generate(kind, shape, seed).record
+}
+
+/// [`record`], with what was hidden in it.
+pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let n = (shape.rate_hz * shape.duration_s) as usize;
     let tau0 = 1.0 / shape.rate_hz;
@@ -159,6 +174,7 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
         let power = rho * 2.0 * n_density * n_density * PI * effective / 2.0;
         tone = Some((freq_hz, width_hz, power));
     }
+    let mut ramp_slope = None;
     if has(Kind::Ramp) || has(Kind::ToneAndRamp) {
         // A ramp competes with the random walk's own trend (slope sd about K sqrt(1.2 / T)),
         // so it is drawn stronger: raising the deviation at T/4 3 to 5 times.
@@ -166,6 +182,7 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
         let f = uniform(&mut rng, 3.0, 5.0);
         let slope = ((f * f - 1.0) * baseline_avar(&terms, tau) * 2.0 / (tau * tau)).sqrt()
             * if rng.random::<bool>() { 1.0 } else { -1.0 };
+        ramp_slope = Some(slope);
         extra.push(Box::new(move |t| slope * t));
     }
     if has(Kind::Temperature)
@@ -215,14 +232,14 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
         let cutoff = shape.rate_hz * uniform(&mut rng, 0.1, 0.3);
         LowPass::two_pole(cutoff, shape.rate_hz).expect("a cutoff below Nyquist")
     });
-    let white_n = terms.n;
+    let drawn = terms;
     if low_pass.is_some() {
         terms.n = 0.0;
     }
     let mut generator = AxisNoise::new(terms, shape.rate_hz, t_rec, &mut rng);
     let mut values = generator.take(n, &mut rng);
     if let Some(lp) = low_pass {
-        let white = lp.white_through(white_n, n, &mut rng);
+        let white = lp.white_through(drawn.n, n, &mut rng);
         values.iter_mut().zip(white).for_each(|(v, w)| *v += w);
     }
     for (i, v) in values.iter_mut().enumerate() {
@@ -243,9 +260,13 @@ pub fn record(kind: Kind, shape: Shape, seed: u64) -> Record {
     if let Some(t) = temp_channel {
         channels.push(Channel::named("temp", t));
     }
-    Record {
-        source: format!("{kind:?} seed {seed}"),
-        rate_hz: shape.rate_hz,
-        channels,
+    Hidden {
+        record: Record {
+            source: format!("{kind:?} seed {seed}"),
+            rate_hz: shape.rate_hz,
+            channels,
+        },
+        terms: drawn,
+        slope: ramp_slope,
     }
 }

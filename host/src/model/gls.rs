@@ -398,7 +398,7 @@ pub enum Likelihood {
 /// Minimise `f` over two variables from `start` with a simplex of side `step` (Nelder &
 /// Mead, "A simplex method for function minimization", Computer Journal 7, 1965; standard
 /// coefficients), until the simplex's values agree within 1e-4 or 200 evaluations.
-fn nelder_mead(f: &dyn Fn([f64; 2]) -> f64, start: [f64; 2], step: f64) -> [f64; 2] {
+pub(super) fn nelder_mead(f: &dyn Fn([f64; 2]) -> f64, start: [f64; 2], step: f64) -> [f64; 2] {
     let mut simplex: Vec<([f64; 2], f64)> = [
         start,
         [start[0] + step, start[1]],
@@ -456,9 +456,9 @@ fn nelder_mead(f: &dyn Fn([f64; 2]) -> f64, start: [f64; 2], step: f64) -> [f64;
 }
 
 /// The parts of the likelihoods a GLS solution gives.
-struct Solution {
+pub(super) struct Solution {
     /// `r^T S^-1 r`, r the GLS residual.
-    residual: f64,
+    pub(super) residual: f64,
     /// `ln |X^T S^-1 X|`.
     log_det_normal: f64,
 }
@@ -503,7 +503,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// GLS of the block means `y` on the block-mean `columns` under the factored covariance
 /// `S`: the residual `|y_w|^2 - |L_n^-1 X_w^T y_w|^2` (w whitened, `L_n` the Cholesky factor
 /// of the normal matrix) and `ln |X^T S^-1 X|`. None when the columns are collinear.
-fn solve(whitener: &Whitener, columns: &[Vec<f64>], y: &[f64]) -> Option<Solution> {
+pub(super) fn solve(whitener: &Whitener, columns: &[Vec<f64>], y: &[f64]) -> Option<Solution> {
     let w = whitened(whitener, columns)?;
     let flat: Vec<f64> = w.normal.iter().flatten().copied().collect();
     let factor = Whitener::new(&flat, columns.len())?;

@@ -610,4 +610,6 @@ pub fn run(
 #[cfg(test)]
 pub mod families;
 #[cfg(test)]
+mod ramp_power;
+#[cfg(test)]
 mod tests;

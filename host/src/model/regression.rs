@@ -21,7 +21,9 @@
 //! **Limit.** A ramp and a random walk's own trend differ only in the wander the random walk
 //! adds at minutes, and a record gives the random walk's level only roughly: ramps that raise
 //! the Allan deviation at a quarter of the record three times are found in about a quarter
-//! of records, six times in nearly all (see [`super::gls`]).
+//! of records, six times in nearly all (see [`super::gls`]). Knowing K, a test would find every
+//! ramp of the family; searching K on the record's full-resolution cosine transform instead of
+//! block means finds no more (the `ramp_power` test measures both).
 
 use super::Effect;
 use super::clean::{Removal, notch};
