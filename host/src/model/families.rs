@@ -77,6 +77,19 @@ pub struct Shape {
     pub duration_s: f64,
 }
 
+/// The full study's records: 3 h at 50 Hz.
+pub const STUDY_SHAPE: Shape = Shape {
+    rate_hz: 50.0,
+    duration_s: 3.0 * 3600.0,
+};
+
+/// The records of the tests that run in CI: 1 h at 20 Hz (shorter and slower than the
+/// study's, so every effect is weaker against the noise).
+pub const CI_SHAPE: Shape = Shape {
+    rate_hz: 20.0,
+    duration_s: 3600.0,
+};
+
 fn uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
     lo + (hi - lo) * rng.random::<f64>()
 }
@@ -98,6 +111,8 @@ pub struct Hidden {
     pub terms: NoiseTerms,
     /// The ramp's slope, rad/s/s, for the ramp kinds.
     pub slope: Option<f64>,
+    /// The slow sinusoid, for the slow-sinusoid kinds.
+    pub sinusoid: Option<Sinusoid>,
 }
 
 /// A record of `kind` with everything drawn from `seed`; the channel is `gx` (rad/s), plus
@@ -139,11 +154,10 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         let sigma = (raise(&mut rng) * baseline_avar(&terms, peak_tau) / unit).sqrt();
         terms.gauss_markov = Some(GaussMarkov { sigma, tau_c });
     }
-    let mut slow_hz: Option<f64> = None;
+    let mut slow: Option<Sinusoid> = None;
     if has(Kind::SlowSinusoid) || has(Kind::SlowSinusoidAndTemperature) {
         let period = t_rec * uniform(&mut rng, 0.05, 0.2);
         let freq_hz = 1.0 / period;
-        slow_hz = Some(freq_hz);
         // A sinusoid's Allan variance peaks at tau = 0.371 / f.
         let peak_tau = 0.371 * period;
         let unit = sinusoid_avar(
@@ -154,6 +168,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
             peak_tau,
         );
         let amplitude = (raise(&mut rng) * baseline_avar(&terms, peak_tau) / unit).sqrt();
+        slow = Some(Sinusoid { amplitude, freq_hz });
         let phase = uniform(&mut rng, 0.0, 2.0 * PI);
         extra.push(Box::new(move |t| {
             amplitude * (2.0 * PI * freq_hz * t + phase).sin()
@@ -193,7 +208,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         let warm = uniform(&mut rng, 600.0, 2400.0);
         let swing = uniform(&mut rng, 0.5, 2.0);
         let mut cycle = t_rec * uniform(&mut rng, 0.15, 0.4);
-        while slow_hz.is_some_and(|f| (f - 1.0 / cycle).abs() * t_rec < RESOLVED_BINS) {
+        while slow.is_some_and(|s| (s.freq_hz - 1.0 / cycle).abs() * t_rec < RESOLVED_BINS) {
             cycle = t_rec * uniform(&mut rng, 0.15, 0.4);
         }
         let start = uniform(&mut rng, 20.0, 30.0);
@@ -268,5 +283,6 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         },
         terms: drawn,
         slope: ramp_slope,
+        sinusoid: slow,
     }
 }

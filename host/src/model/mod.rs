@@ -610,6 +610,8 @@ pub fn run(
 #[cfg(test)]
 pub mod families;
 #[cfg(test)]
+mod independent;
+#[cfg(test)]
 mod ramp_power;
 #[cfg(test)]
 mod tests;

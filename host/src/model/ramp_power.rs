@@ -23,16 +23,11 @@
 //! ramps the workflow misses are those whose likelihood ratio collapses once K is free: a
 //! random walk a few times the true one explains them almost as well.
 
-use super::families::{self, Kind, Shape};
+use super::families::{self, Kind, STUDY_SHAPE};
 use super::gls::{self, Blocks, Estimator, Likelihood, Whitener, covariance};
 use crate::sim::noise::{NoiseTerms, flicker_poles, flicker_tau_max, flicker_white_density};
 use realfft::RealFftPlanner;
 use std::f64::consts::PI;
-
-const STUDY: Shape = Shape {
-    rate_hz: 50.0,
-    duration_s: 3.0 * 3600.0,
-};
 
 /// The orthonormal DCT-II coefficients 1..=kmax of `x` (Makhoul's even-odd reordering and
 /// one real FFT of the same length: IEEE Trans. ASSP 28, 1980).
@@ -109,11 +104,13 @@ fn diagonal_nll(c: &[f64], t: &[f64], v: &[f64], ramp: bool) -> f64 {
 /// The ramp's likelihood ratios on the full-resolution transform: levels known, levels
 /// searched.
 fn transform_ratios(x: &[f64], terms: &NoiseTerms) -> (f64, f64) {
-    let kmax =
-        ((STUDY.duration_s * 2.0 * (STUDY.rate_hz / 50.0).min(1.0)) as usize).min(x.len() / 2);
-    let time: Vec<f64> = (0..x.len()).map(|i| i as f64 / STUDY.rate_hz).collect();
+    let kmax = ((STUDY_SHAPE.duration_s * 2.0 * (STUDY_SHAPE.rate_hz / 50.0).min(1.0)) as usize)
+        .min(x.len() / 2);
+    let time: Vec<f64> = (0..x.len())
+        .map(|i| i as f64 / STUDY_SHAPE.rate_hz)
+        .collect();
     let (c, t) = (dct2(x, kmax), dct2(&time, kmax));
-    let [fixed, flicker, walk] = coefficient_variances(terms, STUDY.rate_hz, x.len(), kmax);
+    let [fixed, flicker, walk] = coefficient_variances(terms, STUDY_SHAPE.rate_hz, x.len(), kmax);
     let at = |levels: [f64; 2], ramp: bool| {
         let v: Vec<f64> = (0..kmax)
             .map(|i| fixed[i] + levels[0] * flicker[i] + levels[1] * walk[i])
@@ -146,13 +143,18 @@ fn transform_ratios(x: &[f64], terms: &NoiseTerms) -> (f64, f64) {
 fn block_ratios(x: &[f64], terms: &NoiseTerms) -> Option<(f64, f64)> {
     let blocks = Blocks::of(x.len());
     let ones = vec![1.0; x.len()];
-    let time: Vec<f64> = (0..x.len()).map(|i| i as f64 / STUDY.rate_hz).collect();
+    let time: Vec<f64> = (0..x.len())
+        .map(|i| i as f64 / STUDY_SHAPE.rate_hz)
+        .collect();
     let y = blocks.means(x);
     let constant = vec![blocks.means(&ones)];
     let with_ramp = vec![blocks.means(&ones), blocks.means(&time)];
-    let w = Whitener::new(&covariance(terms, STUDY.rate_hz, blocks), blocks.count)?;
+    let w = Whitener::new(
+        &covariance(terms, STUDY_SHAPE.rate_hz, blocks),
+        blocks.count,
+    )?;
     let oracle = gls::solve(&w, &constant, &y)?.residual - gls::solve(&w, &with_ramp, &y)?.residual;
-    let estimator = Estimator::with_blocks(terms, STUDY.rate_hz, blocks);
+    let estimator = Estimator::with_blocks(terms, STUDY_SHAPE.rate_hz, blocks);
     let start = [terms.b * terms.b, terms.k * terms.k];
     let (_, without) = estimator.likeliest(&constant, &y, start, Likelihood::Plain)?;
     let (_, with) = estimator.likeliest(&with_ramp, &y, start, Likelihood::Plain)?;
@@ -163,7 +165,7 @@ fn block_ratios(x: &[f64], terms: &NoiseTerms) -> Option<(f64, f64)> {
 fn ramps_are_lost_to_the_unknown_walk_not_to_the_block_means() {
     eprintln!("seed  slope rad/s/s  LR known (blocks, transform)  LR searched (blocks, transform)");
     for seed in 100..110 {
-        let hidden = families::generate(Kind::Ramp, STUDY, seed);
+        let hidden = families::generate(Kind::Ramp, STUDY_SHAPE, seed);
         let x = &hidden.record.channels[0].values;
         let (block_oracle, block_searched) =
             block_ratios(x, &hidden.terms).expect("a positive definite block covariance");

@@ -4,7 +4,7 @@
 //! 50 Hz, 10 seeds per kind), run with
 //! `cargo test --release -p imunoise --lib model::tests::study -- --ignored --nocapture`.
 
-use super::families::{self, Kind, Shape};
+use super::families::{self, CI_SHAPE, Kind, Shape};
 use super::*;
 
 const KINDS: [Kind; 10] = [
@@ -92,11 +92,6 @@ fn model_toml_parses_as_a_model_file() {
     assert!(parsed.is_ok(), "{text}: {:?}", parsed.err());
 }
 
-const CI_SHAPE: Shape = Shape {
-    rate_hz: 20.0,
-    duration_s: 3600.0,
-};
-
 /// Every kind on three seeds at CI size (1 h at 20 Hz, shorter and slower than the study's
 /// 3 h at 50 Hz, so every effect is weaker against the noise): at least 25 of the 30 records
 /// named exactly right (27 of 30 measured: no Gauss-Markov process of 36-108 s is found in
@@ -119,10 +114,7 @@ fn families_at_ci_size() {
 #[test]
 #[ignore = "the full study: 3 h at 50 Hz, 10 seeds per kind; run with --release"]
 fn study_families() {
-    let shape = Shape {
-        rate_hz: 50.0,
-        duration_s: 3.0 * 3600.0,
-    };
+    let shape = families::STUDY_SHAPE;
     // STUDY_KINDS=GaussMarkov,Tone runs only those kinds (names as in `Kind`'s Debug).
     let only = std::env::var("STUDY_KINDS").unwrap_or_default();
     let kinds: Vec<Kind> = KINDS
