@@ -431,16 +431,19 @@ pub struct Detection {
 /// a cutoff above Nyquist folds back almost flat, so it is reported as no roll-off. The
 /// interval is where the profile rises by at most z^2 in those units (z the normal quantile).
 pub fn detect(y: &[f64], rate_hz: f64, confidence: f64) -> Result<Detection, LowPassError> {
-    detect_outside(y, rate_hz, confidence, &|_| false)
+    detect_outside(y, rate_hz, confidence, DETECTION_THRESHOLD, &|_| false)
 }
 
 /// [`detect`] with the PSD bins at frequencies where `skip` holds left out of the fit: the
 /// bands of lines removed from `y`, which a notch leaves empty and a wide line's wings leave
-/// raised, and either of which near Nyquist looks like a roll-off.
+/// raised, and either of which near Nyquist looks like a roll-off. A low-pass is claimed
+/// from `threshold` (`Delta` units) up: [`DETECTION_THRESHOLD`] for a decision on its own,
+/// 0 where the statistic is judged against simulated records instead (the model workflow).
 pub fn detect_outside(
     y: &[f64],
     rate_hz: f64,
     confidence: f64,
+    threshold: f64,
     skip: &dyn Fn(f64) -> bool,
 ) -> Result<Detection, LowPassError> {
     if !(rate_hz.is_finite() && rate_hz > 0.0) {
@@ -484,7 +487,7 @@ pub fn detect_outside(
         statistic,
         reduced_chi2: reduced,
     };
-    if statistic < DETECTION_THRESHOLD || cutoff >= rate_hz / 2.0 {
+    if statistic < threshold || chi2_best >= white || cutoff >= rate_hz / 2.0 {
         return Ok(detection);
     }
     let z = Normal::standard().inverse_cdf(0.5 + confidence / 2.0);

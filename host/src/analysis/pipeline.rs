@@ -519,9 +519,15 @@ fn detected_low_pass(
     };
     let background = white_level(rate, rate_hz);
     let near = |f: f64| found.iter().any(|l| near_line(l, f, rate_hz, background));
-    low_pass::detect_outside(series, rate_hz, options.confidence, &near)
-        .ok()
-        .and_then(|d| d.low_pass)
+    low_pass::detect_outside(
+        series,
+        rate_hz,
+        options.confidence,
+        low_pass::DETECTION_THRESHOLD,
+        &near,
+    )
+    .ok()
+    .and_then(|d| d.low_pass)
 }
 
 /// Whether the roll-off detection leaves `freq_hz` out for `line`: within four of its PSD

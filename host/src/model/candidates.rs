@@ -158,12 +158,9 @@ pub(super) fn add(
                 width_hz,
             },
         ) => {
-            // A wide line's power is read against the model's own background; the notch
-            // below takes its core, and the realisations carry it whole (see `realise`).
-            let background = |f: f64| model.one_sided_psd(f, 1.0 / data.rate_hz);
-            let amplitude =
-                spectrum::line_power(data.rate, data.rate_hz, freq_hz, width_hz, &background)
-                    .map_or(amplitude, |p| (2.0 * p).sqrt());
+            // A wide line's power is read against the model's own background once the model
+            // is refitted (`reread_wide_lines`); the notch below takes its core, and the
+            // realisations carry it whole (see `realise`).
             // Half a Lorentzian's power lies beyond its half width; +-1.5 widths hold 80 %.
             let df = data.rate_hz / data.rate.len() as f64;
             let half = 1.5 * width_hz + 2.0 * df;
@@ -184,7 +181,7 @@ pub(super) fn add(
             let (clean, _) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
             let background = |f: f64| model.one_sided_psd(f, 1.0 / data.rate_hz);
             let near = |f: f64| evidence::outside_roll_off(f, removal, &model.lines, &background);
-            out.low_pass = low_pass::detect_outside(&clean, data.rate_hz, 0.683, &near)
+            out.low_pass = low_pass::detect_outside(&clean, data.rate_hz, 0.683, 0.0, &near)
                 .ok()
                 .and_then(|d| d.low_pass)
                 .or_else(|| LowPass::two_pole(cutoff_hz, data.rate_hz).ok());
@@ -213,10 +210,6 @@ pub(super) fn add(
             line.amplitude = *amplitude;
         }
     }
-    out.terms.sinusoid = out.lines.first().map(|l| Sinusoid {
-        amplitude: l.amplitude,
-        freq_hz: l.freq_hz,
-    });
     let avar = evidence::allan_avar(clean, data.rate_hz, &data.measured.m);
     let curve = refit::Curve {
         tau: &data.measured.tau,
@@ -238,7 +231,38 @@ pub(super) fn add(
         sinusoid: out.terms.sinusoid,
         ..terms
     };
+    reread_wide_lines(data, &mut out, removal);
     out
+}
+
+/// Every wide line's power read again against `model`'s background. A line is read against
+/// the background of the model it joins; a filter or a term named later changes that
+/// background under it (a line above a filter's cutoff read against the unfiltered white
+/// level comes out several times too weak, and its realisations then lack power that a
+/// quantization term takes up).
+fn reread_wide_lines(data: &Data, model: &mut Model, removal: &Removal) {
+    let tau0 = 1.0 / data.rate_hz;
+    let shaped = model.clone();
+    let background = |f: f64| shaped.one_sided_psd(f, tau0);
+    for line in model
+        .lines
+        .iter_mut()
+        .filter(|l| l.width_hz > 0.0 && !removal.is_tone(l.freq_hz))
+    {
+        if let Some(p) = spectrum::line_power(
+            data.rate,
+            data.rate_hz,
+            line.freq_hz,
+            line.width_hz,
+            &background,
+        ) {
+            line.amplitude = (2.0 * p).sqrt();
+        }
+    }
+    model.terms.sinusoid = model.lines.first().map(|l| Sinusoid {
+        amplitude: l.amplitude,
+        freq_hz: l.freq_hz,
+    });
 }
 
 /// The round's open noise model: the random terms refitted to the record with every

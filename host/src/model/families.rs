@@ -50,6 +50,10 @@ pub enum Kind {
     SlowSinusoidAndTemperature,
     /// The white noise through a low-pass filter of unknown cutoff (10-30 % of the rate).
     LowPass,
+    /// A low-pass filter as [`Kind::LowPass`] and a line as [`Kind::Tone`] where the filter
+    /// passes at least a tenth of the power, its strength relative to the filtered white
+    /// level there: a sensor with its own filter and a mechanical resonance.
+    LowPassAndTone,
 }
 
 impl Kind {
@@ -64,6 +68,7 @@ impl Kind {
             Kind::ToneAndRamp => vec!["rate_ramp", "sinusoid"],
             Kind::SlowSinusoidAndTemperature => vec!["sinusoid", "temperature"],
             Kind::LowPass => vec!["low_pass"],
+            Kind::LowPassAndTone => vec!["low_pass", "sinusoid"],
         };
         v.sort_unstable();
         v
@@ -113,6 +118,42 @@ pub struct Hidden {
     pub slope: Option<f64>,
     /// The slow sinusoid, for the slow-sinusoid kinds.
     pub sinusoid: Option<Sinusoid>,
+    /// The line `(freq_hz, width_hz, power u^2)`, for the tone kinds.
+    pub tone: Option<(f64, f64, f64)>,
+    /// The low-pass filter's -3 dB cutoff, Hz, for the low-pass kinds.
+    pub cutoff_hz: Option<f64>,
+}
+
+impl Hidden {
+    /// What was hidden, for a study's report.
+    pub fn describe(&self) -> String {
+        let mut parts = vec![format!(
+            "N {:.3e}, B {:.3e}, K {:.3e}",
+            self.terms.n, self.terms.b, self.terms.k
+        )];
+        if let Some(g) = self.terms.gauss_markov {
+            parts.push(format!(
+                "Gauss-Markov tau_c {:.1} s, sigma {:.3e}",
+                g.tau_c, g.sigma
+            ));
+        }
+        if let Some(s) = self.sinusoid {
+            parts.push(format!("sinusoid {:.5} Hz, {:.3e}", s.freq_hz, s.amplitude));
+        }
+        if let Some((f, w, p)) = self.tone {
+            parts.push(format!(
+                "line {f:.3} Hz, {w:.3} Hz wide, amplitude {:.3e}",
+                (2.0 * p).sqrt()
+            ));
+        }
+        if let Some(slope) = self.slope {
+            parts.push(format!("ramp {slope:.3e}"));
+        }
+        if let Some(c) = self.cutoff_hz {
+            parts.push(format!("low-pass {c:.2} Hz"));
+        }
+        parts.join("; ")
+    }
 }
 
 /// A record of `kind` with everything drawn from `seed`; the channel is `gx` (rad/s), plus
@@ -174,19 +215,27 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
             amplitude * (2.0 * PI * freq_hz * t + phase).sin()
         }));
     }
+    let cutoff_hz = (has(Kind::LowPass) || has(Kind::LowPassAndTone))
+        .then(|| shape.rate_hz * uniform(&mut rng, 0.1, 0.3));
+    let low_pass =
+        cutoff_hz.map(|c| LowPass::two_pole(c, shape.rate_hz).expect("a cutoff below Nyquist"));
     let mut tone: Option<(f64, f64, f64)> = None;
-    if has(Kind::Tone) || has(Kind::ToneAndRamp) {
-        let freq_hz = shape.rate_hz * uniform(&mut rng, 0.1, 0.45);
+    if has(Kind::Tone) || has(Kind::ToneAndRamp) || has(Kind::LowPassAndTone) {
+        let passes = |f: f64| low_pass.as_ref().map_or(1.0, |lp| lp.power_gain(f));
+        let mut freq_hz = shape.rate_hz * uniform(&mut rng, 0.1, 0.45);
+        while passes(freq_hz) < 0.1 {
+            freq_hz = shape.rate_hz * uniform(&mut rng, 0.1, 0.45);
+        }
         let width_hz = if rng.random::<f64>() < 0.3 {
             0.0
         } else {
             uniform(&mut rng, 0.05, 1.0)
         };
         let rho = log_uniform(&mut rng, 10.0, 50.0);
-        // Excess one-sided PSD rho x 2 N^2 over the line's width (at least one bin); a
+        // Excess one-sided PSD rho x 2 N^2 (times the filter's gain) over the line's width (at least one bin); a
         // Lorentzian of FWHM w has peak 2 P / (pi w) for power P.
         let effective = width_hz.max(1.0 / t_rec);
-        let power = rho * 2.0 * n_density * n_density * PI * effective / 2.0;
+        let power = rho * 2.0 * n_density * n_density * passes(freq_hz) * PI * effective / 2.0;
         tone = Some((freq_hz, width_hz, power));
     }
     let mut ramp_slope = None;
@@ -243,10 +292,6 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         );
         extra.push(Box::new(move |t| coeff * (temp(t) - start)));
     }
-    let low_pass = has(Kind::LowPass).then(|| {
-        let cutoff = shape.rate_hz * uniform(&mut rng, 0.1, 0.3);
-        LowPass::two_pole(cutoff, shape.rate_hz).expect("a cutoff below Nyquist")
-    });
     let drawn = terms;
     if low_pass.is_some() {
         terms.n = 0.0;
@@ -284,5 +329,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         terms: drawn,
         slope: ramp_slope,
         sinusoid: slow,
+        tone,
+        cutoff_hz,
     }
 }

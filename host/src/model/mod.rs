@@ -40,7 +40,7 @@
 //! candidates of the first group that has any, the smallest p is named. Then the model takes
 //! the effect, its stochastic terms are refitted to the cleaned record, and the loop repeats
 //! (at most [`MAX_STEPS`] effects), so a record with two effects gets both. A stochastic
-//! term after which the Allan gap does not shrink is taken back and the round's next passing
+//! term or a sensor filter after which the Allan gap does not shrink is taken back and the round's next passing
 //! candidate tried: several random terms can pass one round (a Gauss-Markov bump moves the
 //! fitted N, so quantization passes too), and only one of them is the missing effect.
 //!
@@ -526,9 +526,9 @@ pub fn run(
     let (final_evidence, stop) = loop {
         let round = simulate_round(&data, &model, &removal);
         let round = match steps.last_mut() {
-            Some(s) if !s.view.is_deterministic() && round.comparison.gap >= s.gap_before => {
-                // A stochastic term that does not bring the simulations closer to the record
-                // explains nothing: the refit traded one part of the curve for another.
+            Some(s) if s.view.must_close_gap() && round.comparison.gap >= s.gap_before => {
+                // A stochastic term or a filter that does not bring the simulations closer
+                // to the record explains nothing (see `View::must_close_gap`).
                 let undone = steps.pop().expect("matched a last step");
                 last_undone = Some(undone.effect);
                 let Some((before, m, r, probe)) = chosen_in.take() else {

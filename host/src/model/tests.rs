@@ -7,8 +7,9 @@
 use super::families::{self, CI_SHAPE, Kind, Shape};
 use super::*;
 
-const KINDS: [Kind; 10] = [
+const KINDS: [Kind; 11] = [
     Kind::LowPass,
+    Kind::LowPassAndTone,
     Kind::None,
     Kind::NoneWithTemperature,
     Kind::GaussMarkov,
@@ -27,10 +28,10 @@ fn settings() -> Settings {
     }
 }
 
-/// The kinds named, sorted, and the outcome.
-fn named(kind: Kind, shape: Shape, seed: u64) -> (Vec<&'static str>, Outcome) {
-    let record = families::record(kind, shape, seed);
-    let o = run(&record, Some("gx"), None, &settings()).unwrap();
+/// The kinds named, sorted, the outcome and what was hidden.
+fn named(kind: Kind, shape: Shape, seed: u64) -> (Vec<&'static str>, Outcome, String) {
+    let hidden = families::generate(kind, shape, seed);
+    let o = run(&hidden.record, Some("gx"), None, &settings()).unwrap();
     // Every family record has flicker (B) and a random walk (K): naming them is right, not
     // an extra effect (the baseline fit leaves out a term it cannot resolve at its level).
     let mut kinds: Vec<&'static str> = o
@@ -40,7 +41,7 @@ fn named(kind: Kind, shape: Shape, seed: u64) -> (Vec<&'static str>, Outcome) {
         .filter(|k| !matches!(*k, "bias_instability" | "rate_random_walk"))
         .collect();
     kinds.sort_unstable();
-    (kinds, o)
+    (kinds, o, hidden.describe())
 }
 
 /// Seeds per kind whose named effects are exactly the hidden ones (`only`: just those seeds,
@@ -60,11 +61,14 @@ fn study(
                 .filter(|s| only.is_empty() || only.contains(s))
                 .collect();
             for &seed in &chosen {
-                let (got, o) = named(kind, shape, seed);
+                let (got, o, hidden) = named(kind, shape, seed);
                 if got == kind.expected() {
                     right += 1;
                 } else {
-                    eprintln!("{kind:?} seed {seed}: named {got:?}\n{}", report::table(&o));
+                    eprintln!(
+                        "{kind:?} seed {seed}: named {got:?}; hidden: {hidden}\n{}",
+                        report::table(&o)
+                    );
                 }
             }
             eprintln!("{kind:?}: {right}/{} right", chosen.len());
