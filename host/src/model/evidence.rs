@@ -132,6 +132,10 @@ pub struct Context<'a> {
     pub white: WhiteShape<'a>,
     /// The sensor's low-pass filter in the model, if any.
     pub low_pass: Option<&'a LowPass>,
+    /// For a filter fitted to the record, the same filter at other cutoffs within twice its
+    /// interval: the nested fits take the best of these and the model's own shape, so an
+    /// Allan curve bent by a cutoff a little off is not taken for a new short-tau term.
+    pub filter_alternatives: &'a [LowPass],
     /// Correlation times a Gauss-Markov candidate may take, s.
     pub gauss_markov_range: (f64, f64),
     pub lines: &'a (dyn Fn(&[f64], f64) -> Vec<Line> + Sync),
@@ -173,9 +177,11 @@ pub fn statistics(
         sd_ln: ctx.sd_ln,
     };
     let base_columns = refit::columns_of(ctx.terms);
-    let base_misfit = || {
-        let terms = refit::refit(curve, &base_columns, ctx.white);
-        refit::misfit(curve, &terms, ctx.white)
+    let refit_misfit = |columns: &[Column]| {
+        profiled(ctx, |white| {
+            let terms = refit::refit(curve, columns, white);
+            Some((terms, refit::misfit(curve, &terms, white)))
+        })
     };
     probes
         .iter()
@@ -236,34 +242,49 @@ pub fn statistics(
                 // Gauss-Markov bump into B, with K at 0, needs K back to leave room for it.
                 let free = with_random_walks(&base_columns);
                 let (lo, hi) = ctx.gauss_markov_range;
-                match refit::best_gauss_markov(curve, &free, lo, hi, ctx.white) {
-                    Some((terms, m)) => (
-                        refit::misfit(curve, &refit::refit(curve, &free, ctx.white), ctx.white) - m,
+                let with = profiled(ctx, |white| {
+                    refit::best_gauss_markov(curve, &free, lo, hi, white)
+                });
+                match (with, refit_misfit(&free)) {
+                    (Some((terms, m)), Some((_, without))) => (
+                        without - m,
                         terms.gauss_markov.map(|g| Effect::GaussMarkov {
                             tau_c: g.tau_c,
                             sigma: g.sigma,
                         }),
                     ),
-                    None => (0.0, None),
+                    _ => (0.0, None),
                 }
             }
             Probe::Term(column) => {
                 let mut with = base_columns.clone();
                 with.push(column);
-                let terms = refit::refit(curve, &with, ctx.white);
+                let (Some((terms, m)), Some((_, base))) =
+                    (refit_misfit(&with), refit_misfit(&base_columns))
+                else {
+                    return (0.0, None);
+                };
                 let effect = match column {
                     Column::Q => (terms.q > 0.0).then_some(Effect::Quantization { q: terms.q }),
                     Column::B => (terms.b > 0.0).then_some(Effect::BiasInstability { b: terms.b }),
                     Column::K => (terms.k > 0.0).then_some(Effect::RateRandomWalk { k: terms.k }),
                     Column::N | Column::GaussMarkov(_) => None,
                 };
-                (
-                    base_misfit() - refit::misfit(curve, &terms, ctx.white),
-                    effect,
-                )
+                (base - m, effect)
             }
         })
         .collect()
+}
+
+/// The least misfit `fit` reaches over the model's white shape and the filter alternatives'
+/// ([`Context::filter_alternatives`]), with what reached it.
+fn profiled<T>(ctx: &Context, fit: impl Fn(WhiteShape) -> Option<(T, f64)>) -> Option<(T, f64)> {
+    let own = fit(ctx.white);
+    ctx.filter_alternatives
+        .iter()
+        .filter_map(|lp| fit(&|tau: f64| lp.white_avar(tau)))
+        .chain(own)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
 /// Whether the roll-off detection leaves `f` Hz out: near a removed line, or where a named

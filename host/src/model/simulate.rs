@@ -11,7 +11,7 @@ use super::{
     spectrum,
 };
 use crate::analysis::Deviation;
-use crate::analysis::low_pass::LowPass;
+use crate::analysis::low_pass::{LowPass, LowPassSource};
 use crate::sim::noise::{AxisNoise, NoiseTerms, add_line};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -111,6 +111,7 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
     let sd_ln: Vec<f64> = comparison.band.std_log.iter().map(|s| 2.0 * s).collect();
     let stochastic = model.stochastic();
     let white = |tau: f64| model.white_shape(tau);
+    let filter_alternatives = filter_alternatives(model.low_pass.as_ref());
     let background = |f: f64| model.one_sided_psd(f, tau0);
     let ctx = Context {
         rate_hz: data.rate_hz,
@@ -122,6 +123,7 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
         terms: &stochastic,
         white: &white,
         low_pass: model.low_pass.as_ref(),
+        filter_alternatives: &filter_alternatives,
         gauss_markov_range: (GAUSS_MARKOV_MIN_SAMPLES * tau0, longest / 2.0),
         lines: data.lines,
         named_lines: &model.lines,
@@ -323,6 +325,23 @@ pub(super) fn ranges(tau: &[f64], z: &[f64]) -> Vec<Range> {
         }
     }
     out
+}
+
+/// A fitted filter at cutoffs one and two of its interval's half-widths either side (the
+/// interval is the detection's 68.3 % one); none for a filter from the settings.
+fn filter_alternatives(low_pass: Option<&LowPass>) -> Vec<LowPass> {
+    let Some(lp) = low_pass.filter(|lp| lp.source == LowPassSource::Fitted) else {
+        return Vec::new();
+    };
+    let (below, above) = (
+        lp.cutoff_hz - lp.cutoff_lo_hz,
+        lp.cutoff_hi_hz - lp.cutoff_hz,
+    );
+    [-2.0 * below, -below, above, 2.0 * above]
+        .iter()
+        .filter(|step| step.abs() > 0.0)
+        .filter_map(|step| LowPass::two_pole(lp.cutoff_hz + step, lp.rate_hz).ok())
+        .collect()
 }
 
 #[cfg(test)]
