@@ -188,13 +188,10 @@ fn a_gy85_capture_keeps_both_sensors_and_analyses_as_one_record() {
     assert_eq!(s["board"]["gyro_range_dps"], 2000.0);
     let doc = json(&store.ok(&["analyze", "gy85", "--json", "-"]));
     assert_eq!(doc["samples"], 30_000);
-    let names: Vec<&str> = doc["channels"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c["name"].as_str().unwrap())
-        .collect();
-    assert_eq!(names, ["gx", "gy", "gz", "ax", "ay", "az", "temp"]);
+    assert_eq!(
+        channel_names(&doc),
+        ["gx", "gy", "gz", "ax", "ay", "az", "temp"]
+    );
     let tau0 = 1.0 / 50.0;
     let quantized = |n: f64, q: f64| (n * n + q * q * tau0 / 12.0).sqrt();
     let settings = SensorSettings::for_rate_and_bandwidth(50.0, 20.0).unwrap();
@@ -216,6 +213,16 @@ fn a_gy85_capture_keeps_both_sensors_and_analyses_as_one_record() {
             c["name"]
         );
     }
+}
+
+/// The channel names of an analysis document, in order.
+fn channel_names(analysis: &Value) -> Vec<&str> {
+    analysis["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect()
 }
 
 /// The sweep on the virtual GY-85: each setting sets its ITG-3200 and, at the same rate, its
@@ -240,13 +247,10 @@ fn the_sweep_on_a_gy85_follows_the_folding_of_its_gyro() {
         gyro.iter().sum::<f64>() / 3.0
     };
     for row in rows {
-        let names: Vec<&str> = row["analysis"]["channels"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|c| c["name"].as_str().unwrap())
-            .collect();
-        assert_eq!(names, ["gx", "gy", "gz", "ax", "ay", "az", "temp"]);
+        assert_eq!(
+            channel_names(&row["analysis"]),
+            ["gx", "gy", "gz", "ax", "ay", "az", "temp"]
+        );
         assert_eq!(row["samples_lost"], 0);
     }
     let ratio = mean_gyro_n(&rows[1]) / mean_gyro_n(&rows[0]);

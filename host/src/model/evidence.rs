@@ -183,6 +183,8 @@ pub fn statistics(
             Some((terms, refit::misfit(curve, &terms, white)))
         })
     };
+    // The current terms' misfit, shared by the nested-term probes.
+    let base = std::cell::OnceCell::new();
     probes
         .iter()
         .map(|probe| match *probe {
@@ -259,9 +261,8 @@ pub fn statistics(
             Probe::Term(column) => {
                 let mut with = base_columns.clone();
                 with.push(column);
-                let (Some((terms, m)), Some((_, base))) =
-                    (refit_misfit(&with), refit_misfit(&base_columns))
-                else {
+                let base = base.get_or_init(|| refit_misfit(&base_columns).map(|(_, m)| m));
+                let (Some((terms, m)), Some(base)) = (refit_misfit(&with), *base) else {
                     return (0.0, None);
                 };
                 let effect = match column {

@@ -103,6 +103,22 @@ fn log_uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
     (uniform(rng, lo.ln(), hi.ln())).exp()
 }
 
+/// A baseline drawn for a record of `t_rec` s: N log-uniform over 5e-5 to 5e-4
+/// rad/s/sqrt(Hz); the flicker floor from 1 % to 4 % of N's Allan deviation at 1 s
+/// (crossing N around 30-600 s); the random walk crossing N at a tenth to a third of the
+/// record.
+pub fn baseline(rng: &mut ChaCha8Rng, t_rec: f64) -> NoiseTerms {
+    let n = log_uniform(rng, 5e-5, 5e-4);
+    let b = n * log_uniform(rng, 0.03, 0.12);
+    let tau_k = t_rec * uniform(rng, 0.1, 0.3);
+    NoiseTerms {
+        n,
+        b,
+        k: 3f64.sqrt() * n / tau_k,
+        ..NoiseTerms::default()
+    }
+}
+
 /// The baseline's AVAR at `tau` (IEEE 952 Table C.1).
 fn baseline_avar(t: &NoiseTerms, tau: f64) -> f64 {
     t.n * t.n / tau + 2.0 * 2f64.ln() / PI * t.b * t.b + t.k * t.k * tau / 3.0
@@ -168,18 +184,8 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
     let n = (shape.rate_hz * shape.duration_s) as usize;
     let tau0 = 1.0 / shape.rate_hz;
     let t_rec = shape.duration_s;
-    let n_density = log_uniform(&mut rng, 5e-5, 5e-4);
-    // Flicker floor from 1 % to 4 % of N's Allan deviation at 1 s... crossing N around
-    // 30-600 s; the random walk crossing N at a tenth to a third of the record.
-    let b = n_density * log_uniform(&mut rng, 0.03, 0.12);
-    let tau_k = t_rec * uniform(&mut rng, 0.1, 0.3);
-    let k = 3f64.sqrt() * n_density / tau_k;
-    let mut terms = NoiseTerms {
-        n: n_density,
-        b,
-        k,
-        ..NoiseTerms::default()
-    };
+    let mut terms = baseline(&mut rng, t_rec);
+    let n_density = terms.n;
     let raise = |rng: &mut ChaCha8Rng| {
         let f = uniform(rng, RAISE.0, RAISE.1);
         f * f - 1.0
