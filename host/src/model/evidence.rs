@@ -28,6 +28,7 @@ use crate::analysis::{Estimator, allan, into_phase, lines};
 use crate::sim::noise::NoiseTerms;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
+use std::f64::consts::PI;
 
 /// Which view a candidate is judged in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -118,6 +119,37 @@ impl Probe {
     }
 }
 
+/// A found line holding at most this many times the power that the named lines' Lorentzians
+/// put within its half-power band is their wings, not a line of its own.
+const WING_EXPLAINS: f64 = 4.0;
+
+/// Whether `found` is what the named wide lines' wings hold where it lies: a notch takes a
+/// wide line's core and leaves its wings, which on a background falling steeply (a filter's
+/// roll-off not yet named) stand out as a broad bump just beyond the notch. Its power is
+/// compared with the named lines' within its own half-power band, for each
+/// `P (atan(2 (hi - f0) / w) - atan(2 (lo - f0) / w)) / pi` (a Lorentzian's share of a
+/// band); a pure tone has no band and is never explained so.
+fn in_named_wings(found: &Line, named: &[Line]) -> bool {
+    if found.width_hz <= 0.0 {
+        return false;
+    }
+    let (lo, hi) = (
+        found.freq_hz - found.width_hz / 2.0,
+        found.freq_hz + found.width_hz / 2.0,
+    );
+    let wings: f64 = named
+        .iter()
+        .filter(|l| l.width_hz > 0.0)
+        .map(|l| {
+            let power = l.amplitude * l.amplitude / 2.0;
+            let edge = |f: f64| (2.0 * (f - l.freq_hz) / l.width_hz).atan();
+            power * (edge(hi) - edge(lo)) / PI
+        })
+        .sum();
+    let power = found.amplitude * found.amplitude / 2.0;
+    power <= WING_EXPLAINS * wings
+}
+
 /// Everything a statistic needs besides the series.
 pub struct Context<'a> {
     pub rate_hz: f64,
@@ -192,7 +224,9 @@ pub fn statistics(
                 let found = (ctx.lines)(&clean, ctx.rate_hz);
                 let strongest = found
                     .into_iter()
-                    .filter(|l| !ctx.removal.near_removed(l.freq_hz))
+                    .filter(|l| {
+                        !ctx.removal.near_removed(l.freq_hz) && !in_named_wings(l, ctx.named_lines)
+                    })
                     .max_by(|a, b| a.statistic.total_cmp(&b.statistic));
                 match strongest {
                     Some(l) => (l.statistic, Some(Effect::from_line(&l))),
@@ -420,5 +454,37 @@ pub fn scaled_chi_square_p(statistic: f64, simulated: &[f64]) -> f64 {
         0.0
     } else {
         1.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(freq_hz: f64, power: f64, width_hz: f64) -> Line {
+        Line {
+            freq_hz,
+            amplitude: (2.0 * power).sqrt(),
+            width_hz,
+            statistic: 0.0,
+        }
+    }
+
+    /// A named Lorentzian of power 1 and FWHM 0.5 Hz at 4 Hz puts `(atan(2 (2.55) / 0.5) -
+    /// atan(2 (1.95) / 0.5)) / pi = 9.48e-3` of its power within 5.95-6.55 Hz: a line found
+    /// there 0.6 Hz wide with up to four times that is the wings, a stronger one or a tone is
+    /// not.
+    #[test]
+    fn a_line_in_named_wings_is_theirs() {
+        let named = [line(4.0, 1.0, 0.5)];
+        let share = ((5.1f64 / 0.5).atan() - (3.9f64 / 0.5).atan()) / PI;
+        assert!((share - 9.48e-3).abs() < 1e-5, "{share}");
+        assert!(in_named_wings(&line(6.25, 3.9 * share, 0.6), &named));
+        assert!(!in_named_wings(&line(6.25, 4.1 * share, 0.6), &named));
+        assert!(!in_named_wings(&line(6.25, 1e-6, 0.0), &named));
+        assert!(!in_named_wings(
+            &line(6.25, 1e-3, 0.6),
+            &[line(4.0, 1.0, 0.0)]
+        ));
     }
 }
