@@ -202,7 +202,7 @@ pub(super) fn add(
         columns = evidence::with_random_walks(&columns);
     }
     // The deterministic coefficients, jointly estimated on the record.
-    let (clean, c) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
+    let (_, c) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
     out.terms.r = c.slope.unwrap_or(0.0);
     out.temp_coeff = c.temp;
     out.temp_rate_coeff = c.temp_rate;
@@ -211,7 +211,6 @@ pub(super) fn add(
             line.amplitude = *amplitude;
         }
     }
-    drop(clean);
     let shape = restore::Record {
         len: data.rate.len(),
         rate_hz: data.rate_hz,

@@ -490,14 +490,7 @@ fn search<'a>(rate: &'a [f64], rate_hz: f64, opts: &LineOptions) -> Result<Found
         let (trend, x) = detrend(&work);
         let spectra = s.periodograms(x);
         let (backgrounds, bands) = s.backgrounds_and_bands(&spectra);
-        let measured: Vec<Measured> = bands
-            .iter()
-            .map(|&band| {
-                let hann = |k| spectra.hann(k);
-                s.measure(hann, |k| backgrounds.hann.level(k), band, &bands)
-            })
-            .filter(|m| m.power > 0.0)
-            .collect();
+        let measured = s.measure_bands(&spectra, &backgrounds, &bands);
         let mut new: Vec<&Measured> = measured
             .iter()
             .filter(|m| m.concentrated && !tones.iter().any(|t| m.lo <= t.bin && t.bin <= m.hi))

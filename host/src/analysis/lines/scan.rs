@@ -211,17 +211,26 @@ impl Search<'_> {
         for _ in 0..WING_ROUNDS {
             let wings: Vec<Measured> = measured.iter().copied().filter(resolved).collect();
             backgrounds = self.estimate(spectra, mask.clone(), &wings, Some(&backgrounds));
-            let remeasured: Vec<Measured> = bands
-                .iter()
-                .map(|&band| {
-                    let hann = |k| spectra.hann(k);
-                    self.measure(hann, |k| backgrounds.hann.level(k), band, bands)
-                })
-                .filter(|m| m.power > 0.0)
-                .collect();
-            measured = remeasured;
+            measured = self.measure_bands(spectra, &backgrounds, bands);
         }
         (backgrounds, measured)
+    }
+
+    /// Every band with an excess, measured on the Hann periodogram against its background.
+    pub(super) fn measure_bands(
+        &self,
+        spectra: &Spectra,
+        backgrounds: &Backgrounds,
+        bands: &[(usize, usize)],
+    ) -> Vec<Measured> {
+        bands
+            .iter()
+            .map(|&band| {
+                let hann = |k| spectra.hann(k);
+                self.measure(hann, |k| backgrounds.hann.level(k), band, bands)
+            })
+            .filter(|m| m.power > 0.0)
+            .collect()
     }
 
     /// Bins of `[a, b]` widened by its own width (at least TONE_LOBE) on each side, within the
