@@ -217,19 +217,20 @@ pub(super) fn add(
         m: &data.measured.m,
         temperature: data.temperature.as_ref(),
     };
+    let tau0 = 1.0 / data.rate_hz;
+    let target = RefitTarget::of(data.rate, removal, &out.lines, &shape);
     // A wide line's power is read against the refitted model's background, and the refit
     // takes the line's Allan variance out at that power: twice settles both.
     for _ in 0..2 {
-        let target = RefitTarget::of(data.rate, data.rate_hz, removal, &out.lines, &shape, sd_ln);
+        let (avar, sd_ln) = target.less_lines(&out.lines, removal, tau0, sd_ln);
         let curve = refit::Curve {
             tau: &data.measured.tau,
-            avar: &target.avar,
-            sd_ln: &target.sd_ln,
+            avar: &avar,
+            sd_ln: &sd_ln,
         };
         let shaped = out.clone();
         let white = |tau: f64| shaped.white_shape(tau);
-        let lost = restore::loss(&target.removal, &shape);
-        let terms = refit::refit_cleaned(curve, &columns, &white, lost.as_ref());
+        let terms = refit::refit_cleaned(curve, &columns, &white, target.loss.as_ref());
         out.terms = NoiseTerms {
             r: out.terms.r,
             sinusoid: out.terms.sinusoid,
@@ -240,66 +241,80 @@ pub(super) fn add(
     out
 }
 
+/// Whether `line` is a wide line of the model: one with a width that is not removed as a
+/// tone by regression (it is notched, simulated whole, and its power read again).
+fn is_wide(line: &Line, removal: &Removal) -> bool {
+    line.width_hz > 0.0 && !removal.is_tone(line.freq_hz)
+}
+
 /// What the stochastic terms are refitted to: the Allan variance of the record with the
 /// named effects removed — except that a wide line is not notched but has its own Allan
-/// variance ([`lines::sampled_line_avar`], exact for a Lorentzian) subtracted — and the weights'
-/// ln-AVAR standard deviations. A notch takes a wide line's core and leaves its wings (a
+/// variance ([`lines::sampled_line_avar`], exact for a Lorentzian) subtracted
+/// ([`RefitTarget::less_lines`]). A notch takes a wide line's core and leaves its wings (a
 /// fifth of its power lies beyond +-1.5 widths), which the refit would take for white noise,
 /// and takes the white noise within the notch with it: on a line 15 times the noise, 0.8 Hz
 /// wide at 50 Hz, N came out 7 % high and the realisations' Allan curve above the record's
-/// wherever the line is not. Subtracted, the line goes whole and the noise stays. Where the
-/// line dominates, the remainder is known less well: its ln-AVAR sd is the simulated one
-/// times total over remainder.
-struct RefitTarget {
-    avar: Vec<f64>,
-    sd_ln: Vec<f64>,
-    /// The removal applied: `removal` without the wide lines' notches.
-    removal: Removal,
+/// wherever the line is not. Subtracted, the line goes whole and the noise stays.
+struct RefitTarget<'a> {
+    /// The Allan variance of the record with `removal` applied, on `shape.m`.
+    total: Vec<f64>,
+    /// What that removal takes from K and B ([`restore::loss`]).
+    loss: Option<refit::Loss>,
+    shape: &'a restore::Record<'a>,
 }
 
 /// The remainder of the Allan variance kept after a line's is subtracted, at least: where
 /// less is left, the point carries next to no weight.
 const LEAST_REMAINDER: f64 = 0.02;
 
-impl RefitTarget {
+impl<'a> RefitTarget<'a> {
+    /// The record with `removal` applied, less the notches of the wide lines in `named`.
     fn of(
         rate: &[f64],
-        rate_hz: f64,
         removal: &Removal,
         named: &[Line],
-        shape: &restore::Record,
-        sd_ln: &[f64],
-    ) -> RefitTarget {
-        let wide: Vec<lines::Line> = named
-            .iter()
-            .filter(|l| l.width_hz > 0.0 && !removal.is_tone(l.freq_hz))
-            .map(|l| lines::Line {
-                freq_hz: l.freq_hz,
-                amplitude: l.amplitude,
-                width_hz: l.width_hz,
-                power: l.amplitude * l.amplitude / 2.0,
-                statistic: l.statistic,
-            })
-            .collect();
+        shape: &'a restore::Record<'a>,
+    ) -> RefitTarget<'a> {
+        let in_wide_line = |lo: f64, hi: f64| {
+            named
+                .iter()
+                .any(|l| is_wide(l, removal) && lo <= l.freq_hz && l.freq_hz <= hi)
+        };
         let kept = Removal {
             notches: removal
                 .notches
                 .iter()
-                .filter(|n| {
-                    !wide
-                        .iter()
-                        .any(|l| n.lo_hz <= l.freq_hz && l.freq_hz <= n.hi_hz)
-                })
+                .filter(|n| !in_wide_line(n.lo_hz, n.hi_hz))
                 .copied()
                 .collect(),
             ..removal.clone()
         };
-        let (clean, _) = kept.apply(rate, rate_hz, shape.temperature);
-        let total = evidence::allan_avar(clean, rate_hz, shape.m);
-        let tau0 = 1.0 / rate_hz;
-        let (avar, sd_ln) = total
+        let (clean, _) = kept.apply(rate, shape.rate_hz, shape.temperature);
+        RefitTarget {
+            total: evidence::allan_avar(clean, shape.rate_hz, shape.m),
+            loss: restore::loss(&kept, shape),
+            shape,
+        }
+    }
+
+    /// The Allan variance less the wide lines' of `named` at their current power, and the
+    /// weights' ln-AVAR standard deviations: where the line dominates, the remainder is known
+    /// less well, its sd the simulated one (`sd_ln`) times total over remainder.
+    fn less_lines(
+        &self,
+        named: &[Line],
+        removal: &Removal,
+        tau0: f64,
+        sd_ln: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
+        let wide: Vec<lines::Line> = named
             .iter()
-            .zip(shape.m)
+            .filter(|l| is_wide(l, removal))
+            .map(Line::detected)
+            .collect();
+        self.total
+            .iter()
+            .zip(self.shape.m)
             .zip(sd_ln)
             .map(|((&a, &m), &sd)| {
                 let line: f64 = wide
@@ -309,12 +324,7 @@ impl RefitTarget {
                 let rest = (a - line).max(LEAST_REMAINDER * a);
                 (rest, sd * a / rest)
             })
-            .unzip();
-        RefitTarget {
-            avar,
-            sd_ln,
-            removal: kept,
-        }
+            .unzip()
     }
 }
 
@@ -327,11 +337,7 @@ fn reread_wide_lines(data: &Data, model: &mut Model, removal: &Removal) {
     let tau0 = 1.0 / data.rate_hz;
     let shaped = model.clone();
     let background = |f: f64| shaped.one_sided_psd(f, tau0);
-    for line in model
-        .lines
-        .iter_mut()
-        .filter(|l| l.width_hz > 0.0 && !removal.is_tone(l.freq_hz))
-    {
+    for line in model.lines.iter_mut().filter(|l| is_wide(l, removal)) {
         if let Some(p) = spectrum::line_power(
             data.rate,
             data.rate_hz,
@@ -374,19 +380,13 @@ pub(super) fn open_noise(
         m: ctx.m,
         temperature: data.temperature.as_ref(),
     };
-    let target = RefitTarget::of(
-        data.rate,
-        data.rate_hz,
-        &open,
-        ctx.named_lines,
-        &shape,
-        ctx.sd_ln,
-    );
+    let target = RefitTarget::of(data.rate, &open, ctx.named_lines, &shape);
+    let tau0 = 1.0 / data.rate_hz;
+    let (avar, sd_ln) = target.less_lines(ctx.named_lines, &open, tau0, ctx.sd_ln);
     let curve = refit::Curve {
         tau: ctx.tau,
-        avar: &target.avar,
-        sd_ln: &target.sd_ln,
+        avar: &avar,
+        sd_ln: &sd_ln,
     };
-    let loss = restore::loss(&target.removal, &shape);
-    refit::refit_cleaned(curve, columns, ctx.white, loss.as_ref())
+    refit::refit_cleaned(curve, columns, ctx.white, target.loss.as_ref())
 }

@@ -141,13 +141,11 @@ fn in_named_wings(found: &Line, named: &[Line]) -> bool {
         .iter()
         .filter(|l| l.width_hz > 0.0)
         .map(|l| {
-            let power = l.amplitude * l.amplitude / 2.0;
             let edge = |f: f64| (2.0 * (f - l.freq_hz) / l.width_hz).atan();
-            power * (edge(hi) - edge(lo)) / PI
+            l.power() * (edge(hi) - edge(lo)) / PI
         })
         .sum();
-    let power = found.amplitude * found.amplitude / 2.0;
-    power <= WING_EXPLAINS * wings
+    found.power() <= WING_EXPLAINS * wings
 }
 
 /// Everything a statistic needs besides the series.
@@ -332,10 +330,9 @@ pub fn outside_roll_off(
     background: &(dyn Fn(f64) -> f64 + Sync),
 ) -> bool {
     removal.near_removed(f)
-        || named_lines.iter().any(|l| {
-            let power = l.amplitude * l.amplitude / 2.0;
-            lines::wings_stand_out(l.freq_hz, l.width_hz, power, f, background(f))
-        })
+        || named_lines
+            .iter()
+            .any(|l| lines::wings_stand_out(l.freq_hz, l.width_hz, l.power(), f, background(f)))
 }
 
 /// `columns` with bias instability and rate random walk free (added where absent).

@@ -70,7 +70,7 @@ pub mod spectrum;
 
 use crate::analysis::low_pass::{LowPass, LowPassSource};
 use crate::analysis::pipeline::{self, ChannelResult, LowPassChoice, Options};
-use crate::analysis::{Deviation, Estimator, allan, fit, phase_from_rate};
+use crate::analysis::{Deviation, Estimator, allan, fit, lines, phase_from_rate};
 use crate::record::{Channel, Quantity, Record};
 use crate::sim::noise::NoiseTerms;
 use clean::{Removal, Temperature};
@@ -146,6 +146,24 @@ pub struct Line {
     pub width_hz: f64,
     /// The detector's statistic.
     pub statistic: f64,
+}
+
+impl Line {
+    /// The power (variance) the line adds, u^2: `amplitude^2 / 2`.
+    pub fn power(&self) -> f64 {
+        self.amplitude * self.amplitude / 2.0
+    }
+
+    /// The line as the line detector states one (for its Allan variance).
+    fn detected(&self) -> lines::Line {
+        lines::Line {
+            freq_hz: self.freq_hz,
+            amplitude: self.amplitude,
+            width_hz: self.width_hz,
+            power: self.power(),
+            statistic: self.statistic,
+        }
+    }
 }
 
 /// An effect the workflow can add, with its parameters in SI (u the channel's unit).

@@ -117,52 +117,51 @@ impl Search<'_> {
         &self,
         spectra: &Spectra,
     ) -> (Backgrounds, Vec<(usize, usize)>) {
-        let first = self.estimate(spectra, vec![false; spectra.len()], &[], None);
+        let first = self.estimate(spectra, vec![false; spectra.len()], None);
         let bands = self.bands(spectra, &first);
         if bands.is_empty() {
             return (first, bands);
         }
         let mut mask = first.mask;
         self.mask_bands(&mut mask, &bands);
-        let second = self.estimate(spectra, mask, &[], None);
+        let second = self.estimate(spectra, mask, None);
         let bands = self.bands(spectra, &second);
         (second, bands)
     }
 
-    /// Both backgrounds, leaving out the masked bins. With `wings`, each bin's power is first
-    /// scaled by the share of it that `previous` puts in the background, `S / (S + L)`, L the
-    /// lines' Lorentzian excess there: a bin of expected value `S + L` scaled so is again an
-    /// exponential of mean S, whose median the background reads without bias. (Subtracting
-    /// L instead leaves a median of `S ln 2 - 0.31 L`, below zero wherever the wings exceed
-    /// twice the background, as they do on a filter's roll-off.)
+    /// Both backgrounds, leaving out the masked bins. With `wings` (lines and the backgrounds
+    /// they were measured against), each bin's power is first scaled by the share of it that
+    /// those backgrounds put in the background, `S / (S + L)`, L the lines' Lorentzian
+    /// excess there: a bin of expected value `S + L` scaled so is again an exponential of
+    /// mean S, whose median the background reads without bias. (Subtracting L instead
+    /// leaves a median of `S ln 2 - 0.31 L`, below zero wherever the wings exceed twice the
+    /// background, as they do on a filter's roll-off.)
     fn estimate(
         &self,
         spectra: &Spectra,
         mask: Vec<bool>,
-        wings: &[Measured],
-        previous: Option<&Backgrounds>,
+        wings: Option<(&[Measured], &Backgrounds)>,
     ) -> Backgrounds {
         let df = self.df();
-        let excess = |k: usize| -> f64 {
-            let f = k as f64 * df;
-            wings.iter().map(|m| lorentzian_density(m, f)).sum()
-        };
-        let share = |level: f64, k: usize| -> f64 {
-            if wings.is_empty() {
-                return 1.0;
-            }
-            level / (level + excess(k))
+        // The share of bin k's power that a background `level` holds.
+        let share = |level: &dyn Fn(&Backgrounds) -> &Background, k: usize| -> f64 {
+            wings.map_or(1.0, |(lines, previous)| {
+                let f = k as f64 * df;
+                let excess: f64 = lines.iter().map(|m| lorentzian_density(m, f)).sum();
+                let s = level(previous).level(k);
+                s / (s + excess)
+            })
         };
         Backgrounds {
             rect: background(
-                |k| spectra.rect(k) * previous.map_or(1.0, |p| share(p.rect.level(k), k)),
+                |k| spectra.rect(k) * share(&|b| &b.rect, k),
                 &mask,
                 self.k_hi,
                 self.widest(),
                 RECT_MEDIAN_VARIANCE,
             ),
             hann: background(
-                |k| spectra.hann(k) * previous.map_or(1.0, |p| share(p.hann.level(k), k)),
+                |k| spectra.hann(k) * share(&|b| &b.hann, k),
                 &mask,
                 self.k_hi,
                 self.widest(),
@@ -210,7 +209,7 @@ impl Search<'_> {
         let (mut backgrounds, mut measured) = (backgrounds, measured);
         for _ in 0..WING_ROUNDS {
             let wings: Vec<Measured> = measured.iter().copied().filter(resolved).collect();
-            backgrounds = self.estimate(spectra, mask.clone(), &wings, Some(&backgrounds));
+            backgrounds = self.estimate(spectra, mask.clone(), Some((&wings, &backgrounds)));
             measured = self.measure_bands(spectra, &backgrounds, bands);
         }
         (backgrounds, measured)
