@@ -62,8 +62,9 @@
 //!    analysis with CLEAN", Astronomical Journal 93, 1987).
 //! 5. **What is reported.** Each band is measured on the Hann periodogram over a window
 //!    centred on its excess and reaching two interquartile ranges (at least the band's width)
-//!    beyond it. A tone: its power `A^2 / 2` plus whatever excess the last round still finds
-//!    around it; its frequency, the power-weighted mean of the tone's and that excess's; its
+//!    beyond it. A tone: its power `A^2 / 2` plus the excess the last round still finds
+//!    around it, when the tone lies within that excess's half-power width of its centre (a
+//!    strong line's window can reach a separate tone on a steep background); its frequency, the power-weighted mean of the tone's and that excess's; its
 //!    width, that excess's (0 when nothing is left: a pure tone). Any other band: the
 //!    frequency where its excess power reaches half of its total; its width the interquartile
 //!    range of the excess in frequency (for a Lorentzian line exactly its full width at half

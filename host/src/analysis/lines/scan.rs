@@ -393,8 +393,17 @@ impl Search<'_> {
 
     /// Lines from the fitted tones and the last round's bands.
     pub(super) fn assemble(&self, tones: &[Tone], measured: &[Measured]) -> Vec<Line> {
-        // Each band left after the tones belongs to the strongest tone inside it (its
-        // residual: the line's width), or else is a line of its own.
+        // Each band left after the tones belongs to the strongest tone at its core (its
+        // residual: the line's width), or else is a line of its own. The core is the band's
+        // half-power extent (plus the tone's lobe), not its measurement window: on a steep
+        // background a strong line's window can reach a separate tone several widths away.
+        let df = self.df();
+        let at_core = |m: &Measured, t: &Tone| {
+            let tone_hz = t.omega * self.rate_hz / (2.0 * PI);
+            m.lo <= t.bin + TONE_LOBE
+                && t.bin <= m.hi + TONE_LOBE
+                && (tone_hz - m.freq_hz).abs() <= m.width_hz + TONE_LOBE as f64 * df
+        };
         let mut used = vec![false; measured.len()];
         let mut order: Vec<usize> = (0..tones.len()).collect();
         order.sort_by(|&a, &b| tones[b].power().total_cmp(&tones[a].power()));
@@ -404,15 +413,15 @@ impl Search<'_> {
             let rest = measured
                 .iter()
                 .zip(&used)
-                .position(|(m, u)| !*u && m.lo <= t.bin + TONE_LOBE && t.bin <= m.hi + TONE_LOBE);
+                .position(|(m, u)| !*u && at_core(m, t));
             let tone_hz = t.omega * self.rate_hz / (2.0 * PI);
-            let (extra, width, rest_hz) = match rest {
+            let (extra, width, rest_hz, statistic) = match rest {
                 Some(i) => {
                     used[i] = true;
                     let m = &measured[i];
-                    (m.power, m.width_hz, m.freq_hz)
+                    (m.power, m.width_hz, m.freq_hz, m.statistic.max(t.statistic))
                 }
-                None => (0.0, 0.0, tone_hz),
+                None => (0.0, 0.0, tone_hz, t.statistic),
             };
             let power = t.power() + extra;
             lines.push(Line {
@@ -422,7 +431,7 @@ impl Search<'_> {
                 amplitude: (2.0 * power).sqrt(),
                 width_hz: width,
                 power,
-                statistic: t.statistic,
+                statistic,
             });
         }
         lines.extend(

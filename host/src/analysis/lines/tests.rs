@@ -808,3 +808,49 @@ fn strong_wide_lines_are_measured_without_bias() {
         "power ratio {power}: {powers:?}"
     );
 }
+
+/// A pure tone several widths from a strong wide line, on a background the sensor's filter
+/// makes steep (the line's wings stand above it out to Nyquist, so the line's measurement
+/// window reaches the tone): both are reported, each with its own statistic. The tone's
+/// detectability is `d = 400` against the filtered white noise and the line's wings there
+/// (`P / (S df)`), far above the ~20 a record without lines reaches.
+#[test]
+fn a_tone_beyond_a_wide_lines_core_is_its_own_line() {
+    let (rate, n) = (50.0, 540_000);
+    let df = rate / n as f64;
+    let mut rng = ChaCha8Rng::seed_from_u64(104);
+    let lp = crate::analysis::low_pass::LowPass::two_pole(15.0, rate).unwrap();
+    let n_density = 2.5e-4;
+    let mut y = lp.white_through(n_density, n, &mut rng);
+    let filtered = |f: f64| 2.0 * n_density * n_density * lp.power_gain(f);
+    let (f_line, w) = (18.9, 1.0);
+    let line_power = 30.0 * filtered(f_line) * PI * w / 2.0;
+    let line = NarrowBand {
+        amplitude: (2.0 * line_power).sqrt(),
+        freq_hz: f_line,
+        width_hz: w,
+        shape: Shape::DiffusingPhase,
+    };
+    let mut l = LineNoise::new(line, rate, &mut rng);
+    y.iter_mut().for_each(|v| *v += l.next(&mut rng));
+    // The line's one-sided PSD at f, with its image about Nyquist.
+    let wing = |f: f64| {
+        let lorentz = |c: f64| 2.0 * line_power / (PI * w) / (1.0 + (2.0 * (f - c) / w).powi(2));
+        lorentz(f_line) + lorentz(rate - f_line)
+    };
+    let f_tone = 24.0;
+    let tone_power = 400.0 * (filtered(f_tone) + wing(f_tone)) * df;
+    let amplitude = (2.0 * tone_power).sqrt();
+    add_tone(&mut y, rate, amplitude, f_tone, 0.3);
+    let lines = detect(&y, rate, &LineOptions::default()).unwrap();
+    let msg = format!("{lines:?}");
+    let tone = nearest(&lines, f_tone).unwrap();
+    assert!((tone.freq_hz - f_tone).abs() < df, "{msg}");
+    assert_eq!(tone.width_hz, 0.0, "{msg}");
+    // Amplitude relative sd 1 / sqrt(2 d) = 3.5 %.
+    assert!((tone.amplitude / amplitude - 1.0).abs() < 0.15, "{msg}");
+    let wide = nearest(&lines, f_line).unwrap();
+    assert!((wide.freq_hz - f_line).abs() < 0.5 * w, "{msg}");
+    assert!((wide.power / line_power - 1.0).abs() < 0.2, "{msg}");
+    assert!(wide.statistic > tone.statistic, "{msg}");
+}
