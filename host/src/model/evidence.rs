@@ -128,8 +128,10 @@ const WING_EXPLAINS: f64 = 4.0;
 /// roll-off not yet named) stand out as a broad bump just beyond the notch. Its power is
 /// compared with the named lines' within its own half-power band, for each
 /// `P (atan(2 (hi - f0) / w) - atan(2 (lo - f0) / w)) / pi` (a Lorentzian's share of a
-/// band); a pure tone has no band and is never explained so.
-fn in_named_wings(found: &Line, named: &[Line]) -> bool {
+/// band), summed with the same share of its images that sampling at `rate_hz` folds in (about
+/// Nyquist, centre `rate - f0`, and about zero, `-f0`); a pure tone has no band and is never
+/// explained so.
+fn in_named_wings(found: &Line, named: &[Line], rate_hz: f64) -> bool {
     if found.width_hz <= 0.0 {
         return false;
     }
@@ -141,8 +143,11 @@ fn in_named_wings(found: &Line, named: &[Line]) -> bool {
         .iter()
         .filter(|l| l.width_hz > 0.0)
         .map(|l| {
-            let edge = |f: f64| (2.0 * (f - l.freq_hz) / l.width_hz).atan();
-            l.power() * (edge(hi) - edge(lo)) / PI
+            let share = |centre: f64| {
+                let edge = |f: f64| (2.0 * (f - centre) / l.width_hz).atan();
+                (edge(hi) - edge(lo)) / PI
+            };
+            l.power() * (share(l.freq_hz) + share(rate_hz - l.freq_hz) + share(-l.freq_hz))
         })
         .sum();
     found.power() <= WING_EXPLAINS * wings
@@ -223,7 +228,8 @@ pub fn statistics(
                 let strongest = found
                     .into_iter()
                     .filter(|l| {
-                        !ctx.removal.near_removed(l.freq_hz) && !in_named_wings(l, ctx.named_lines)
+                        !ctx.removal.near_removed(l.freq_hz)
+                            && !in_named_wings(l, ctx.named_lines, ctx.rate_hz)
                     })
                     .max_by(|a, b| a.statistic.total_cmp(&b.statistic));
                 match strongest {
@@ -469,19 +475,37 @@ mod tests {
 
     /// A named Lorentzian of power 1 and FWHM 0.5 Hz at 4 Hz puts `(atan(2 (2.55) / 0.5) -
     /// atan(2 (1.95) / 0.5)) / pi = 9.48e-3` of its power within 5.95-6.55 Hz: a line found
-    /// there 0.6 Hz wide with up to four times that is the wings, a stronger one or a tone is
-    /// not.
+    /// there 0.6 Hz wide with up to four times that (and its images') is the wings, a
+    /// stronger one or a tone is not.
     #[test]
     fn a_line_in_named_wings_is_theirs() {
         let named = [line(4.0, 1.0, 0.5)];
         let share = ((5.1f64 / 0.5).atan() - (3.9f64 / 0.5).atan()) / PI;
         assert!((share - 9.48e-3).abs() < 1e-5, "{share}");
-        assert!(in_named_wings(&line(6.25, 3.9 * share, 0.6), &named));
-        assert!(!in_named_wings(&line(6.25, 4.1 * share, 0.6), &named));
-        assert!(!in_named_wings(&line(6.25, 1e-6, 0.0), &named));
+        // At 100 Hz the image at -4 Hz (the negative-frequency half of a real line) adds
+        // 4.8 % to the share, the one at 96 Hz under 1e-3 %.
+        let rate = 100.0;
+        let image = ((42.2f64).atan() - (39.8f64).atan()) / PI;
+        assert!((image / share - 0.048).abs() < 1e-3, "{}", image / share);
+        assert!(in_named_wings(&line(6.25, 4.15 * share, 0.6), &named, rate));
+        assert!(!in_named_wings(
+            &line(6.25, 4.25 * share, 0.6),
+            &named,
+            rate
+        ));
+        assert!(!in_named_wings(&line(6.25, 1e-6, 0.0), &named, rate));
         assert!(!in_named_wings(
             &line(6.25, 1e-3, 0.6),
-            &[line(4.0, 1.0, 0.0)]
+            &[line(4.0, 1.0, 0.0)],
+            rate
+        ));
+        // At 13 Hz the band reaches Nyquist and the line's mirror at 9 Hz puts two thirds
+        // as much there again.
+        let near_nyquist = 13.0;
+        assert!(in_named_wings(
+            &line(6.25, 6.0 * share, 0.6),
+            &named,
+            near_nyquist
         ));
     }
 }

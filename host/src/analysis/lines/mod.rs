@@ -69,11 +69,13 @@
 //!    frequency where its excess power reaches half of its total; its width the interquartile
 //!    range of the excess in frequency (for a Lorentzian line exactly its full width at half
 //!    maximum, the quartiles of a Cauchy distribution being the half-maximum points); its
-//!    power the excess in the window. Both are corrected for the Lorentzian's tails beyond
-//!    the window (see `lorentzian_truncation`). A resolved line's wings reach past its band
-//!    into the background's running median and raise it there; so the background is
-//!    estimated again with each resolved line's measured Lorentzian taken out of every bin,
-//!    and the bands measured again (twice; lines wider than
+//!    power the excess in the window. All three are corrected for the Lorentzian's tails
+//!    beyond the window (see `lorentzian_truncation`; a window cut short on one side pulls
+//!    the median to the other). A resolved line's wings reach past its band into the
+//!    background's running median and raise it there; so the background is estimated again
+//!    with each resolved line's measured Lorentzian, and its images that sampling folds in
+//!    (mirrored about Nyquist and about zero), taken out of every bin, and the bands measured
+//!    again against that background plus their own images (twice; lines wider than
 //!    [`LineOptions::max_relative_width`] of their frequency are left as measured, their
 //!    wings filling the median's window). Amplitude is always `sqrt(2 power)`. The
 //!    statistic is the excess over the band's bins in standard deviations of the background

@@ -765,15 +765,39 @@ fn tone_near_finds_a_slow_tone_off_its_bin() {
 /// about 4 % here: the mean over 12 lines is held to three of its sd (about 3 %).
 #[test]
 fn strong_wide_lines_are_measured_without_bias() {
+    let rate = 50.0;
+    check_wide_line_bias(900..912, |rng| {
+        let f = rate * (0.2 + 0.25 * rng.random::<f64>());
+        (f, 0.3 + 0.7 * rng.random::<f64>())
+    });
+}
+
+/// Lines 1.5 to 3 widths below Nyquist, whose samples carry their mirror image about Nyquist
+/// as well (`Search::folded_density`): measured against a background that holds the image,
+/// they read 1.4 % narrow and weak on 48 lines; with the image left in the excess, 4 % wide
+/// and strong, beyond this test's bound (2.3 % on 24 lines).
+#[test]
+fn wide_lines_near_nyquist_are_measured_without_bias() {
+    let rate = 50.0;
+    check_wide_line_bias(900..924, |rng| {
+        let w = 0.3 + 0.7 * rng.random::<f64>();
+        (rate / 2.0 - w * (1.5 + 1.5 * rng.random::<f64>()), w)
+    });
+}
+
+/// Strong diffusing-phase lines 0.3-1 Hz wide at 10-40 times the background, 1 h at 50 Hz,
+/// one per seed, at the centre and width `draw` gives (Hz): each line's width and power within
+/// its own statistical error, and their means within three of its sd.
+fn check_wide_line_bias(seeds: std::ops::Range<u64>, draw: impl Fn(&mut ChaCha8Rng) -> (f64, f64)) {
     let (rate, n) = (50.0, 180_000);
     let t_rec = n as f64 / rate;
     let (mut widths, mut powers) = (Vec::new(), Vec::new());
+    let count = seeds.end - seeds.start;
     let mut bound = 0.0;
-    for seed in 0..12u64 {
-        let mut rng = ChaCha8Rng::seed_from_u64(900 + seed);
+    for seed in seeds {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let terms = draw_terms(&mut rng);
-        let f = rate * (0.2 + 0.25 * rng.random::<f64>());
-        let w = 0.3 + 0.7 * rng.random::<f64>();
+        let (f, w) = draw(&mut rng);
         let rho = log_uniform(&mut rng, 10.0, 40.0);
         // Peak excess rho S: power rho S pi w / 2.
         let power = rho * one_sided(&terms, f) * PI * w / 2.0;
@@ -794,7 +818,7 @@ fn strong_wide_lines_are_measured_without_bias() {
         assert!((got.power / power - 1.0).abs() <= 4.0 * e, "{msg}");
         widths.push(got.width_hz / w);
         powers.push(got.power / power);
-        bound += 3.0 * 1.6 * e / 12.0 / 12f64.sqrt();
+        bound += 3.0 * 1.6 * e / count as f64 / (count as f64).sqrt();
     }
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     let (width, power) = (mean(&widths), mean(&powers));
