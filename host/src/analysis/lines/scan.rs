@@ -84,8 +84,8 @@ impl Search<'_> {
     /// The one-sided PSD at `f` of a measured line as sampled: its Lorentzian plus the
     /// images that sampling folds into `[0, rate / 2]`, the one mirrored about Nyquist
     /// (centre `rate - f0`) and the one mirrored about zero (`-f0`). A line's samples carry
-    /// its spectrum periodised over the rate (a line 1.5 widths below Nyquist has a tenth of
-    /// its density there from its mirror).
+    /// its spectrum periodised over the rate: at Nyquist the mirror adds as much density as
+    /// the line itself.
     fn folded_density(&self, m: &Measured, f: f64) -> f64 {
         lorentzian_density(m, f) + self.image_density(m, f)
     }
