@@ -483,7 +483,7 @@ mod tests {
         let share = ((5.1f64 / 0.5).atan() - (3.9f64 / 0.5).atan()) / PI;
         assert!((share - 9.48e-3).abs() < 1e-5, "{share}");
         // At 100 Hz the image at -4 Hz (the negative-frequency half of a real line) adds
-        // 4.8 % to the share, the one at 96 Hz under 1e-3 %.
+        // 4.8 % to the share, the one at 96 Hz 0.02 %.
         let rate = 100.0;
         let image = ((42.2f64).atan() - (39.8f64).atan()) / PI;
         assert!((image / share - 0.048).abs() < 1e-3, "{}", image / share);

@@ -774,8 +774,8 @@ fn strong_wide_lines_are_measured_without_bias() {
 
 /// Lines 1.5 to 3 widths below Nyquist, whose samples carry their mirror image about Nyquist
 /// as well (`Search::folded_density`): measured against a background that holds the image,
-/// they read 1.4 % narrow and weak on 48 lines; with the image left in the excess, 4 % wide
-/// and strong, beyond this test's bound (2.3 % on 24 lines).
+/// these 24 read 1.2 % narrow and 1.4 % weak on average; with the image left in the excess,
+/// 4 % wide and strong, beyond the test's bound of 2.2 %.
 #[test]
 fn wide_lines_near_nyquist_are_measured_without_bias() {
     let rate = 50.0;
