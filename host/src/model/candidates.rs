@@ -32,6 +32,7 @@ pub(super) fn detect_lines(series: &[f64], rate_hz: f64) -> Vec<Line> {
                     amplitude: l.amplitude,
                     width_hz: l.width_hz,
                     statistic: l.statistic,
+                    p_value: l.p_value,
                 })
                 .collect()
         })
@@ -41,9 +42,10 @@ pub(super) fn detect_lines(series: &[f64], rate_hz: f64) -> Vec<Line> {
 /// The candidate to name, leaving out those `taken_back` in this round: a passing
 /// temperature coupling first, then the smallest p-value (the largest z, which is clamped
 /// where p underflows) among the other passing deterministic candidates, else among the
-/// passing stochastic ones. Ties (p = 0 when no realisation shows the view's effect at all)
-/// go to the earlier probe: lines first, whose removal can change what the roll-off and
-/// the regressions see.
+/// passing stochastic ones. P-values below [`evidence::LEAST_P`] are not told apart (a strong
+/// line and a strong roll-off both reach it), and ties go to the earlier probe: lines first,
+/// whose removal can change what the roll-off and the regressions see (a roll-off fitted with
+/// a strong line beyond it put the cutoff below the line).
 ///
 /// Why the coupling first: it has a measured cause, and a rate that follows the temperature
 /// carries the temperature's own cycles as slow lines, which the line detectors see as
@@ -68,7 +70,10 @@ pub(super) fn choose(round: &Round, taken_back: &[Probe]) -> Option<usize> {
             .enumerate()
             .filter(|&(i, _)| open(i))
             .filter(|(_, e)| e.passes && e.view.is_deterministic() == deterministic)
-            .min_by(|a, b| a.1.p_value.total_cmp(&b.1.p_value))
+            .min_by(|a, b| {
+                let told = |e: &evidence::Evidence| e.p_value.max(evidence::LEAST_P);
+                told(a.1).total_cmp(&told(b.1))
+            })
             .map(|(i, _)| i)
     };
     coupling.or_else(|| best(true)).or_else(|| best(false))
@@ -148,6 +153,7 @@ pub(super) fn add(
                 amplitude,
                 width_hz: 0.0,
                 statistic: 0.0,
+                p_value: 1.0,
             });
         }
         (
@@ -174,6 +180,7 @@ pub(super) fn add(
                 amplitude,
                 width_hz,
                 statistic: 0.0,
+                p_value: 1.0,
             });
         }
         (Probe::RollOff, Effect::LowPass { cutoff_hz }) => {

@@ -146,6 +146,10 @@ pub struct Line {
     pub width_hz: f64,
     /// The detector's statistic.
     pub statistic: f64,
+    /// The detector's family-wise p-value ([`lines::Line::p_value`]); 1 for a line the
+    /// workflow named (it is then part of the model, not a finding).
+    #[serde(skip_serializing)]
+    pub p_value: f64,
 }
 
 impl Line {
@@ -162,6 +166,7 @@ impl Line {
             width_hz: self.width_hz,
             power: self.power(),
             statistic: self.statistic,
+            p_value: self.p_value,
         }
     }
 }

@@ -123,7 +123,7 @@ pub fn document(o: &Outcome) -> Value {
         "samples": o.n,
         "realisations": o.realisations,
         "temperature_channel": o.temperature,
-        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations)"),
+        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance; for a spectral line, at least the line detector's own family-wise p-value) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations)"),
         "gap_definition": "gap = RMS over the measured oadev taus of z, z = (ln ADEV_measured - mean ln ADEV_simulated) / std ln ADEV_simulated; |z| > 2 marks a disagreeing tau",
         "measured": {"tau": o.measured.tau, "adev": o.measured.dev},
         "baseline": model_keys(&o.baseline),

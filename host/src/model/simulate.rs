@@ -191,6 +191,14 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
     // or its own bootstrap of `draws` series (the regressors).
     let judge =
         |p: Probe, simulated: &[f64], draws: usize| match on_sims.iter().position(|q| *q == p) {
+            Some(j) if p == Probe::Line => Evidence::with_p(
+                p.name(),
+                p.view(),
+                measured[j],
+                simulated,
+                evidence::line_p_value(measured[j].0, simulated),
+                probes.len(),
+            ),
             Some(j) => Evidence::new(p.name(), p.view(), measured[j], simulated, probes.len()),
             // A maximum over bins: its tail is Gumbel, not a scaled chi-square.
             None if p == Probe::SlowLine => Evidence::with_p(

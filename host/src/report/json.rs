@@ -7,7 +7,7 @@
 //! `tau`, `dev`, `lo`, `hi`, `n` (and `m`, `alpha`, `edf`); `noise` with `Q N B K R`, each
 //! `{value, lo, hi, unit, detected, p_value}` in SI; `fit.goodness`; `psd` with `freq` and
 //! `density` (one-sided, log-binned); `lines[]`, the spectral lines removed before the fit,
-//! each `{freq_hz, amplitude, width_hz, power, statistic}` (amplitude in the channel's unit,
+//! each `{freq_hz, amplitude, width_hz, power, statistic, p_value}` (amplitude in the channel's unit,
 //! power in its square); plus conventional units, slope and PSD read-outs and Kalibr's
 //! numbers. A part that could not be computed is `{"error": "why"}` ([`Part::Failed`]).
 //! Conventions are stated in the document itself.

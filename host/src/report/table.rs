@@ -139,24 +139,36 @@ fn line_rows(out: &mut String, r: &ChannelResult) {
     }
     let _ = writeln!(
         out,
-        "  spectral lines (removed before the fit): {:>10} {:>12} {:>10} {:>12} {:>8}",
+        "  spectral lines (removed before the fit): {:>10} {:>12} {:>10} {:>12} {:>8} {:>9}",
         "freq Hz",
         format!("amp {}", r.unit),
         "width Hz",
         format!("power {}^2", r.unit),
-        "z"
+        "z",
+        "p"
     );
     for l in &r.lines {
         let _ = writeln!(
             out,
-            "  {:>40} {:>10} {:>12} {:>10} {:>12} {:>8}",
+            "  {:>40} {:>10} {:>12} {:>10} {:>12} {:>8} {:>9}",
             "",
             sig(l.freq_hz, 6),
             sig(l.amplitude, 3),
             sig(l.width_hz, 3),
             sig(l.power, 3),
-            sig(l.statistic, 3)
+            sig(l.statistic, 3),
+            p_text(l.p_value)
         );
+    }
+}
+
+/// A family-wise p-value as printed: two significant digits, and `<1e-300` where the detector's
+/// tail underflowed.
+fn p_text(p: f64) -> String {
+    if p <= 0.0 {
+        "<1e-300".to_string()
+    } else {
+        format!("{p:.1e}")
     }
 }
 

@@ -115,6 +115,13 @@ pub struct Line {
     pub power: f64,
     /// Excess power over the line's bins in standard deviations of the background there.
     pub statistic: f64,
+    /// The family-wise false-alarm probability at which the search would just have reported
+    /// it: the tail probability of its most unlikely test without a line, times the tests
+    /// the false-alarm budget is split among (Bonferroni). The chance that a record without
+    /// lines shows a line at least this unlikely anywhere in the search is at most this; it
+    /// is below [`LineOptions::false_alarm`] for every line reported (0 where it underflows
+    /// double precision).
+    pub p_value: f64,
 }
 
 /// Settings of [`detect`].
@@ -392,6 +399,8 @@ struct Measured {
     /// Interquartile range of the excess, Hz.
     width_hz: f64,
     statistic: f64,
+    /// Family-wise false-alarm probability of the band's best test (`scan::Bands`).
+    p_value: f64,
     /// Half or more of the excess lies within +-TONE_LOBE bins of the peak.
     concentrated: bool,
 }
@@ -516,6 +525,7 @@ fn search<'a>(rate: &'a [f64], rate_hz: f64, opts: &LineOptions) -> Result<Found
             if let Some(mut tone) = fit_tone(&work, trend, start * 2.0 * PI / n as f64) {
                 tone.bin = m.peak;
                 tone.statistic = m.statistic;
+                tone.p_value = m.p_value;
                 subtract(work.to_mut(), &tone);
                 tones.push(tone);
             }

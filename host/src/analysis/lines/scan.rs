@@ -66,6 +66,13 @@ pub(super) struct Backgrounds {
     mask: Vec<bool>,
 }
 
+/// The bands that stand out of a background (inclusive bin ranges) and, for each, the
+/// family-wise false-alarm probability of the least likely test taken inside it.
+pub(super) struct Bands {
+    pub(super) ranges: Vec<(usize, usize)>,
+    pub(super) p_values: Vec<f64>,
+}
+
 /// Rounds of [`Search::remeasure_wide`]: each takes out the wings the last one measured. The
 /// first makes the correction; the second changes width and power by under 1 %.
 const WING_ROUNDS: usize = 2;
@@ -134,17 +141,14 @@ impl Search<'_> {
 
     /// The backgrounds (two passes: the second leaves out what the first flagged) and the
     /// bands that stand out of them.
-    pub(super) fn backgrounds_and_bands(
-        &self,
-        spectra: &Spectra,
-    ) -> (Backgrounds, Vec<(usize, usize)>) {
+    pub(super) fn backgrounds_and_bands(&self, spectra: &Spectra) -> (Backgrounds, Bands) {
         let first = self.estimate(spectra, vec![false; spectra.len()], None);
         let bands = self.bands(spectra, &first);
-        if bands.is_empty() {
+        if bands.ranges.is_empty() {
             return (first, bands);
         }
         let mut mask = first.mask;
-        self.mask_bands(&mut mask, &bands);
+        self.mask_bands(&mut mask, &bands.ranges);
         let second = self.estimate(spectra, mask, None);
         let bands = self.bands(spectra, &second);
         (second, bands)
@@ -213,7 +217,7 @@ impl Search<'_> {
     pub(super) fn remeasure_wide(
         &self,
         spectra: &Spectra,
-        bands: &[(usize, usize)],
+        bands: &Bands,
         backgrounds: Backgrounds,
         measured: Vec<Measured>,
     ) -> (Backgrounds, Vec<Measured>) {
@@ -241,7 +245,7 @@ impl Search<'_> {
         &self,
         spectra: &Spectra,
         backgrounds: &Backgrounds,
-        bands: &[(usize, usize)],
+        bands: &Bands,
     ) -> Vec<Measured> {
         self.measure_bands_beside(spectra, backgrounds, bands, &[])
     }
@@ -254,13 +258,15 @@ impl Search<'_> {
         &self,
         spectra: &Spectra,
         backgrounds: &Backgrounds,
-        bands: &[(usize, usize)],
+        bands: &Bands,
         lines: &[Measured],
     ) -> Vec<Measured> {
         let df = self.df();
         bands
+            .ranges
             .iter()
-            .map(|&(a, b)| {
+            .zip(&bands.p_values)
+            .map(|(&(a, b), &p_value)| {
                 let own = lines.iter().find(|m| {
                     let bin = m.freq_hz / df;
                     a as f64 - 0.5 <= bin && bin <= b as f64 + 0.5
@@ -270,7 +276,10 @@ impl Search<'_> {
                     backgrounds.hann.level(k)
                         + own.map_or(0.0, |m| self.image_density(m, k as f64 * df))
                 };
-                self.measure(hann, background, (a, b), bands)
+                Measured {
+                    p_value,
+                    ..self.measure(hann, background, (a, b), &bands.ranges)
+                }
             })
             .filter(|m| m.power > 0.0)
             .collect()
@@ -312,10 +321,13 @@ impl Search<'_> {
     /// order of [`surprise`], each only if it overlaps none taken before (a matched filter:
     /// the best run covers the line's significant part), and the runs taken are merged into
     /// bands (inclusive bin ranges).
-    fn bands(&self, spectra: &Spectra, bg: &Backgrounds) -> Vec<(usize, usize)> {
+    fn bands(&self, spectra: &Spectra, bg: &Backgrounds) -> Bands {
         let (k_lo, k_hi) = (self.k_lo, self.k_hi);
         if k_hi < k_lo {
-            return Vec::new();
+            return Bands {
+                ranges: Vec::new(),
+                p_values: Vec::new(),
+            };
         }
         let mut cum = vec![0.0; k_hi - k_lo + 2];
         for k in k_lo..=k_hi {
@@ -345,9 +357,9 @@ impl Search<'_> {
         let octaves = per_octave.iter().filter(|&&c| c > 0).count().max(1);
         let mut thresholds = Thresholds::default();
         let least_rel_var = [bg.hann.least_rel_var(), bg.rect.least_rel_var()];
-        // Passing tests as (surprise, first bin, length): ranked by how unlikely they are
-        // without a line, so that each line is located by the run that fits it best.
-        let mut passed: Vec<(f64, usize, usize)> = Vec::new();
+        // Passing tests, ranked by how unlikely they are without a line, so that each line is
+        // located by the run that fits it best.
+        let mut passed: Vec<Passed> = Vec::new();
         for &l in &scales {
             for j in runs(l) {
                 let o = octave(j, l);
@@ -368,21 +380,42 @@ impl Search<'_> {
                 if mean <= 1.0 + 2.0 * (1.0 / l as f64 + v).sqrt() {
                     continue;
                 }
-                if mean > thresholds.get(l, background.bucket(centre), o, level) {
-                    passed.push((surprise(mean, l, v), j, l));
+                let bucket = background.bucket(centre);
+                if mean > thresholds.get(l, bucket, o, level) {
+                    passed.push(Passed {
+                        surprise: surprise(mean, l, v),
+                        first: j,
+                        len: l,
+                        mean,
+                        bucket,
+                        tests: octaves * per_octave[o],
+                    });
                 }
             }
         }
         // The best run first; a run that overlaps one already taken adds nothing.
-        passed.sort_by(|a, b| b.0.total_cmp(&a.0));
+        passed.sort_by(|a, b| b.surprise.total_cmp(&a.surprise));
         let mut marked = vec![false; k_hi - k_lo + 1];
-        for &(_, j, l) in &passed {
-            let run = &mut marked[j - k_lo..j - k_lo + l];
+        let mut taken: Vec<&Passed> = Vec::new();
+        for t in &passed {
+            let run = &mut marked[t.first - k_lo..t.first - k_lo + t.len];
             if !run.iter().any(|&m| m) {
                 run.iter_mut().for_each(|m| *m = true);
+                taken.push(t);
             }
         }
-        merge_runs(&marked, k_lo)
+        let ranges = merge_runs(&marked, k_lo);
+        let p_values = ranges
+            .iter()
+            .map(|&(a, b)| {
+                taken
+                    .iter()
+                    .filter(|t| a <= t.first && t.first <= b)
+                    .map(|t| t.family_wise_p())
+                    .fold(1.0, f64::min)
+            })
+            .collect();
+        Bands { ranges, p_values }
     }
 
     /// The excess of one band over the background, on the Hann periodogram (no leakage
@@ -428,6 +461,7 @@ impl Search<'_> {
             freq_hz: centre * df,
             width_hz: width * df,
             statistic: (sum_p - sum_s) / spread,
+            p_value: 1.0,
             concentrated: total > 0.0 && near >= 0.5 * total,
         }
     }
@@ -456,13 +490,19 @@ impl Search<'_> {
                 .zip(&used)
                 .position(|(m, u)| !*u && at_core(m, t));
             let tone_hz = t.omega * self.rate_hz / (2.0 * PI);
-            let (extra, width, rest_hz, statistic) = match rest {
+            let (extra, width, rest_hz, statistic, p_value) = match rest {
                 Some(i) => {
                     used[i] = true;
                     let m = &measured[i];
-                    (m.power, m.width_hz, m.freq_hz, m.statistic.max(t.statistic))
+                    (
+                        m.power,
+                        m.width_hz,
+                        m.freq_hz,
+                        m.statistic.max(t.statistic),
+                        m.p_value.min(t.p_value),
+                    )
                 }
-                None => (0.0, 0.0, tone_hz, t.statistic),
+                None => (0.0, 0.0, tone_hz, t.statistic, t.p_value),
             };
             let power = t.power() + extra;
             lines.push(Line {
@@ -473,6 +513,7 @@ impl Search<'_> {
                 width_hz: width,
                 power,
                 statistic,
+                p_value,
             });
         }
         lines.extend(
@@ -486,6 +527,7 @@ impl Search<'_> {
                     width_hz: m.width_hz,
                     power: m.power,
                     statistic: m.statistic,
+                    p_value: m.p_value,
                 }),
         );
         lines.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
@@ -653,6 +695,32 @@ struct Thresholds {
     cache: HashMap<(usize, i32, usize), f64>,
     /// The last key asked for and its threshold (neighbouring tests share them).
     last: Option<((usize, i32, usize), f64)>,
+}
+
+/// A test that passed its threshold: a run of `len` bins from `first` whose mean ratio to the
+/// background is `mean`, the background's degrees of freedom on the grid at `bucket`, and the
+/// number of tests its false-alarm share was divided among (octaves times the tests in its
+/// octave).
+struct Passed {
+    surprise: f64,
+    first: usize,
+    len: usize,
+    mean: f64,
+    bucket: i32,
+    tests: usize,
+}
+
+impl Passed {
+    /// The family-wise false-alarm probability at which this test would just pass: its own
+    /// tail probability `P(F(2 len, nu) > mean)` times the tests it shares the budget with
+    /// (the Bonferroni split of [`LineOptions::false_alarm`] run backwards), at most 1. It is
+    /// below the search's `false_alarm` for every test that passed; 0 where the tail
+    /// underflows double precision.
+    fn family_wise_p(&self) -> f64 {
+        let nu = 2.0 * DOF_GRID.powi(self.bucket);
+        let tail = FisherSnedecor::new(2.0 * self.len as f64, nu).map_or(0.0, |f| f.sf(self.mean));
+        (tail * self.tests as f64).min(1.0)
+    }
 }
 
 /// Ratio of the grid on which the background's degrees of freedom are rounded down (which

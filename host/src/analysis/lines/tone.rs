@@ -13,9 +13,10 @@ pub(super) struct Tone {
     pub(super) omega: f64,
     pub(super) a: f64,
     pub(super) b: f64,
-    /// The bin it was found at, and its statistic there.
+    /// The bin it was found at, and its statistic and family-wise p-value there.
     pub(super) bin: usize,
     pub(super) statistic: f64,
+    pub(super) p_value: f64,
 }
 
 impl Tone {
@@ -165,6 +166,7 @@ fn fit_at(y: &[f64], w: f64) -> Option<Tone> {
         b: coef[3],
         bin: 0,
         statistic: 0.0,
+        p_value: 1.0,
     })
 }
 
