@@ -505,10 +505,6 @@ mod tests {
         }
     }
 
-    /// A named Lorentzian of power 1 and FWHM 0.5 Hz at 4 Hz puts `(atan(2 (2.55) / 0.5) -
-    /// atan(2 (1.95) / 0.5)) / pi = 9.48e-3` of its power within 5.95-6.55 Hz: a line found
-    /// there 0.6 Hz wide with up to four times that (and its images') is the wings, a
-    /// stronger one or a tone is not.
     /// The line view's p-value: the detector's own where no realisation found a line, the
     /// floor exactly for a line the detector's tails cannot resolve (so that it ties with
     /// other candidates there and the earlier probe, lines, is named first), and the
@@ -532,6 +528,10 @@ mod tests {
         assert!(line_p_value(s, &sims) > 0.1);
     }
 
+    /// A named Lorentzian of power 1 and FWHM 0.5 Hz at 4 Hz puts `(atan(2 (2.55) / 0.5) -
+    /// atan(2 (1.95) / 0.5)) / pi = 9.48e-3` of its power within 5.95-6.55 Hz: a line found
+    /// there 0.6 Hz wide with up to four times that (and its images') is the wings, a
+    /// stronger one or a tone is not.
     #[test]
     fn a_line_in_named_wings_is_theirs() {
         let named = [line(4.0, 1.0, 0.5)];
