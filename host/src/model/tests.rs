@@ -119,20 +119,31 @@ fn families_at_ci_size() {
 #[test]
 #[ignore = "the full study: 3 h at 50 Hz, 10 seeds per kind; run with --release"]
 fn study_families() {
-    let shape = families::STUDY_SHAPE;
+    // STUDY_RATE_HZ=100 STUDY_HOURS=4 STUDY_FIRST_SEED=200 tries the workflow on another
+    // shape and other seeds than those it was developed on.
+    let number = |name: &str| {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.trim().parse::<f64>().ok())
+    };
+    let shape = Shape {
+        rate_hz: number("STUDY_RATE_HZ").unwrap_or(families::STUDY_SHAPE.rate_hz),
+        duration_s: number("STUDY_HOURS").map_or(families::STUDY_SHAPE.duration_s, |h| h * 3600.0),
+    };
+    let first = number("STUDY_FIRST_SEED").map_or(100, |s| s as u64);
     // STUDY_KINDS=GaussMarkov,Tone runs only those kinds (names as in `Kind`'s Debug).
     let only = std::env::var("STUDY_KINDS").unwrap_or_default();
     let kinds: Vec<Kind> = KINDS
         .into_iter()
         .filter(|k| only.is_empty() || only.split(',').any(|o| o == format!("{k:?}")))
         .collect();
-    // STUDY_SEEDS=103,107 runs only those seeds (of 100..110).
+    // STUDY_SEEDS=103,107 runs only those seeds (of the ten from the first).
     let seeds: Vec<u64> = std::env::var("STUDY_SEEDS")
         .unwrap_or_default()
         .split(',')
         .filter_map(|s| s.trim().parse().ok())
         .collect();
-    let results = study(shape, 100..110, &kinds, &seeds);
+    let results = study(shape, first..first + 10, &kinds, &seeds);
     for (kind, right, total) in &results {
         eprintln!("{kind:?}: {right}/{total}");
     }

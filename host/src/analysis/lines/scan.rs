@@ -475,7 +475,7 @@ impl Search<'_> {
         // background a strong line's window can reach a separate tone several widths away.
         let df = self.df();
         let at_core = |m: &Measured, t: &Tone| {
-            let tone_hz = t.omega * self.rate_hz / (2.0 * PI);
+            let tone_hz = t.freq_hz(self.rate_hz);
             m.lo <= t.bin + TONE_LOBE
                 && t.bin <= m.hi + TONE_LOBE
                 && (tone_hz - m.freq_hz).abs() <= m.width_hz + TONE_LOBE as f64 * df
@@ -490,7 +490,7 @@ impl Search<'_> {
                 .iter()
                 .zip(&used)
                 .position(|(m, u)| !*u && at_core(m, t));
-            let tone_hz = t.omega * self.rate_hz / (2.0 * PI);
+            let tone_hz = t.freq_hz(self.rate_hz);
             let (extra, width, rest_hz, statistic, p_value) = match rest {
                 Some(i) => {
                     used[i] = true;

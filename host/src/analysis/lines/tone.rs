@@ -23,6 +23,11 @@ impl Tone {
     pub(super) fn power(&self) -> f64 {
         (self.a * self.a + self.b * self.b) / 2.0
     }
+
+    /// Its frequency in Hz on a record sampled at `rate_hz`.
+    pub(super) fn freq_hz(&self, rate_hz: f64) -> f64 {
+        self.omega * rate_hz / (2.0 * PI)
+    }
 }
 
 /// The least-squares sinusoid near `freq_hz` in `rate` (within a bin of it), with an offset
@@ -62,7 +67,7 @@ pub fn tone_near(rate: &[f64], rate_hz: f64, freq_hz: f64) -> Option<(f64, f64)>
         best + 0.1 * bin,
     );
     let tone = fit_at(rate, w)?;
-    Some((tone.omega * rate_hz / (2.0 * PI), tone.a.hypot(tone.b)))
+    Some((tone.freq_hz(rate_hz), tone.a.hypot(tone.b)))
 }
 
 /// Jacobsen's fractional-bin offset of a tone near bin k from the rectangular-window DFT:
