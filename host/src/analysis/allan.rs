@@ -39,6 +39,11 @@ impl Order {
             Order::Third => 3,
         }
     }
+
+    /// The starts of the overlapping differences at factor m on `n` phase points.
+    fn starts(self, n: usize, m: usize) -> usize {
+        n - self.span() * m
+    }
 }
 
 /// Largest averaging factor m for which `est` has at least one term on `n_phase` points
@@ -181,9 +186,8 @@ fn overlapping_sums(x: &[f64], ms: &[usize], order: Order) -> Vec<f64> {
     let Some(&m_min) = ms.first() else {
         return Vec::new();
     };
-    let count = |m: usize| x.len() - order.span() * m;
     let arch = pulp::Arch::new();
-    let tiles: Vec<Vec<f64>> = blocks(count(m_min), TILE)
+    let tiles: Vec<Vec<f64>> = blocks(order.starts(x.len(), m_min), TILE)
         .map(|(start, len)| {
             arch.dispatch(TileSums {
                 x,
@@ -222,7 +226,7 @@ impl pulp::WithSimd for TileSums<'_> {
     fn with_simd<S: pulp::Simd>(self, _simd: S) -> Vec<f64> {
         let mut sums = Vec::with_capacity(self.ms.len());
         for &m in self.ms {
-            let end = (self.start + self.len).min(self.x.len() - self.order.span() * m);
+            let end = (self.start + self.len).min(self.order.starts(self.x.len(), m));
             sums.push(if end > self.start {
                 sum_sq_run(self.x, m, self.order, self.start, end - self.start)
             } else {
