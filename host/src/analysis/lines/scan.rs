@@ -7,7 +7,7 @@ use super::{
     Tone,
 };
 use realfft::num_complex::Complex;
-use statrs::distribution::{Continuous, ContinuousCDF, FisherSnedecor};
+use statrs::distribution::{Continuous, FisherSnedecor};
 use statrs::function::beta::checked_beta_reg;
 use std::collections::HashMap;
 use std::f64::consts::PI;
@@ -719,17 +719,25 @@ impl Passed {
     /// underflows double precision.
     fn family_wise_p(&self) -> f64 {
         let nu = 2.0 * DOF_GRID.powi(self.bucket);
-        let d1 = 2.0 * self.len as f64;
-        // P(F(d1, nu) > x) = I_z(nu / 2, d1 / 2), z = nu / (nu + d1 x), written so that a
-        // ratio too large for double precision (a background near zero, as on a synthetic
-        // periodic record) gives z = 0 and a tail of 0 rather than an invalid argument.
-        let z = nu / (nu + d1 * self.mean);
-        let tail = if z.is_finite() {
-            checked_beta_reg(nu / 2.0, d1 / 2.0, z.clamp(0.0, 1.0)).unwrap_or(0.0)
-        } else {
-            0.0
-        };
+        let tail = f_tail(2.0 * self.len as f64, nu, self.mean);
         (tail * self.tests as f64).min(1.0)
+    }
+}
+
+/// `P(F(d1, d2) > x)` as `I_z(d2 / 2, d1 / 2)` with `z = d2 / (d2 + d1 x)`, the regularised
+/// incomplete beta function (Abramowitz and Stegun 26.6.2), written so that a ratio too large
+/// for double precision (a background near zero, as on a synthetic periodic record) gives
+/// z = 0 and a tail of 0: statrs' own survival function forms `1 - d1 x / (d1 x + d2)`, which
+/// is NaN there, and fails.
+pub(super) fn f_tail(d1: f64, d2: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let z = d2 / (d2 + d1 * x);
+    if z.is_finite() {
+        checked_beta_reg(d2 / 2.0, d1 / 2.0, z.clamp(0.0, 1.0)).unwrap_or(0.0)
+    } else {
+        0.0
     }
 }
 
@@ -765,7 +773,7 @@ pub(super) fn f_threshold(d1: f64, d2: f64, p: f64) -> f64 {
         return f64::INFINITY;
     };
     let target = p.ln();
-    let excess = |u: f64| f.sf(u.exp()).ln() - target;
+    let excess = |u: f64| f_tail(d1, d2, u.exp()).ln() - target;
     // Bracket in u = ln x: excess(lo) > 0 > excess(hi).
     let (mut lo, mut hi) = (0.0f64, 0.25f64);
     while excess(hi) > 0.0 {
@@ -778,7 +786,7 @@ pub(super) fn f_threshold(d1: f64, d2: f64, p: f64) -> f64 {
     let mut u = 0.5 * (lo + hi);
     for _ in 0..60 {
         let x = u.exp();
-        let sf = f.sf(x);
+        let sf = f_tail(d1, d2, x);
         let e = sf.ln() - target;
         if e > 0.0 {
             lo = u;
