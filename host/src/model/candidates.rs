@@ -8,7 +8,7 @@ use super::refit::{self, Column};
 use super::simulate::Round;
 use super::{Data, Effect, Line, Model, restore, spectrum};
 use crate::analysis::lines::{self, LineOptions};
-use crate::analysis::low_pass::{self, LowPass};
+use crate::analysis::low_pass::LowPass;
 use crate::analysis::pipeline::LowPassChoice;
 use crate::sim::noise::{NoiseTerms, Sinusoid};
 
@@ -188,11 +188,11 @@ pub(super) fn add(
             // interval; the candidate's own cutoff stands if it no longer passes alone.
             let (clean, _) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
             let background = |f: f64| model.one_sided_psd(f, 1.0 / data.rate_hz);
-            let near = |f: f64| evidence::outside_roll_off(f, removal, &model.lines, &background);
-            out.low_pass = low_pass::detect_outside(&clean, data.rate_hz, 0.683, 0.0, &near)
-                .ok()
-                .and_then(|d| d.low_pass)
-                .or_else(|| LowPass::two_pole(cutoff_hz, data.rate_hz).ok());
+            out.low_pass =
+                evidence::roll_off(&clean, data.rate_hz, removal, &model.lines, &background)
+                    .ok()
+                    .and_then(|d| d.low_pass)
+                    .or_else(|| LowPass::two_pole(cutoff_hz, data.rate_hz).ok());
         }
         (Probe::Ramp, _) => removal.ramp = true,
         (Probe::Temperature, _) => removal.temperature = true,

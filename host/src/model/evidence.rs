@@ -23,7 +23,7 @@ use super::clean::{Removal, Temperature};
 use super::refit::{self, Column, Curve, WhiteShape};
 use super::spectrum;
 use super::{Effect, Line};
-use crate::analysis::low_pass::{self, LowPass};
+use crate::analysis::low_pass::{self, Detection, LowPass, LowPassError, Outside};
 use crate::analysis::{Estimator, allan, into_phase, lines};
 use crate::sim::noise::NoiseTerms;
 use serde::Serialize;
@@ -202,7 +202,7 @@ pub struct Context<'a> {
     pub gauss_markov_range: (f64, f64),
     pub lines: &'a (dyn Fn(&[f64], f64) -> Vec<Line> + Sync),
     /// The lines the model carries, and its one-sided PSD (u^2/Hz) at a frequency: where a
-    /// named line's wings still stand out of it, the roll-off is not judged.
+    /// named line's wings stand out of it, the roll-off is not judged.
     pub named_lines: &'a [Line],
     pub background: &'a (dyn Fn(f64) -> f64 + Sync),
 }
@@ -288,14 +288,18 @@ pub fn statistics(
                 }
             }
             Probe::RollOff => {
-                let near =
-                    |f: f64| outside_roll_off(f, ctx.removal, ctx.named_lines, ctx.background);
                 // Any roll-off the detection fits, whether or not it clears the detector's
                 // own threshold: here the realisations judge the statistic, as in every
                 // view. The threshold (5 sigma, on a scale a poor fit inflates) would veto a
                 // roll-off far beyond every realisation's where a wide line's wings still
                 // disturb the spectrum.
-                match low_pass::detect_outside(&clean, ctx.rate_hz, 0.683, 0.0, &near) {
+                match roll_off(
+                    &clean,
+                    ctx.rate_hz,
+                    ctx.removal,
+                    ctx.named_lines,
+                    ctx.background,
+                ) {
                     Ok(d) => (
                         d.statistic,
                         d.low_pass.map(|lp| Effect::LowPass {
@@ -357,19 +361,37 @@ fn profiled<T>(ctx: &Context, fit: impl Fn(WhiteShape) -> Option<(T, f64)>) -> O
         .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
-/// Whether the roll-off detection leaves `f` Hz out: near a removed line, or where a named
-/// line's wings still stand out of the model's one-sided PSD `background`
-/// ([`lines::wings_stand_out`]).
-pub fn outside_roll_off(
-    f: f64,
+/// The roll-off detection ([`low_pass::detect_outside`], a 68.3 % interval, no threshold of
+/// its own) on `clean`, the record with the named effects removed. A notch takes a line's
+/// core and leaves its wings, a fifth of a Lorentzian's power: frequencies near a removed
+/// line are left out, and those where a named line's wings stand out of the model's
+/// one-sided PSD `background` ([`lines::wings_stand_out`]), where an error of a few percent
+/// in the line's width or power would outweigh the noise; elsewhere the wings, with their
+/// folded images ([`lines::line_density`]), are known PSD.
+pub fn roll_off(
+    clean: &[f64],
+    rate_hz: f64,
     removal: &Removal,
     named_lines: &[Line],
     background: &(dyn Fn(f64) -> f64 + Sync),
-) -> bool {
-    removal.near_removed(f)
-        || named_lines
+) -> Result<Detection, LowPassError> {
+    let skip = |f: f64| {
+        removal.near_removed(f)
+            || named_lines
+                .iter()
+                .any(|l| lines::wings_stand_out(l.freq_hz, l.width_hz, l.power(), f, background(f)))
+    };
+    let known = |f: f64| {
+        named_lines
             .iter()
-            .any(|l| lines::wings_stand_out(l.freq_hz, l.width_hz, l.power(), f, background(f)))
+            .map(|l| lines::line_density(l.freq_hz, l.width_hz, l.power(), rate_hz, f))
+            .sum()
+    };
+    let outside = Outside {
+        skip: Some(&skip),
+        known: Some(&known),
+    };
+    low_pass::detect_outside(clean, rate_hz, 0.683, 0.0, &outside)
 }
 
 /// `columns` with bias instability and rate random walk free (added where absent).

@@ -202,7 +202,7 @@ pub fn detect(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Vec<Line
 /// band the Fourier coefficients scaled so that the band's power falls to the background's
 /// (the background's own fluctuation within the band is kept; only the excess goes).
 pub fn remove(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Removed, LineError> {
-    let Cleaned { lines, rate } = clean(rate, rate_hz, opts)?;
+    let Cleaned { lines, rate, .. } = clean(rate, rate_hz, opts)?;
     Ok(Removed {
         lines,
         rate: rate.into_owned(),
@@ -214,6 +214,9 @@ pub fn remove(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Removed,
 pub struct Cleaned<'a> {
     pub lines: Vec<Line>,
     pub rate: Cow<'a, [f64]>,
+    /// The frequency ranges (Hz, inclusive) whose excess was scaled down to the background:
+    /// a wide line's wings beyond its range are still in `rate`.
+    pub bands_hz: Vec<(f64, f64)>,
 }
 
 /// [`remove`] without a copy of a record that has no lines.
@@ -231,11 +234,20 @@ pub fn clean<'a>(
         trend,
     } = search(rate, rate_hz, opts)?;
     if bands.is_empty() {
-        return Ok(Cleaned { lines, rate: work });
+        return Ok(Cleaned {
+            lines,
+            rate: work,
+            bands_hz: Vec::new(),
+        });
     }
     // `spectrum` is the DFT of `work` less `trend`, from the search's last round.
     let n = work.len();
     drop(work);
+    let df = rate_hz / n as f64;
+    let bands_hz = bands
+        .iter()
+        .map(|&(a, b)| (a as f64 * df, b as f64 * df))
+        .collect();
     let scale = 2.0 / (rate_hz * n as f64);
     for &(a, b) in &bands {
         let observed: f64 = spectrum[a..=b].iter().map(|c| c.norm_sqr() * scale).sum();
@@ -257,24 +269,42 @@ pub fn clean<'a>(
     Ok(Cleaned {
         lines,
         rate: Cow::Owned(y),
+        bands_hz,
     })
 }
 
-/// Share of the background a removed line's wing may still add where a roll-off is fitted.
+/// Share of the background a line's wing may reach and still be taken as known PSD where a
+/// roll-off is fitted ([`wings_stand_out`]).
 pub const WING_SHARE: f64 = 0.05;
 
-/// Whether a line's wings still stand out at `f` Hz: its Lorentzian excess (power `power`
-/// u^2, full width at half maximum `width_hz` around `freq_hz`) above [`WING_SHARE`] of the
-/// one-sided `background` PSD there. The excess is `(2 P / (pi w)) / (1 + (2 (f - f0) / w)^2)`;
-/// a pure tone (`width_hz` 0) has none, its power lying in its own bins. A line's removal
-/// scales only its core down to the background, and wings that rise towards a line near
-/// Nyquist read as quantization over a roll-off.
+/// Whether a line's wings still stand out at `f` Hz: its Lorentzian excess ([`lorentzian`])
+/// above [`WING_SHARE`] of the one-sided `background` PSD there. A pure tone (`width_hz` 0)
+/// has none, its power lying in its own bins.
 pub fn wings_stand_out(freq_hz: f64, width_hz: f64, power: f64, f: f64, background: f64) -> bool {
-    if width_hz <= 0.0 {
-        return false;
+    lorentzian(freq_hz, width_hz, power, f) > WING_SHARE * background
+}
+
+/// The one-sided PSD (u^2/Hz) at `f` Hz of a Lorentzian line of power `power` (u^2), full
+/// width at half maximum `width_hz` and centre `freq_hz`: `(2 P / (pi w)) / (1 + (2 (f -
+/// f0) / w)^2)`; 0 for a pure tone (`width_hz` 0), whose power lies in its own bins.
+pub(crate) fn lorentzian(freq_hz: f64, width_hz: f64, power: f64, f: f64) -> f64 {
+    if width_hz.is_nan() || width_hz <= 0.0 {
+        return 0.0;
     }
-    let peak = 2.0 * power / (PI * width_hz);
-    peak / (1.0 + (2.0 * (f - freq_hz) / width_hz).powi(2)) > WING_SHARE * background
+    let x = 2.0 * (f - freq_hz) / width_hz;
+    2.0 * power / (PI * width_hz) / (1.0 + x * x)
+}
+
+/// The one-sided PSD (u^2/Hz) at `f` Hz of a Lorentzian line ([`lorentzian`]) in a record
+/// sampled at `rate_hz`: its own Lorentzian plus the images that sampling folds into `[0,
+/// rate / 2]`, the one mirrored about Nyquist (centre `rate - f0`) and the one mirrored about
+/// zero (`-f0`). A line's samples carry its spectrum periodised over the rate: at Nyquist the
+/// mirror adds as much density as the line itself.
+pub fn line_density(freq_hz: f64, width_hz: f64, power: f64, rate_hz: f64, f: f64) -> f64 {
+    [freq_hz, rate_hz - freq_hz, -freq_hz]
+        .iter()
+        .map(|&centre| lorentzian(centre, width_hz, power, f))
+        .sum()
 }
 
 /// A line's Allan variance at `tau` (s). The line is taken as a sinusoid whose phase diffuses

@@ -4,7 +4,7 @@
 use super::background::{Background, background};
 use super::{
     HANN_MEDIAN_VARIANCE, Line, Measured, RECT_MEDIAN_VARIANCE, SHAPE_ERROR, Search, TONE_LOBE,
-    Tone,
+    Tone, lorentzian,
 };
 use realfft::num_complex::Complex;
 use statrs::distribution::{Continuous, FisherSnedecor};
@@ -81,32 +81,18 @@ const WING_ROUNDS: usize = 2;
 /// A line narrower than this many bins is not resolved: its power lies in its own bins.
 const RESOLVED_WIDTH_BINS: f64 = 4.0;
 
-/// The one-sided PSD (u^2/Hz) at `f` Hz of a Lorentzian line of power P, centre `centre_hz`
-/// and full width at half maximum w: `(2 P / (pi w)) / (1 + (2 (f - centre) / w)^2)`.
-fn lorentzian_at(m: &Measured, centre_hz: f64, f: f64) -> f64 {
-    let x = 2.0 * (f - centre_hz) / m.width_hz;
-    2.0 * m.power / (PI * m.width_hz) / (1.0 + x * x)
-}
-
 impl Search<'_> {
-    /// The one-sided PSD at `f` of a measured line as sampled: its Lorentzian plus the
-    /// images that sampling folds into `[0, rate / 2]`, the one mirrored about Nyquist
-    /// (centre `rate - f0`) and the one mirrored about zero (`-f0`). A line's samples carry
-    /// its spectrum periodised over the rate: at Nyquist the mirror adds as much density as
-    /// the line itself.
+    /// The one-sided PSD at `f` of a measured line as sampled, its images folded in
+    /// ([`super::line_density`]).
     fn folded_density(&self, m: &Measured, f: f64) -> f64 {
-        lorentzian_density(m, f) + self.image_density(m, f)
+        super::line_density(m.freq_hz, m.width_hz, m.power, self.rate_hz, f)
     }
 
     /// The folded images alone ([`Search::folded_density`] less the line's own Lorentzian).
     fn image_density(&self, m: &Measured, f: f64) -> f64 {
-        lorentzian_at(m, self.rate_hz - m.freq_hz, f) + lorentzian_at(m, -m.freq_hz, f)
+        lorentzian(self.rate_hz - m.freq_hz, m.width_hz, m.power, f)
+            + lorentzian(-m.freq_hz, m.width_hz, m.power, f)
     }
-}
-
-/// The Lorentzian of a measured line at its own centre, unfolded.
-fn lorentzian_density(m: &Measured, f: f64) -> f64 {
-    lorentzian_at(m, m.freq_hz, f)
 }
 
 /// Complex amplitude correlation of neighbouring Hann-window bins of a smooth spectrum
