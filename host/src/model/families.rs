@@ -54,6 +54,13 @@ pub enum Kind {
     /// passes at least a tenth of the power, its strength relative to the filtered white
     /// level there: a sensor with its own filter and a mechanical resonance.
     LowPassAndTone,
+    /// A ramp as [`Kind::Ramp`] and a temperature coupling as [`Kind::Temperature`]: the
+    /// warm-up is nearly a ramp over its first minutes.
+    RampAndTemperature,
+    /// A Gauss-Markov process as [`Kind::GaussMarkov`] and a line as [`Kind::Tone`].
+    GaussMarkovAndTone,
+    /// A low-pass filter as [`Kind::LowPass`] and a ramp as [`Kind::Ramp`].
+    LowPassAndRamp,
 }
 
 impl Kind {
@@ -69,6 +76,9 @@ impl Kind {
             Kind::SlowSinusoidAndTemperature => vec!["sinusoid", "temperature"],
             Kind::LowPass => vec!["low_pass"],
             Kind::LowPassAndTone => vec!["low_pass", "sinusoid"],
+            Kind::RampAndTemperature => vec!["rate_ramp", "temperature"],
+            Kind::GaussMarkovAndTone => vec!["gauss_markov", "sinusoid"],
+            Kind::LowPassAndRamp => vec!["low_pass", "rate_ramp"],
         };
         v.sort_unstable();
         v
@@ -193,7 +203,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
     let mut extra: Vec<Box<dyn Fn(f64) -> f64>> = Vec::new();
     let mut temp_channel: Option<Vec<f64>> = None;
     let has = |k: Kind| kind == k;
-    if has(Kind::GaussMarkov) {
+    if has(Kind::GaussMarkov) || has(Kind::GaussMarkovAndTone) {
         let tau_c = t_rec * log_uniform(&mut rng, 0.01, 0.03);
         // The GM Allan variance peaks near tau = 1.89 tau_c.
         let peak_tau = 1.89 * tau_c;
@@ -221,12 +231,16 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
             amplitude * (2.0 * PI * freq_hz * t + phase).sin()
         }));
     }
-    let cutoff_hz = (has(Kind::LowPass) || has(Kind::LowPassAndTone))
+    let cutoff_hz = (has(Kind::LowPass) || has(Kind::LowPassAndTone) || has(Kind::LowPassAndRamp))
         .then(|| shape.rate_hz * uniform(&mut rng, 0.1, 0.3));
     let low_pass =
         cutoff_hz.map(|c| LowPass::two_pole(c, shape.rate_hz).expect("a cutoff below Nyquist"));
     let mut tone: Option<(f64, f64, f64)> = None;
-    if has(Kind::Tone) || has(Kind::ToneAndRamp) || has(Kind::LowPassAndTone) {
+    if has(Kind::Tone)
+        || has(Kind::ToneAndRamp)
+        || has(Kind::LowPassAndTone)
+        || has(Kind::GaussMarkovAndTone)
+    {
         let passes = |f: f64| low_pass.as_ref().map_or(1.0, |lp| lp.power_gain(f));
         let mut freq_hz = shape.rate_hz * uniform(&mut rng, 0.1, 0.45);
         while passes(freq_hz) < 0.1 {
@@ -245,7 +259,11 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         tone = Some((freq_hz, width_hz, power));
     }
     let mut ramp_slope = None;
-    if has(Kind::Ramp) || has(Kind::ToneAndRamp) {
+    if has(Kind::Ramp)
+        || has(Kind::ToneAndRamp)
+        || has(Kind::RampAndTemperature)
+        || has(Kind::LowPassAndRamp)
+    {
         // A ramp competes with the random walk's own trend (slope sd about K sqrt(1.2 / T)),
         // so it is drawn stronger: raising the deviation at T/4 3 to 5 times.
         let tau = t_rec / 4.0;
@@ -258,6 +276,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
     if has(Kind::Temperature)
         || has(Kind::SlowSinusoidAndTemperature)
         || has(Kind::NoneWithTemperature)
+        || has(Kind::RampAndTemperature)
     {
         let rise = uniform(&mut rng, 2.0, 6.0);
         let warm = uniform(&mut rng, 600.0, 2400.0);

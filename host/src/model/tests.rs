@@ -1,7 +1,7 @@
 //! The workflow on families of generated records ([`super::families`]): each kind of hidden
 //! effect over several seeds, every parameter drawn from a range. The default tests are
 //! sized for CI (1 h at 20 Hz, 3 seeds per kind); `study_families` is the full study (3 h at
-//! 50 Hz, 10 seeds per kind), run with
+//! 50 Hz, 10 seeds per kind, and the pairs of effects that hide each other), run with
 //! `cargo test --release -p imunoise --lib model::tests::study -- --ignored --nocapture`.
 
 use super::families::{self, CI_SHAPE, Kind, Shape};
@@ -19,6 +19,15 @@ const KINDS: [Kind; 11] = [
     Kind::Temperature,
     Kind::ToneAndRamp,
     Kind::SlowSinusoidAndTemperature,
+];
+
+/// Two effects that hide each other, in the full study only: a warm-up that is nearly a
+/// ramp beside a ramp, a Gauss-Markov bump beside a resonance's notch, a ramp beside a
+/// filter.
+const HIDING_PAIRS: [Kind; 3] = [
+    Kind::RampAndTemperature,
+    Kind::GaussMarkovAndTone,
+    Kind::LowPassAndRamp,
 ];
 
 fn settings() -> Settings {
@@ -135,6 +144,7 @@ fn study_families() {
     let only = std::env::var("STUDY_KINDS").unwrap_or_default();
     let kinds: Vec<Kind> = KINDS
         .into_iter()
+        .chain(HIDING_PAIRS)
         .filter(|k| only.is_empty() || only.split(',').any(|o| o == format!("{k:?}")))
         .collect();
     // STUDY_SEEDS=103,107 runs only those seeds (of the ten from the first).
