@@ -346,22 +346,55 @@ impl Estimator {
         draws: usize,
         seed: u64,
     ) -> Option<Bootstrap> {
-        let means: Vec<Vec<f64>> = columns.iter().map(|c| self.blocks.means(c)).collect();
-        let y = self.blocks.means(y);
-        let without: Vec<Vec<f64>> = means
+        self.test_designs(&[Design { columns, tested }], y, draws, seed)
+    }
+
+    /// [`Estimator::test`] of one set of regressors in several designs at once — beside
+    /// fewer or more of the other regressors — with the largest of the designs' likelihood
+    /// ratios as the statistic, on the record and on every draw alike, so its null holds the
+    /// maximum's own spread. The draws come from the levels the record shows without the
+    /// tested columns in the first design. None when any design is collinear.
+    pub fn test_designs(
+        &self,
+        designs: &[Design],
+        y: &[f64],
+        draws: usize,
+        seed: u64,
+    ) -> Option<Bootstrap> {
+        struct Means {
+            with: Vec<Vec<f64>>,
+            without: Vec<Vec<f64>>,
+        }
+        let means: Vec<Means> = designs
             .iter()
-            .enumerate()
-            .filter(|(i, _)| !tested.contains(i))
-            .map(|(_, c)| c.clone())
+            .map(|d| {
+                let with: Vec<Vec<f64>> = d.columns.iter().map(|c| self.blocks.means(c)).collect();
+                let without = with
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| !d.tested.contains(i))
+                    .map(|(_, c)| c.clone())
+                    .collect();
+                Means { with, without }
+            })
             .collect();
-        // Twice the drop of the plain likelihood's minimum when the tested columns join.
+        let y = self.blocks.means(y);
+        // Twice the drop of the plain likelihood's minimum when the tested columns join,
+        // the largest over the designs.
         let ratio = |y: &[f64], start: [f64; 2]| -> Option<f64> {
-            let (_, without) = self.likeliest(&without, y, start, Likelihood::Plain)?;
-            let (_, with) = self.likeliest(&means, y, start, Likelihood::Plain)?;
-            Some((2.0 * (without - with)).max(0.0))
+            means.iter().try_fold(0.0f64, |most, m| {
+                let (_, without) = self.likeliest(&m.without, y, start, Likelihood::Plain)?;
+                let (_, with) = self.likeliest(&m.with, y, start, Likelihood::Plain)?;
+                Some(most.max(2.0 * (without - with)))
+            })
         };
         let statistic = ratio(&y, self.start)?;
-        let (levels, _) = self.likeliest(&without, &y, self.start, Likelihood::Restricted)?;
+        let (levels, _) = self.likeliest(
+            &means.first()?.without,
+            &y,
+            self.start,
+            Likelihood::Restricted,
+        )?;
         let w = Whitener::new(&self.covariance(levels), self.blocks.count)?;
         let null: Vec<f64> = (0..draws)
             .into_par_iter()
@@ -375,6 +408,14 @@ impl Estimator {
             .collect();
         Some(Bootstrap { statistic, null })
     }
+}
+
+/// One design of a regressor test: the columns (a constant among them) and the positions
+/// of the tested ones.
+#[derive(Debug, Clone, Copy)]
+pub struct Design<'a> {
+    pub columns: &'a [Vec<f64>],
+    pub tested: &'a [usize],
 }
 
 /// A parametric-bootstrap test: the measured statistic and its values on series drawn
@@ -638,21 +679,49 @@ mod tests {
     /// Allan deviation at a quarter of the record six times; the model's K set to 0 (as a
     /// refit after a removal can leave it). The bootstrap test's p-values are calibrated
     /// without the ramp and small with it.
-    #[test]
-    fn the_bootstrap_ramp_test_is_calibrated_and_finds_ramps() {
+    /// The ramp tests' record: 2048 samples at 5 Hz in 64 blocks, white noise, flicker and
+    /// a random walk crossing the white noise at a fifth of the record; the estimator knows
+    /// every level but K.
+    struct RampCase {
+        rate: f64,
+        n: usize,
+        duration: f64,
+        truth: NoiseTerms,
+        estimator: Estimator,
+        time: Vec<f64>,
+    }
+
+    fn ramp_case() -> RampCase {
         let rate = 5.0;
         let blocks = Blocks { len: 32, count: 64 };
         let n = blocks.len * blocks.count;
         let duration = n as f64 / rate;
-        // The random walk crosses the white noise at a fifth of the record.
         let truth = NoiseTerms {
             n: 1e-2,
             b: 2e-3,
             k: 3f64.sqrt() * 1e-2 / (duration / 5.0),
             ..NoiseTerms::default()
         };
-        let estimator = Estimator::with_blocks(&NoiseTerms { k: 0.0, ..truth }, rate, blocks);
-        let time: Vec<f64> = (0..n).map(|i| i as f64 / rate).collect();
+        RampCase {
+            rate,
+            n,
+            duration,
+            truth,
+            estimator: Estimator::with_blocks(&NoiseTerms { k: 0.0, ..truth }, rate, blocks),
+            time: (0..n).map(|i| i as f64 / rate).collect(),
+        }
+    }
+
+    #[test]
+    fn the_bootstrap_ramp_test_is_calibrated_and_finds_ramps() {
+        let RampCase {
+            rate,
+            n,
+            duration,
+            truth,
+            estimator,
+            time,
+        } = ramp_case();
         let columns = vec![vec![1.0; n], time.clone()];
         let tau = duration / 4.0;
         let base = truth.n * truth.n / tau
@@ -690,6 +759,62 @@ mod tests {
             "{} of 20 ramps below 1e-3",
             below(&ramps, 1e-3)
         );
+    }
+
+    /// The several-design test: with one design it is [`Estimator::test`]; with a second
+    /// (the tested ramp beside a warm-up column) its statistic is the larger of the two
+    /// designs' on the record and on every draw, the draws coming from the first design's
+    /// null levels and seeds.
+    #[test]
+    fn a_test_over_designs_takes_the_larger_ratio_everywhere() {
+        let case = ramp_case();
+        let (n, time, estimator) = (case.n, &case.time, &case.estimator);
+        let warm: Vec<f64> = time
+            .iter()
+            .map(|t| 1.0 - (-t / (case.duration / 8.0)).exp())
+            .collect();
+        let alone = vec![vec![1.0; n], time.clone()];
+        let beside = vec![vec![1.0; n], time.clone(), warm.clone()];
+        // A ramp and a warm-up of opposite signs, the warm-up's coefficient chosen so that
+        // the two leave no least-squares slope on time: alone, the ramp is hidden.
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let (t_mean, w_mean) = (mean(time), mean(&warm));
+        let (tw, tt) = time.iter().zip(&warm).fold((0.0, 0.0), |(tw, tt), (t, w)| {
+            (
+                tw + (t - t_mean) * (w - w_mean),
+                tt + (t - t_mean) * (t - t_mean),
+            )
+        });
+        let slope = 1e-4;
+        let coeff = -slope * tt / tw;
+        let mut y = series(case.truth, case.rate, n, 7);
+        y.iter_mut()
+            .zip(time.iter().zip(&warm))
+            .for_each(|(v, (t, w))| *v += slope * t + coeff * w);
+        let single = estimator.test(&alone, &[1], &y, 16, 5).unwrap();
+        let one = Design {
+            columns: &alone,
+            tested: &[1],
+        };
+        let same = estimator.test_designs(&[one], &y, 16, 5).unwrap();
+        assert_eq!(single.statistic, same.statistic);
+        assert_eq!(single.null, same.null);
+        let two = Design {
+            columns: &beside,
+            tested: &[1],
+        };
+        let both = estimator.test_designs(&[one, two], &y, 16, 5).unwrap();
+        let other = estimator.test(&beside, &[1], &y, 1, 5).unwrap();
+        assert_eq!(both.statistic, single.statistic.max(other.statistic));
+        assert!(
+            other.statistic > 10.0 * single.statistic.max(1.0),
+            "{other:?} {single:?}"
+        );
+        assert_eq!(both.null.len(), single.null.len());
+        for (b, s) in both.null.iter().zip(&single.null) {
+            assert!(b >= s, "{both:?} {single:?}");
+        }
+        assert!(both.null.iter().zip(&single.null).any(|(b, s)| b > s));
     }
 
     #[test]

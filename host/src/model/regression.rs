@@ -4,7 +4,12 @@
 //!
 //! The record, with the lines already named notched out, is cut into block means; the fixed
 //! effects are a constant, the regressors already named ([`super::clean`]) and the
-//! candidate's (one column for a ramp, two for temperature). The noise is the round's **open
+//! candidate's (one column for a ramp, two for temperature). Where the record can carry
+//! another regressor not yet named (a ramp beside a temperature channel), the candidate is
+//! tested twice on the same draws — alone, and beside that other regressor — and the
+//! statistic is the larger ratio: a ramp and a warm-up of opposite signs cancel when each
+//! is tested alone, while a warm-up tested beside a ramp column loses what the column
+//! takes of it ([`super::gls::Estimator::test_designs`]). The noise is the round's **open
 //! noise model** — the random terms refitted to the record with every deterministic
 //! candidate removed (ramp, temperature, the strongest slow line) — for its white noise,
 //! quantization and Gauss-Markov terms; its flicker and random-walk levels are re-estimated
@@ -28,7 +33,7 @@
 use super::Effect;
 use super::clean::{Removal, notch};
 use super::evidence::{Context, Evidence, Probe};
-use super::gls::{Bootstrap, Estimator};
+use super::gls::{Bootstrap, Design, Estimator};
 
 /// What a regressor test needs besides the record.
 pub struct Setup<'a> {
@@ -66,6 +71,19 @@ fn with_regressor(removal: &Removal, probe: Probe) -> Removal {
     more
 }
 
+/// [`with_regressor`] and beside it every other regressor the record can carry and the
+/// removal lacks (a ramp; the temperature and its rate when there is a channel); `None`
+/// when there is none.
+fn with_every_regressor(removal: &Removal, probe: Probe, has_temperature: bool) -> Option<Removal> {
+    let more = with_regressor(removal, probe);
+    let all = Removal {
+        ramp: true,
+        temperature: more.temperature || has_temperature,
+        ..more.clone()
+    };
+    (all.ramp != more.ramp || all.temperature != more.temperature).then_some(all)
+}
+
 /// The likelihood-ratio test of `probe` (a ramp or a temperature coupling) on the record `x`.
 pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
     let view = s.view;
@@ -90,8 +108,16 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
             rate_coeff: c.temp_rate.unwrap_or(0.0),
         },
     };
-    let indices = positions(probe, &more);
-    let null = bootstrap(&notched, &more, &indices, s);
+    // The regressor alone (beside those named) and beside every other one: a ramp and a
+    // warm-up of opposite signs cancel in the first, and a warm-up that a ramp column would
+    // take loses its power in the second, so the statistic is the larger of the two.
+    let mut removals = vec![more];
+    removals.extend(with_every_regressor(
+        view.removal,
+        probe,
+        view.temperature.is_some(),
+    ));
+    let null = bootstrap(&notched, &removals, probe, s);
     let (statistic, simulated) = null.map_or((0.0, Vec::new()), |t| (t.statistic, t.null));
     Evidence::new(
         probe.name(),
@@ -102,18 +128,23 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
     )
 }
 
-/// The bootstrap test ([`Estimator::test`]) of the regressors at `indices` of `removal`'s
-/// design, on the notched record, with a constant beside them.
-fn bootstrap(
-    notched: &[f64],
-    removal: &Removal,
-    indices: &[usize],
-    s: &Setup,
-) -> Option<Bootstrap> {
+/// The bootstrap test ([`super::gls::Estimator::test_designs`]) of `probe`'s regressors in
+/// the design of each of `removals`, on the notched record, with a constant beside them.
+fn bootstrap(notched: &[f64], removals: &[Removal], probe: Probe, s: &Setup) -> Option<Bootstrap> {
     let view = s.view;
     let x = notched;
-    let mut columns = vec![vec![1.0; x.len()]];
-    columns.extend(removal.design(x.len(), view.rate_hz, view.temperature));
-    let shifted: Vec<usize> = indices.iter().map(|i| i + 1).collect();
-    s.gls.test(&columns, &shifted, x, s.draws, s.seed)
+    let designs: Vec<(Vec<Vec<f64>>, Vec<usize>)> = removals
+        .iter()
+        .map(|removal| {
+            let mut columns = vec![vec![1.0; x.len()]];
+            columns.extend(removal.design(x.len(), view.rate_hz, view.temperature));
+            let shifted = positions(probe, removal).iter().map(|i| i + 1).collect();
+            (columns, shifted)
+        })
+        .collect();
+    let designs: Vec<Design> = designs
+        .iter()
+        .map(|(columns, tested)| Design { columns, tested })
+        .collect();
+    s.gls.test_designs(&designs, x, s.draws, s.seed)
 }

@@ -287,7 +287,7 @@ pub fn wings_stand_out(freq_hz: f64, width_hz: f64, power: f64, f: f64, backgrou
 /// The one-sided PSD (u^2/Hz) at `f` Hz of a Lorentzian line of power `power` (u^2), full
 /// width at half maximum `width_hz` and centre `freq_hz`: `(2 P / (pi w)) / (1 + (2 (f -
 /// f0) / w)^2)`; 0 for a pure tone (`width_hz` 0), whose power lies in its own bins.
-pub(crate) fn lorentzian(freq_hz: f64, width_hz: f64, power: f64, f: f64) -> f64 {
+pub fn lorentzian(freq_hz: f64, width_hz: f64, power: f64, f: f64) -> f64 {
     if width_hz.is_nan() || width_hz <= 0.0 {
         return 0.0;
     }
