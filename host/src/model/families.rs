@@ -202,8 +202,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
     };
     let mut extra: Vec<Box<dyn Fn(f64) -> f64>> = Vec::new();
     let mut temp_channel: Option<Vec<f64>> = None;
-    let has = |k: Kind| kind == k;
-    if has(Kind::GaussMarkov) || has(Kind::GaussMarkovAndTone) {
+    if matches!(kind, Kind::GaussMarkov | Kind::GaussMarkovAndTone) {
         let tau_c = t_rec * log_uniform(&mut rng, 0.01, 0.03);
         // The GM Allan variance peaks near tau = 1.89 tau_c.
         let peak_tau = 1.89 * tau_c;
@@ -212,7 +211,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         terms.gauss_markov = Some(GaussMarkov { sigma, tau_c });
     }
     let mut slow: Option<Sinusoid> = None;
-    if has(Kind::SlowSinusoid) || has(Kind::SlowSinusoidAndTemperature) {
+    if matches!(kind, Kind::SlowSinusoid | Kind::SlowSinusoidAndTemperature) {
         let period = t_rec * uniform(&mut rng, 0.05, 0.2);
         let freq_hz = 1.0 / period;
         // A sinusoid's Allan variance peaks at tau = 0.371 / f.
@@ -231,16 +230,18 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
             amplitude * (2.0 * PI * freq_hz * t + phase).sin()
         }));
     }
-    let cutoff_hz = (has(Kind::LowPass) || has(Kind::LowPassAndTone) || has(Kind::LowPassAndRamp))
-        .then(|| shape.rate_hz * uniform(&mut rng, 0.1, 0.3));
+    let cutoff_hz = matches!(
+        kind,
+        Kind::LowPass | Kind::LowPassAndTone | Kind::LowPassAndRamp
+    )
+    .then(|| shape.rate_hz * uniform(&mut rng, 0.1, 0.3));
     let low_pass =
         cutoff_hz.map(|c| LowPass::two_pole(c, shape.rate_hz).expect("a cutoff below Nyquist"));
     let mut tone: Option<(f64, f64, f64)> = None;
-    if has(Kind::Tone)
-        || has(Kind::ToneAndRamp)
-        || has(Kind::LowPassAndTone)
-        || has(Kind::GaussMarkovAndTone)
-    {
+    if matches!(
+        kind,
+        Kind::Tone | Kind::ToneAndRamp | Kind::LowPassAndTone | Kind::GaussMarkovAndTone
+    ) {
         let passes = |f: f64| low_pass.as_ref().map_or(1.0, |lp| lp.power_gain(f));
         let mut freq_hz = shape.rate_hz * uniform(&mut rng, 0.1, 0.45);
         while passes(freq_hz) < 0.1 {
@@ -259,11 +260,10 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         tone = Some((freq_hz, width_hz, power));
     }
     let mut ramp_slope = None;
-    if has(Kind::Ramp)
-        || has(Kind::ToneAndRamp)
-        || has(Kind::RampAndTemperature)
-        || has(Kind::LowPassAndRamp)
-    {
+    if matches!(
+        kind,
+        Kind::Ramp | Kind::ToneAndRamp | Kind::RampAndTemperature | Kind::LowPassAndRamp
+    ) {
         // A ramp competes with the random walk's own trend (slope sd about K sqrt(1.2 / T)),
         // so it is drawn stronger: raising the deviation at T/4 3 to 5 times.
         let tau = t_rec / 4.0;
@@ -273,11 +273,13 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         ramp_slope = Some(slope);
         extra.push(Box::new(move |t| slope * t));
     }
-    if has(Kind::Temperature)
-        || has(Kind::SlowSinusoidAndTemperature)
-        || has(Kind::NoneWithTemperature)
-        || has(Kind::RampAndTemperature)
-    {
+    if matches!(
+        kind,
+        Kind::Temperature
+            | Kind::SlowSinusoidAndTemperature
+            | Kind::NoneWithTemperature
+            | Kind::RampAndTemperature
+    ) {
         let rise = uniform(&mut rng, 2.0, 6.0);
         let warm = uniform(&mut rng, 600.0, 2400.0);
         let swing = uniform(&mut rng, 0.5, 2.0);
@@ -301,7 +303,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         };
         let coeff = (raise(&mut rng) * baseline_avar(&terms, tau) / temp_avar).sqrt()
             * if rng.random::<bool>() { 1.0 } else { -1.0 }
-            * if has(Kind::NoneWithTemperature) {
+            * if kind == Kind::NoneWithTemperature {
                 0.0
             } else {
                 1.0

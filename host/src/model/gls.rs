@@ -675,10 +675,6 @@ mod tests {
         );
     }
 
-    /// White noise, flicker and a random walk; a ramp column, and no ramp or one raising the
-    /// Allan deviation at a quarter of the record six times; the model's K set to 0 (as a
-    /// refit after a removal can leave it). The bootstrap test's p-values are calibrated
-    /// without the ramp and small with it.
     /// The ramp tests' record: 2048 samples at 5 Hz in 64 blocks, white noise, flicker and
     /// a random walk crossing the white noise at a fifth of the record; the estimator knows
     /// every level but K.
@@ -712,6 +708,10 @@ mod tests {
         }
     }
 
+    /// White noise, flicker and a random walk; a ramp column, and no ramp or one raising the
+    /// Allan deviation at a quarter of the record six times; the model's K set to 0 (as a
+    /// refit after a removal can leave it). The bootstrap test's p-values are calibrated
+    /// without the ramp and small with it.
     #[test]
     fn the_bootstrap_ramp_test_is_calibrated_and_finds_ramps() {
         let RampCase {

@@ -71,11 +71,10 @@ fn with_regressor(removal: &Removal, probe: Probe) -> Removal {
     more
 }
 
-/// [`with_regressor`] and beside it every other regressor the record can carry and the
-/// removal lacks (a ramp; the temperature and its rate when there is a channel); `None`
-/// when there is none.
-fn with_every_regressor(removal: &Removal, probe: Probe, has_temperature: bool) -> Option<Removal> {
-    let more = with_regressor(removal, probe);
+/// `more` (a removal with the candidate's regressor) with every other regressor the record
+/// can carry and `more` lacks (a ramp; the temperature and its rate when there is a
+/// channel); `None` when there is none.
+fn with_every_regressor(more: &Removal, has_temperature: bool) -> Option<Removal> {
     let all = Removal {
         ramp: true,
         temperature: more.temperature || has_temperature,
@@ -111,12 +110,8 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
     // The regressor alone (beside those named) and beside every other one: a ramp and a
     // warm-up of opposite signs cancel in the first, and a warm-up that a ramp column would
     // take loses its power in the second, so the statistic is the larger of the two.
-    let mut removals = vec![more];
-    removals.extend(with_every_regressor(
-        view.removal,
-        probe,
-        view.temperature.is_some(),
-    ));
+    let every = with_every_regressor(&more, view.temperature.is_some());
+    let removals: Vec<Removal> = std::iter::once(more).chain(every).collect();
     let null = bootstrap(&notched, &removals, probe, s);
     let (statistic, simulated) = null.map_or((0.0, Vec::new()), |t| (t.statistic, t.null));
     Evidence::new(
