@@ -183,7 +183,7 @@ pub(super) fn add(
                 p_value: 1.0,
             });
         }
-        (Probe::RollOff, Effect::LowPass { cutoff_hz }) => {
+        (Probe::RollOff, Effect::LowPass { cutoff_hz, shape }) => {
             // The detection on the record with the named effects removed gives the cutoff's
             // interval; the candidate's own cutoff stands if it no longer passes alone.
             let (clean, _) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
@@ -192,7 +192,7 @@ pub(super) fn add(
                 evidence::roll_off(&clean, data.rate_hz, removal, &model.lines, &background)
                     .ok()
                     .and_then(|d| d.low_pass)
-                    .or_else(|| LowPass::two_pole(cutoff_hz, data.rate_hz).ok());
+                    .or_else(|| LowPass::generic(shape, cutoff_hz, data.rate_hz).ok());
         }
         (Probe::Ramp, _) => removal.ramp = true,
         (Probe::Temperature, _) => removal.temperature = true,
@@ -226,6 +226,7 @@ pub(super) fn add(
     };
     let tau0 = 1.0 / data.rate_hz;
     let target = RefitTarget::of(data.rate, removal, &out.lines, &shape);
+    let sd_ln = &refit::beyond_fitted_filter(sd_ln, &data.measured.tau, out.low_pass.as_ref());
     // A wide line's power is read against the refitted model's background, and the refit
     // takes the line's Allan variance out at that power: twice settles both.
     for _ in 0..2 {

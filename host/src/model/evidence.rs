@@ -304,6 +304,7 @@ pub fn statistics(
                         d.statistic,
                         d.low_pass.map(|lp| Effect::LowPass {
                             cutoff_hz: lp.cutoff_hz,
+                            shape: lp.shape.unwrap_or(low_pass::Shape::TwoPole),
                         }),
                     ),
                     Err(_) => (0.0, None),

@@ -194,8 +194,12 @@ pub enum Effect {
     BiasInstability { b: f64 },
     /// Rate random walk K, u sqrt(Hz).
     RateRandomWalk { k: f64 },
-    /// The sensor's low-pass filter, -3 dB at `cutoff_hz`.
-    LowPass { cutoff_hz: f64 },
+    /// The sensor's low-pass filter, -3 dB at `cutoff_hz`, of the generic `shape` that fits
+    /// its roll-off best.
+    LowPass {
+        cutoff_hz: f64,
+        shape: crate::analysis::low_pass::Shape,
+    },
 }
 
 impl Effect {
@@ -242,8 +246,11 @@ impl Effect {
             Effect::RateRandomWalk { k } => {
                 format!("rate random walk, K = {k:.4e} {u} sqrt(Hz)")
             }
-            Effect::LowPass { cutoff_hz } => {
-                format!("low-pass filter (the sensor's own), -3 dB at {cutoff_hz:.4} Hz")
+            Effect::LowPass { cutoff_hz, shape } => {
+                format!(
+                    "low-pass filter (the sensor's own): {}, -3 dB at {cutoff_hz:.4} Hz",
+                    shape.describe()
+                )
             }
         }
     }
@@ -636,5 +643,7 @@ pub mod families;
 mod independent;
 #[cfg(test)]
 mod ramp_power;
+#[cfg(test)]
+mod sensor_filters;
 #[cfg(test)]
 mod tests;

@@ -14,6 +14,7 @@
 //! absolute value is no chi-square; the workflow only compares its change between nested
 //! models with the same change on simulated curves, which carry the same correlation.
 
+use crate::analysis::low_pass::{LowPass, LowPassSource};
 use crate::analysis::{fit, numerics};
 use crate::sim::noise::{GaussMarkov, NoiseTerms, gauss_markov_avar};
 
@@ -208,6 +209,24 @@ fn solve(
         }
     }
     out
+}
+
+/// `sd_ln` with the points at taus (`tau`, s) below a fitted low-pass's
+/// [`LowPass::first_tau`] left out (an infinite standard deviation: no weight in a refit, no
+/// share of a misfit). A fitted filter is the nearest shape of the catalogue, not the
+/// sensor's own: where the filter lowers the white Allan variance by more than
+/// [`crate::analysis::low_pass::FITTED_SHAPE_SHARE`], the difference between the two would
+/// read as quantization or a Gauss-Markov process a few samples long. `analyze` starts its
+/// fit at the same tau.
+pub fn beyond_fitted_filter(sd_ln: &[f64], tau: &[f64], low_pass: Option<&LowPass>) -> Vec<f64> {
+    let first = low_pass
+        .filter(|lp| lp.source == LowPassSource::Fitted)
+        .map_or(0.0, LowPass::first_tau);
+    sd_ln
+        .iter()
+        .zip(tau)
+        .map(|(&s, &t)| if t < first { f64::INFINITY } else { s })
+        .collect()
 }
 
 /// `sum_i (ln(model_i / avar_i) / s_i)^2` over the curve's positive points.

@@ -62,7 +62,7 @@ pub fn model_keys(model: &Model) -> Value {
     if let Some(lp) = &model.low_pass {
         m.insert(
             "low_pass".into(),
-            json!({"cutoff_hz": lp.cutoff_hz, "source": lp.source}),
+            json!({"cutoff_hz": lp.cutoff_hz, "shape": lp.shape, "source": lp.source, "filter": lp.filter}),
         );
     }
     Value::Object(m)
@@ -225,8 +225,10 @@ fn model_line(m: &Model, u: &str) -> String {
     }
     if let Some(lp) = &m.low_pass {
         parts.push(format!(
-            "low-pass -3 dB at {} Hz ({})",
+            "low-pass -3 dB at {} Hz{} ({})",
             sig(lp.cutoff_hz, 4),
+            lp.shape
+                .map_or(String::new(), |s| format!(", {}", s.describe())),
             match lp.source {
                 LowPassSource::Settings => "from the sensor's settings",
                 LowPassSource::Fitted => "fitted to the record",

@@ -109,6 +109,7 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
         .collect();
     let comparison = compare(&data.measured, &logs);
     let sd_ln: Vec<f64> = comparison.band.std_log.iter().map(|s| 2.0 * s).collect();
+    let sd_ln = refit::beyond_fitted_filter(&sd_ln, &data.measured.tau, model.low_pass.as_ref());
     let stochastic = model.stochastic();
     let white = |tau: f64| model.white_shape(tau);
     let filter_alternatives = filter_alternatives(model.low_pass.as_ref());
@@ -336,9 +337,13 @@ pub(super) fn ranges(tau: &[f64], z: &[f64]) -> Vec<Range> {
 }
 
 /// A fitted filter at cutoffs one and two of its interval's half-widths either side (the
-/// interval is the detection's 68.3 % one); none for a filter from the settings.
+/// interval is the detection's 68.3 % one), of its own shape; none for a filter from the
+/// settings.
 fn filter_alternatives(low_pass: Option<&LowPass>) -> Vec<LowPass> {
-    let Some(lp) = low_pass.filter(|lp| lp.source == LowPassSource::Fitted) else {
+    let Some((lp, shape)) = low_pass
+        .filter(|lp| lp.source == LowPassSource::Fitted)
+        .and_then(|lp| Some((lp, lp.shape?)))
+    else {
         return Vec::new();
     };
     let (below, above) = (
@@ -348,7 +353,7 @@ fn filter_alternatives(low_pass: Option<&LowPass>) -> Vec<LowPass> {
     [-2.0 * below, -below, above, 2.0 * above]
         .iter()
         .filter(|step| step.abs() > 0.0)
-        .filter_map(|step| LowPass::two_pole(lp.cutoff_hz + step, lp.rate_hz).ok())
+        .filter_map(|step| LowPass::generic(shape, lp.cutoff_hz + step, lp.rate_hz).ok())
         .collect()
 }
 
