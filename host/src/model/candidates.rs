@@ -188,11 +188,16 @@ pub(super) fn add(
             // interval; the candidate's own cutoff stands if it no longer passes alone.
             let (clean, _) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
             let background = |f: f64| model.one_sided_psd(f, 1.0 / data.rate_hz);
-            out.low_pass =
-                evidence::roll_off(&clean, data.rate_hz, removal, &model.lines, &background)
-                    .ok()
-                    .and_then(|d| d.low_pass)
-                    .or_else(|| LowPass::generic(shape, cutoff_hz, data.rate_hz).ok());
+            out.low_pass = evidence::roll_off(
+                &clean,
+                data.rate_hz,
+                removal,
+                (&model.lines, &detect_lines(&clean, data.rate_hz)),
+                &background,
+            )
+            .ok()
+            .and_then(|d| d.low_pass)
+            .or_else(|| LowPass::generic(shape, cutoff_hz, data.rate_hz).ok());
         }
         (Probe::Ramp, _) => removal.ramp = true,
         (Probe::Temperature, _) => removal.temperature = true,

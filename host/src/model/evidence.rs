@@ -245,15 +245,18 @@ pub fn statistics(
             Some((terms, refit::misfit(curve, &terms, white)))
         })
     };
-    // The current terms' misfit, shared by the nested-term probes.
+    // The current terms' misfit, shared by the nested-term probes; the series' lines, by
+    // the line and roll-off probes.
     let base = std::cell::OnceCell::new();
+    let found_lines = std::cell::OnceCell::new();
+    let found = || found_lines.get_or_init(|| (ctx.lines)(&clean, ctx.rate_hz));
     probes
         .iter()
         .map(|probe| match *probe {
             Probe::Line => {
-                let found = (ctx.lines)(&clean, ctx.rate_hz);
-                let strongest = found
-                    .into_iter()
+                let strongest = found()
+                    .iter()
+                    .copied()
                     .filter(|l| {
                         !ctx.removal.near_removed(l.freq_hz)
                             && !in_named_wings(l, ctx.named_lines, ctx.rate_hz)
@@ -297,7 +300,7 @@ pub fn statistics(
                     &clean,
                     ctx.rate_hz,
                     ctx.removal,
-                    ctx.named_lines,
+                    (ctx.named_lines, found()),
                     ctx.background,
                 ) {
                     Ok(d) => (
@@ -368,16 +371,23 @@ fn profiled<T>(ctx: &Context, fit: impl Fn(WhiteShape) -> Option<(T, f64)>) -> O
 /// line are left out, and those where a named line's wings stand out of the model's
 /// one-sided PSD `background` ([`lines::wings_stand_out`]), where an error of a few percent
 /// in the line's width or power would outweigh the noise; elsewhere the wings, with their
-/// folded images ([`lines::line_density`]), are known PSD.
+/// folded images ([`lines::line_density`]), are known PSD. The lines the detector finds in
+/// `clean` but the model does not carry yet are left out as `analyze` leaves out its lines:
+/// within four PSD bins (a tone's leakage through the Hann window) or half the line's width.
+/// A filter shape with stopband lobes (a moving average's) would otherwise fit a tone there.
 pub fn roll_off(
     clean: &[f64],
     rate_hz: f64,
     removal: &Removal,
-    named_lines: &[Line],
+    (named_lines, found): (&[Line], &[Line]),
     background: &(dyn Fn(f64) -> f64 + Sync),
 ) -> Result<Detection, LowPassError> {
+    let bins = 4.0 * rate_hz / low_pass::DETECT_SEGMENT as f64;
     let skip = |f: f64| {
-        removal.near_removed(f)
+        found
+            .iter()
+            .any(|l| (f - l.freq_hz).abs() <= bins + l.width_hz / 2.0)
+            || removal.near_removed(f)
             || named_lines
                 .iter()
                 .any(|l| lines::wings_stand_out(l.freq_hz, l.width_hz, l.power(), f, background(f)))

@@ -337,7 +337,8 @@ pub(super) fn ranges(tau: &[f64], z: &[f64]) -> Vec<Range> {
 }
 
 /// A fitted filter at cutoffs one and two of its interval's half-widths either side (the
-/// interval is the detection's 68.3 % one), of its own shape; none for a filter from the
+/// interval is the detection's 68.3 % one), of its own shape, and the shapes the spectrum
+/// fits as well at their own cutoffs ([`LowPass::comparable`]); none for a filter from the
 /// settings.
 fn filter_alternatives(low_pass: Option<&LowPass>) -> Vec<LowPass> {
     let Some((lp, shape)) = low_pass
@@ -354,6 +355,11 @@ fn filter_alternatives(low_pass: Option<&LowPass>) -> Vec<LowPass> {
         .iter()
         .filter(|step| step.abs() > 0.0)
         .filter_map(|step| LowPass::generic(shape, lp.cutoff_hz + step, lp.rate_hz).ok())
+        .chain(
+            lp.comparable
+                .iter()
+                .filter_map(|&(other, cutoff)| LowPass::generic(other, cutoff, lp.rate_hz).ok()),
+        )
         .collect()
 }
 

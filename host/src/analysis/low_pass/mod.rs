@@ -107,6 +107,11 @@ pub struct LowPass {
     pub filter: String,
     /// The generic shape of a filter not known from the settings ([`Shape`]).
     pub shape: Option<Shape>,
+    /// For a fitted filter, the other shapes (at their best cutoffs, Hz) whose fit to the
+    /// spectrum is within the cutoff interval's confidence of this one's: the spectrum does
+    /// not tell them apart.
+    #[serde(skip)]
+    pub comparable: Vec<(Shape, f64)>,
     #[serde(skip)]
     chain: Chain,
     #[serde(skip)]
@@ -262,6 +267,7 @@ impl LowPass {
             decimation,
             autocov: raw.iter().map(|r| r / level).collect(),
             gain: level.sqrt(),
+            comparable: Vec::new(),
         })
     }
 
@@ -460,6 +466,9 @@ pub fn sensor_for(quantity: crate::record::Quantity) -> Option<Sensor> {
 // ---------------------------------------------------------------------------------------
 // Detection.
 
+/// The evidence another shape needs to replace the two-pole, in the units of
+/// [`Detection::statistic`]: 9, a 3-sigma likelihood ratio for one parameter.
+pub const SHAPE_EVIDENCE: f64 = 9.0;
 /// Welch segment of the detection PSD (shorter for short records).
 pub const DETECT_SEGMENT: usize = 1024;
 /// Fewest Welch segments worth a detection.
@@ -510,8 +519,9 @@ pub struct Detection {
 /// 0 here); w, b, k, q >= 0 by NNLS on `P - L`, each bin
 /// weighted by its variance `S^2 2 / nu` (nu the Welch EDF) with S the model
 /// (reweighted three times). chi2(f_c) is profiled over a log grid from f_s / 64 to 2 f_s and
-/// refined by golden section, for every shape of [`Shape::ALL`], and the shape with the least
-/// misfit is taken (a shape that does not match the filter leaves a residual roll-off that
+/// refined by golden section, for every shape of [`Shape::ALL`]; the two-pole is taken
+/// unless another shape lowers the misfit by [`SHAPE_EVIDENCE`] in the units of `Delta`
+/// below (a shape that does not match the filter leaves a residual roll-off that
 /// quantization or a short Gauss-Markov process would otherwise take); no filter is G = 1.
 ///
 /// **Decision.** `Delta = (chi2(none) - chi2(f_c)) / (c B^2)`, c = `HANN_BIN_CORRELATION`
@@ -602,13 +612,22 @@ pub fn detect_outside(
         };
         (shape, cutoff, chi2_best)
     });
-    let (shape, cutoff, chi2_best) = fitted
+    let least = fitted
         .into_iter()
         .fold(fitted[0], |best, f| if f.2 < best.2 { f } else { best });
     // The shape is one more parameter, chosen among a few.
     let dof = spectrum.bins().saturating_sub(6).max(1) as f64;
-    let reduced = chi2_best / dof;
+    let reduced = least.2 / dof;
     let scale = HANN_BIN_CORRELATION * reduced.max(1.0);
+    // The two-pole stays unless another shape fits better by SHAPE_EVIDENCE: shapes the
+    // spectrum cannot tell apart still differ in the stopband, where the Allan curve's short
+    // taus see them (a moving average chosen by chance over a two-pole left a misfit that
+    // quantization took).
+    let (shape, cutoff, chi2_best) = if (fitted[0].2 - least.2) / scale < SHAPE_EVIDENCE {
+        fitted[0]
+    } else {
+        least
+    };
     let statistic = (white - chi2_best).max(0.0) / scale;
     let mut detection = Detection {
         low_pass: None,
@@ -626,7 +645,13 @@ pub fn detect_outside(
     let rise = |f: f64| (spectrum.chi2(Some((shape, f))) - chi2_best) / scale - z * z;
     let lo_end = crossing(&rise, cutoff, lo);
     let hi_end = crossing(&rise, cutoff, hi);
-    detection.low_pass = Some(LowPass::generic(shape, cutoff, rate_hz)?.fitted(lo_end, hi_end));
+    let mut found = LowPass::generic(shape, cutoff, rate_hz)?.fitted(lo_end, hi_end);
+    found.comparable = fitted
+        .iter()
+        .filter(|f| f.0 != shape && (f.2 - chi2_best) / scale <= z * z)
+        .map(|f| (f.0, f.1))
+        .collect();
+    detection.low_pass = Some(found);
     Ok(detection)
 }
 

@@ -40,7 +40,8 @@ pub enum Shape {
 }
 
 impl Shape {
-    /// Every shape, in the order [`super::detect`] tries them (a tie keeps the first).
+    /// Every shape, in the order [`super::detect`] tries them: the first, the two-pole, is
+    /// kept unless another fits the spectrum better by [`super::SHAPE_EVIDENCE`].
     pub const ALL: [Shape; 6] = [
         Shape::TwoPole,
         Shape::OnePole,
