@@ -46,7 +46,7 @@
 //! at realistic noise levels (gyro: `(1.33e-4 rad/s)^2 / 12 / f_s` against N ~ 1.5e-4
 //! rad/s/sqrt(Hz)), so the model leaves it out.
 
-mod shape;
+pub mod shape;
 
 pub use shape::Shape;
 
