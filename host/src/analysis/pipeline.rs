@@ -550,7 +550,7 @@ fn detected_low_pass(
         Some(removed) => (&removed.rate, &removed.lines, &removed.bands_hz),
         None => (rate, &[], &[]),
     };
-    let bins = 4.0 * rate_hz / low_pass::DETECT_SEGMENT as f64;
+    let bins = low_pass::tone_leakage_hz(rate_hz);
     let skip = |f: f64| {
         found.iter().any(|l| (f - l.freq_hz).abs() <= bins)
             || bands

@@ -382,7 +382,7 @@ pub fn roll_off(
     (named_lines, found): (&[Line], &[Line]),
     background: &(dyn Fn(f64) -> f64 + Sync),
 ) -> Result<Detection, LowPassError> {
-    let bins = 4.0 * rate_hz / low_pass::DETECT_SEGMENT as f64;
+    let bins = low_pass::tone_leakage_hz(rate_hz);
     let skip = |f: f64| {
         found
             .iter()

@@ -469,6 +469,13 @@ pub fn sensor_for(quantity: crate::record::Quantity) -> Option<Sensor> {
 /// The evidence another shape needs to replace the two-pole, in the units of
 /// [`Detection::statistic`]: 9, a 3-sigma likelihood ratio for one parameter.
 pub const SHAPE_EVIDENCE: f64 = 9.0;
+/// How far from a tone its leakage reaches in the detection PSD, Hz: four bins of a
+/// [`DETECT_SEGMENT`] Hann segment at `rate_hz`. Bins this close to a line are left out of
+/// the roll-off fit.
+pub fn tone_leakage_hz(rate_hz: f64) -> f64 {
+    4.0 * rate_hz / DETECT_SEGMENT as f64
+}
+
 /// Welch segment of the detection PSD (shorter for short records).
 pub const DETECT_SEGMENT: usize = 1024;
 /// Fewest Welch segments worth a detection.
@@ -494,8 +501,6 @@ pub struct Detection {
     pub low_pass: Option<LowPass>,
     /// Best cutoff of the generic family, Hz (`None`: no filter fits better than none).
     pub best_cutoff_hz: Option<f64>,
-    /// The shape of that best fit.
-    pub best_shape: Option<Shape>,
     /// The likelihood-ratio statistic of the low-pass against none, in chi-squared(1) units
     /// after the bin correlation and the Birge ratio.
     pub statistic: f64,
@@ -581,7 +586,6 @@ pub fn detect_outside(
     let none = Detection {
         low_pass: None,
         best_cutoff_hz: None,
-        best_shape: None,
         statistic: 0.0,
         reduced_chi2: f64::NAN,
     };
@@ -632,7 +636,6 @@ pub fn detect_outside(
     let mut detection = Detection {
         low_pass: None,
         best_cutoff_hz: (chi2_best < white).then_some(cutoff),
-        best_shape: (chi2_best < white).then_some(shape),
         statistic,
         reduced_chi2: reduced,
     };
