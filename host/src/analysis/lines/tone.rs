@@ -7,6 +7,10 @@ use crate::analysis::numerics::solve4;
 use realfft::num_complex::Complex;
 use std::f64::consts::PI;
 
+/// Golden-section steps refining a tone's frequency over a fifth of a bin: `0.618^40` of it
+/// is 9e-10 bins.
+const TONE_GOLDEN_STEPS: usize = 40;
+
 /// A fitted tone `a cos(w t_c) + b sin(w t_c)`, `t_c = t - (n - 1) / 2`, w in rad/sample.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Tone {
@@ -65,6 +69,7 @@ pub fn tone_near(rate: &[f64], rate_hz: f64, freq_hz: f64) -> Option<(f64, f64)>
         |w| -power(w),
         (best - 0.1 * bin).max(0.5 * bin),
         best + 0.1 * bin,
+        TONE_GOLDEN_STEPS,
     );
     let tone = fit_at(rate, w)?;
     Some((tone.freq_hz(rate_hz), tone.a.hypot(tone.b)))

@@ -57,7 +57,7 @@ use protocol::mpu6050::SensorSettings;
 use rand::Rng;
 use rand_distr::StandardNormal;
 use serde::Serialize;
-use shape::Cascade;
+use shape::{Cascade, Phasor};
 use statrs::distribution::{ContinuousCDF, Normal};
 use std::f64::consts::PI;
 
@@ -362,11 +362,7 @@ enum Chain {
 
 impl Chain {
     fn generic(shape: Shape, cutoff_hz: f64, rate_hz: f64) -> Chain {
-        let internal = rate_hz * OVERSAMPLE as f64;
-        Chain::Cascade(Cascade {
-            rate_hz: internal,
-            sections: shape.sections(cutoff_hz, internal),
-        })
+        Chain::Cascade(generic_cascade(shape, cutoff_hz, rate_hz))
     }
 
     /// The rate the filter runs at, Hz.
@@ -440,6 +436,22 @@ fn impulse_response(chain: &Chain) -> Result<Vec<f64>, LowPassError> {
     Err(LowPassError::TooSlow(MAX_IMPULSE))
 }
 
+/// A shape's cascade at [`OVERSAMPLE`] times the output rate `rate_hz`.
+fn generic_cascade(shape: Shape, cutoff_hz: f64, rate_hz: f64) -> Cascade {
+    let internal = rate_hz * OVERSAMPLE as f64;
+    Cascade {
+        rate_hz: internal,
+        sections: shape.sections(cutoff_hz, internal),
+    }
+}
+
+/// The phasors of `f + j f_s`, j = 0..D-1, at the internal rate `D f_s`: the frequencies
+/// whose power [`folded_gain`] sums.
+fn alias_phasors(freq_hz: f64, rate_hz: f64, decimation: usize) -> impl Iterator<Item = Phasor> {
+    let internal = rate_hz * decimation as f64;
+    (0..decimation).map(move |j| Phasor::new(freq_hz + j as f64 * rate_hz, internal))
+}
+
 /// `sum_j |H(f + j f_s)|^2 / sum_j |H(j f_s)|^2`, j = 0..D-1: the folded power gain.
 fn folded_gain(chain: &Chain, decimation: usize, freq_hz: f64) -> f64 {
     let fs = chain.rate_hz() / decimation as f64;
@@ -483,7 +495,13 @@ const MIN_SEGMENTS: usize = 8;
 /// Fewest PSD bins fitted: four shapes and a cutoff need several bins each.
 const MIN_BINS: usize = 16;
 /// Points per decade of the cutoff grid before refinement.
-const GRID_PER_DECADE: f64 = 24.0;
+const GRID_PER_DECADE: f64 = 12.0;
+/// Golden-section steps refining a cutoff from the two grid steps around the grid's best:
+/// `0.618^24` of their 0.38 in ln f is 4e-6, far inside any cutoff's interval.
+const CUTOFF_GOLDEN_STEPS: usize = 24;
+/// Bisections of a cutoff interval's end from one scan step (7 % of the cutoff): 2^-20 of
+/// it is 7e-8.
+const CROSSING_BISECTIONS: usize = 20;
 /// `1 + 2 sum_k rho_k^2` for the Hann window's adjacent-bin correlations rho_1 = -2/3 and
 /// rho_2 = 1/6 (the window's DFT is [-1/4, 1/2, -1/4]; Percival & Walden, "Spectral Analysis
 /// for Physical Applications", 1993, section 6.18): the variance of a sum over bins is this
@@ -609,7 +627,7 @@ pub fn detect_outside(
             grid[best.saturating_sub(1)],
             grid[(best + 1).min(grid.len() - 1)],
         );
-        let golden = golden_min(chi2, a, b);
+        let golden = golden_min(chi2, a, b, CUTOFF_GOLDEN_STEPS);
         let (cutoff, chi2_best) = match chi2(golden) {
             c if c <= profile[best] => (golden, c),
             _ => (grid[best], profile[best]),
@@ -666,6 +684,10 @@ struct DetectionPsd {
     density: Vec<f64>,
     known: Vec<f64>,
     dof: f64,
+    /// [`alias_phasors`] of every bin, bin after bin, and of DC: each fit's hundreds of
+    /// cascades are evaluated at these same frequencies.
+    aliases: Vec<Phasor>,
+    dc_aliases: Vec<Phasor>,
 }
 
 impl DetectionPsd {
@@ -699,12 +721,18 @@ impl DetectionPsd {
         let keep = |v: &[f64]| kept.iter().map(|&i| v[i]).collect();
         let freq: Vec<f64> = keep(&p.freq);
         let known = freq.iter().map(|&f| known(f)).collect();
+        let aliases = freq
+            .iter()
+            .flat_map(|&f| alias_phasors(f, rate_hz, OVERSAMPLE))
+            .collect();
         Some(DetectionPsd {
             rate_hz,
             freq,
             density: keep(&p.density),
             known,
             dof: HANN_DOF_PER_SEGMENT * p.segments as f64,
+            aliases,
+            dc_aliases: alias_phasors(0.0, rate_hz, OVERSAMPLE).collect(),
         })
     }
 
@@ -715,14 +743,16 @@ impl DetectionPsd {
     /// The weighted misfit of the best non-negative (w, b, k, q) with the filter of a shape
     /// and cutoff (`None`: no filter).
     fn chi2(&self, filter: Option<(Shape, f64)>) -> f64 {
-        let chain = filter.map(|(shape, f)| Chain::generic(shape, f, self.rate_hz));
+        let cascade = filter.map(|(shape, f)| generic_cascade(shape, f, self.rate_hz));
+        // folded_gain's sums, from the phasors computed once.
+        let power = |c: &Cascade, at: &[Phasor]| -> f64 { at.iter().map(|p| c.power_at(p)).sum() };
+        let dc = cascade.as_ref().map_or(1.0, |c| power(c, &self.dc_aliases));
         let rows: Vec<[f64; 4]> = self
             .freq
             .iter()
-            .map(|&f| {
-                let g = chain
-                    .as_ref()
-                    .map_or(1.0, |c| folded_gain(c, OVERSAMPLE, f));
+            .zip(self.aliases.chunks_exact(OVERSAMPLE))
+            .map(|(&f, at)| {
+                let g = cascade.as_ref().map_or(1.0, |c| power(c, at) / dc);
                 let s = (PI * f / self.rate_hz).sin();
                 [g, g / f, g / (f * f), 4.0 * s * s]
             })
@@ -781,14 +811,14 @@ fn weighted_nnls4(rows: &[[f64; 4]], y: &[f64], sigma: &[f64]) -> [f64; 4] {
 }
 
 /// Minimum of a unimodal `f` on `[a, b]` (both positive) by golden-section search in log
-/// scale.
-pub(crate) fn golden_min(f: impl Fn(f64) -> f64, a: f64, b: f64) -> f64 {
+/// scale, `steps` times: the bracket ends `0.618^steps` of its first width.
+pub(crate) fn golden_min(f: impl Fn(f64) -> f64, a: f64, b: f64, steps: usize) -> f64 {
     let ratio = (5f64.sqrt() - 1.0) / 2.0;
     let (mut lo, mut hi) = (a.ln(), b.ln());
     let mut x1 = hi - ratio * (hi - lo);
     let mut x2 = lo + ratio * (hi - lo);
     let (mut f1, mut f2) = (f(x1.exp()), f(x2.exp()));
-    for _ in 0..40 {
+    for _ in 0..steps {
         if f1 < f2 {
             hi = x2;
             x2 = x1;
@@ -815,7 +845,7 @@ fn crossing(g: &impl Fn(f64) -> f64, from: f64, to: f64) -> f64 {
         let x = from * (to / from).powf(i as f64 / steps as f64);
         if g(x) >= 0.0 {
             let (mut a, mut b) = (prev, x);
-            for _ in 0..30 {
+            for _ in 0..CROSSING_BISECTIONS {
                 let m = (a * b).sqrt();
                 if g(m) >= 0.0 { b = m } else { a = m }
             }

@@ -127,6 +127,25 @@ fn sinc_half_power(power: i32) -> f64 {
     0.5 * (lo + hi)
 }
 
+/// A frequency at a cascade's rate as `w` radians per sample and `z^-1 = e^{-jw}`: the
+/// trigonometry every section's response shares, computed once where a fit evaluates many
+/// cascades at the same frequencies.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Phasor {
+    w: f64,
+    z1: Complex<f64>,
+}
+
+impl Phasor {
+    pub(super) fn new(freq_hz: f64, rate_hz: f64) -> Phasor {
+        let w = 2.0 * PI * freq_hz / rate_hz;
+        Phasor {
+            w,
+            z1: Complex::from_polar(1.0, -w),
+        }
+    }
+}
+
 /// One stage of a cascade, at the cascade's rate.
 #[derive(Debug, Clone, PartialEq)]
 pub(super) enum Section {
@@ -138,9 +157,9 @@ pub(super) enum Section {
 }
 
 impl Section {
-    /// The response at `w` radians per sample.
-    fn response(&self, w: f64) -> Complex<f64> {
-        let z1 = Complex::from_polar(1.0, -w);
+    /// The response at `at`.
+    fn response(&self, at: &Phasor) -> Complex<f64> {
+        let z1 = at.z1;
         match *self {
             Section::Biquad { b, a } => {
                 let z2 = z1 * z1;
@@ -149,7 +168,7 @@ impl Section {
             Section::Boxcar { len } => {
                 let m = len.floor();
                 let frac = len - m;
-                let zm = Complex::from_polar(1.0, -w * m);
+                let zm = Complex::from_polar(1.0, -at.w * m);
                 let one = Complex::new(1.0, 0.0);
                 // The geometric sum of the whole taps, m where z^-1 is 1.
                 let whole = if (one - z1).norm() < 1e-9 {
@@ -158,6 +177,29 @@ impl Section {
                     (one - zm) / (one - z1)
                 };
                 (whole + zm * frac) / len
+            }
+        }
+    }
+
+    /// `|H|^2` at `at`: [`Section::response`]'s numerator and denominator squared apart, with
+    /// no complex division.
+    fn power(&self, at: &Phasor) -> f64 {
+        let z1 = at.z1;
+        match *self {
+            Section::Biquad { b, a } => {
+                let z2 = z1 * z1;
+                (b[0] + z1 * b[1] + z2 * b[2]).norm_sqr() / (1.0 + z1 * a[0] + z2 * a[1]).norm_sqr()
+            }
+            Section::Boxcar { len } => {
+                let one = Complex::new(1.0, 0.0);
+                let below = (one - z1).norm_sqr();
+                if below < 1e-18 {
+                    return 1.0;
+                }
+                // (whole + zm frac) (1 - z^-1), whole the geometric sum of the m whole taps.
+                let m = len.floor();
+                let zm = Complex::from_polar(1.0, -at.w * m);
+                ((one - zm) + zm * (len - m) * (one - z1)).norm_sqr() / (below * len * len)
             }
         }
     }
@@ -191,10 +233,15 @@ pub(super) struct Cascade {
 impl Cascade {
     /// The cascade's response at `freq_hz`.
     pub(super) fn response(&self, freq_hz: f64) -> Complex<f64> {
-        let w = 2.0 * PI * freq_hz / self.rate_hz;
+        let at = Phasor::new(freq_hz, self.rate_hz);
         self.sections
             .iter()
-            .fold(Complex::new(1.0, 0.0), |acc, s| acc * s.response(w))
+            .fold(Complex::new(1.0, 0.0), |acc, s| acc * s.response(&at))
+    }
+
+    /// `|H|^2` at a phasor of its rate.
+    pub(super) fn power_at(&self, at: &Phasor) -> f64 {
+        self.sections.iter().map(|s| s.power(at)).product()
     }
 
     /// A running filter of the cascade, at rest.
@@ -276,31 +323,59 @@ impl RunningSection {
 mod tests {
     use super::*;
 
+    /// The internal rate of an output rate of 100 Hz.
+    const INTERNAL_HZ: f64 = 1600.0;
+
+    /// Every shape's cascade at [`INTERNAL_HZ`], for cutoffs from the lowest searched to the
+    /// output Nyquist frequency.
+    fn cascades() -> impl Iterator<Item = (Shape, f64, Cascade)> {
+        Shape::ALL.into_iter().flat_map(|shape| {
+            [1.6, 12.0, 50.0].map(|cutoff| {
+                let c = Cascade {
+                    rate_hz: INTERNAL_HZ,
+                    sections: shape.sections(cutoff, INTERNAL_HZ),
+                };
+                (shape, cutoff, c)
+            })
+        })
+    }
+
     /// Every shape has |H|^2 = 1/2 at its cutoff (folding aside: at the internal rate) and
     /// unit gain at DC, for cutoffs from the lowest searched to the output Nyquist frequency
     /// (an output rate of 100 Hz).
     #[test]
     fn every_shape_is_minus_3_db_at_its_cutoff() {
-        let internal = 1600.0;
-        for shape in Shape::ALL {
-            for cutoff in [1.6, 12.0, 50.0] {
-                let c = Cascade {
-                    rate_hz: internal,
-                    sections: shape.sections(cutoff, internal),
-                };
-                let dc = c.response(0.0).norm_sqr();
-                let at = c.response(cutoff).norm_sqr();
-                assert!((dc - 1.0).abs() < 1e-9, "{shape:?} {cutoff}: DC {dc}");
-                // The moving averages are the continuous prototype's cutoff, met by the
-                // sampled window to its discretisation (below 1 % from 14 internal samples
-                // on, a cutoff at the output Nyquist frequency).
-                let tolerance = match shape {
-                    Shape::MovingAverage | Shape::Bartlett => 0.01,
-                    _ => 1e-9,
-                };
+        for (shape, cutoff, c) in cascades() {
+            let dc = c.response(0.0).norm_sqr();
+            let at = c.response(cutoff).norm_sqr();
+            assert!((dc - 1.0).abs() < 1e-9, "{shape:?} {cutoff}: DC {dc}");
+            // The moving averages are the continuous prototype's cutoff, met by the
+            // sampled window to its discretisation (below 1 % from 14 internal samples
+            // on, a cutoff at the output Nyquist frequency).
+            let tolerance = match shape {
+                Shape::MovingAverage | Shape::Bartlett => 0.01,
+                _ => 1e-9,
+            };
+            assert!(
+                (at - 0.5).abs() < tolerance,
+                "{shape:?} {cutoff}: |H|^2 = {at}"
+            );
+        }
+    }
+
+    /// The power the fits sum ([`Cascade::power_at`], no complex division) is the squared
+    /// magnitude of the response, over the whole band of the internal rate, DC and the
+    /// stopband's nulls included.
+    #[test]
+    fn the_power_is_the_responses_squared_magnitude() {
+        for (shape, cutoff, c) in cascades() {
+            for i in 0..=800 {
+                let f = i as f64;
+                let want = c.response(f).norm_sqr();
+                let got = c.power_at(&Phasor::new(f, INTERNAL_HZ));
                 assert!(
-                    (at - 0.5).abs() < tolerance,
-                    "{shape:?} {cutoff}: |H|^2 = {at}"
+                    (got - want).abs() <= 1e-12 * want.max(1e-6),
+                    "{shape:?} {cutoff} Hz at {f} Hz: {got} against {want}"
                 );
             }
         }
