@@ -56,44 +56,17 @@ pub fn nnls(g: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
 /// `(R, c)` of a tall `G = Q R` (Householder) and `c` the first p entries of `Q^T b`: for
 /// every x, `||G x - b||^2 = ||R x - c||^2 + ||(Q^T b)[p..]||^2`, so a least-squares problem
 /// on `G`, constrained or not, has the same solution on `R`.
-// Dense small-matrix algebra reads best with explicit indices.
-#[allow(clippy::needless_range_loop)]
 fn qr_reduce(g: &[Vec<f64>], b: &[f64]) -> (Vec<Vec<f64>>, Vec<f64>) {
-    let m = g.len();
     let p = g.first().map_or(0, Vec::len);
-    let mut a: Vec<f64> = g.iter().flatten().copied().collect();
+    let mut a = g.to_vec();
     let mut rhs = b.to_vec();
-    let mut v = vec![0.0; m];
-    for c in 0..p.min(m) {
-        let norm = (c..m).map(|i| a[i * p + c].powi(2)).sum::<f64>().sqrt();
-        if norm == 0.0 {
-            continue;
-        }
-        let alpha = if a[c * p + c] > 0.0 { -norm } else { norm };
-        for i in c..m {
-            v[i] = a[i * p + c];
-        }
-        v[c] -= alpha;
-        let vnorm2: f64 = v[c..].iter().map(|x| x * x).sum();
-        if vnorm2 == 0.0 {
-            continue;
-        }
-        for col in c..p {
-            let s = (c..m).map(|i| v[i] * a[i * p + col]).sum::<f64>() * 2.0 / vnorm2;
-            (c..m).for_each(|i| a[i * p + col] -= s * v[i]);
-        }
-        let s = (c..m).map(|i| v[i] * rhs[i]).sum::<f64>() * 2.0 / vnorm2;
-        (c..m).for_each(|i| rhs[i] -= s * v[i]);
+    householder_triangularise(&mut a, &mut rhs);
+    a.truncate(p);
+    for (i, row) in a.iter_mut().enumerate() {
+        row[..i].fill(0.0);
     }
-    let r = (0..p)
-        .map(|i| {
-            (0..p)
-                .map(|j| if j >= i { a[i * p + j] } else { 0.0 })
-                .collect()
-        })
-        .collect();
     rhs.truncate(p);
-    (r, rhs)
+    (a, rhs)
 }
 
 /// The active-set iterations of [`nnls`]; `bnorm` is the norm of the original right-hand
@@ -170,25 +143,7 @@ fn lstsq_columns(g: &[Vec<f64>], b: &[f64], cols: &[usize], p: usize) -> Vec<f64
 pub fn householder_solve(a: &mut [Vec<f64>], rhs: &mut [f64]) -> Vec<f64> {
     let m = a.len();
     let k = a.first().map_or(0, Vec::len);
-    for c in 0..k.min(m) {
-        let norm = (c..m).map(|i| a[i][c] * a[i][c]).sum::<f64>().sqrt();
-        if norm == 0.0 {
-            continue;
-        }
-        let alpha = if a[c][c] > 0.0 { -norm } else { norm };
-        let mut v: Vec<f64> = (c..m).map(|i| a[i][c]).collect();
-        v[0] -= alpha;
-        let vnorm2: f64 = v.iter().map(|x| x * x).sum();
-        if vnorm2 == 0.0 {
-            continue;
-        }
-        for col in c..k {
-            let s: f64 = (c..m).map(|i| v[i - c] * a[i][col]).sum::<f64>() * 2.0 / vnorm2;
-            (c..m).for_each(|i| a[i][col] -= s * v[i - c]);
-        }
-        let s: f64 = (c..m).map(|i| v[i - c] * rhs[i]).sum::<f64>() * 2.0 / vnorm2;
-        (c..m).for_each(|i| rhs[i] -= s * v[i - c]);
-    }
+    householder_triangularise(a, rhs);
     let mut x = vec![0.0; k];
     for c in (0..k.min(m)).rev() {
         let s: f64 = ((c + 1)..k).map(|j| a[c][j] * x[j]).sum();
@@ -199,6 +154,39 @@ pub fn householder_solve(a: &mut [Vec<f64>], rhs: &mut [f64]) -> Vec<f64> {
         };
     }
     x
+}
+
+/// Householder reflections applied to `a` (m x k, row-major) and `rhs` alike, column by
+/// column, until `a`'s first k rows hold the triangle R of `a = Q R` (below its diagonal, what
+/// the reflections leave is not zeroed) and `rhs` holds `Q^T rhs`. A column with nothing left
+/// to reflect is skipped.
+// Dense small-matrix algebra reads best with explicit indices.
+#[allow(clippy::needless_range_loop)]
+fn householder_triangularise(a: &mut [Vec<f64>], rhs: &mut [f64]) {
+    let m = a.len();
+    let k = a.first().map_or(0, Vec::len);
+    let mut v = vec![0.0; m];
+    for c in 0..k.min(m) {
+        let norm = (c..m).map(|i| a[i][c] * a[i][c]).sum::<f64>().sqrt();
+        if norm == 0.0 {
+            continue;
+        }
+        let alpha = if a[c][c] > 0.0 { -norm } else { norm };
+        for i in c..m {
+            v[i] = a[i][c];
+        }
+        v[c] -= alpha;
+        let vnorm2: f64 = v[c..].iter().map(|x| x * x).sum();
+        if vnorm2 == 0.0 {
+            continue;
+        }
+        for col in c..k {
+            let s: f64 = (c..m).map(|i| v[i] * a[i][col]).sum::<f64>() * 2.0 / vnorm2;
+            (c..m).for_each(|i| a[i][col] -= s * v[i]);
+        }
+        let s: f64 = (c..m).map(|i| v[i] * rhs[i]).sum::<f64>() * 2.0 / vnorm2;
+        (c..m).for_each(|i| rhs[i] -= s * v[i]);
+    }
 }
 
 /// Inverse of a small symmetric positive definite matrix by Cholesky; None when singular.

@@ -122,6 +122,9 @@ pub struct LowPass {
     /// N of the output per unit per-sample sigma at the internal rate (the chain's gain).
     #[serde(skip)]
     gain: f64,
+    /// [`folded_power`] at DC, the normalisation of [`LowPass::power_gain`].
+    #[serde(skip)]
+    dc_folded_power: f64,
 }
 
 /// Why a low-pass cannot be built or detected.
@@ -255,6 +258,7 @@ impl LowPass {
             .collect();
         let tau0 = 1.0 / rate_hz;
         let level = tau0 * (raw[0] + 2.0 * raw[1..].iter().sum::<f64>());
+        let dc_folded_power = folded_power(&chain, decimation, 0.0);
         Ok(LowPass {
             cutoff_hz,
             cutoff_lo_hz: cutoff_hz,
@@ -267,6 +271,7 @@ impl LowPass {
             decimation,
             autocov: raw.iter().map(|r| r / level).collect(),
             gain: level.sqrt(),
+            dc_folded_power,
             comparable: Vec::new(),
         })
     }
@@ -318,7 +323,7 @@ impl LowPass {
     /// output PSD of white input is N^2 times this (two-sided), the aliases of the internal
     /// rate folded in.
     pub fn power_gain(&self, freq_hz: f64) -> f64 {
-        folded_gain(&self.chain, self.decimation, freq_hz)
+        folded_power(&self.chain, self.decimation, freq_hz) / self.dc_folded_power
     }
 
     /// `samples` output samples of white rate noise whose long-tau Allan coefficient is
@@ -373,10 +378,11 @@ impl Chain {
         }
     }
 
-    fn response(&self, freq_hz: f64) -> realfft::num_complex::Complex<f64> {
+    /// `|H|^2` at `freq_hz`.
+    fn power(&self, freq_hz: f64) -> f64 {
         match self {
-            Chain::Dlpf(d) => d.response(freq_hz),
-            Chain::Cascade(c) => c.response(freq_hz),
+            Chain::Dlpf(d) => d.response(freq_hz).norm_sqr(),
+            Chain::Cascade(c) => c.power_at(&Phasor::new(freq_hz, c.rate_hz)),
         }
     }
 
@@ -446,21 +452,18 @@ fn generic_cascade(shape: Shape, cutoff_hz: f64, rate_hz: f64) -> Cascade {
 }
 
 /// The phasors of `f + j f_s`, j = 0..D-1, at the internal rate `D f_s`: the frequencies
-/// whose power [`folded_gain`] sums.
+/// whose power [`folded_power`] sums.
 fn alias_phasors(freq_hz: f64, rate_hz: f64, decimation: usize) -> impl Iterator<Item = Phasor> {
     let internal = rate_hz * decimation as f64;
     (0..decimation).map(move |j| Phasor::new(freq_hz + j as f64 * rate_hz, internal))
 }
 
-/// `sum_j |H(f + j f_s)|^2 / sum_j |H(j f_s)|^2`, j = 0..D-1: the folded power gain.
-fn folded_gain(chain: &Chain, decimation: usize, freq_hz: f64) -> f64 {
+/// `sum_j |H(f + j f_s)|^2`, j = 0..D-1: the power of the aliases that fold onto `freq_hz`.
+fn folded_power(chain: &Chain, decimation: usize, freq_hz: f64) -> f64 {
     let fs = chain.rate_hz() / decimation as f64;
-    let sum = |f: f64| -> f64 {
-        (0..decimation)
-            .map(|j| chain.response(f + j as f64 * fs).norm_sqr())
-            .sum()
-    };
-    sum(freq_hz) / sum(0.0)
+    (0..decimation)
+        .map(|j| chain.power(freq_hz + j as f64 * fs))
+        .sum()
 }
 
 /// The low-pass channels of a sensor with these settings: `None` for channels no DLPF
@@ -744,7 +747,7 @@ impl DetectionPsd {
     /// and cutoff (`None`: no filter).
     fn chi2(&self, filter: Option<(Shape, f64)>) -> f64 {
         let cascade = filter.map(|(shape, f)| generic_cascade(shape, f, self.rate_hz));
-        // folded_gain's sums, from the phasors computed once.
+        // folded_power's sums, from the phasors computed once.
         let power = |c: &Cascade, at: &[Phasor]| -> f64 { at.iter().map(|p| c.power_at(p)).sum() };
         let dc = cascade.as_ref().map_or(1.0, |c| power(c, &self.dc_aliases));
         let rows: Vec<[f64; 4]> = self
@@ -937,6 +940,43 @@ pub(crate) mod tests {
         let wide = LowPass::two_pole(400.0, 200.0).unwrap();
         let x = wide.white_avar(0.005) * 0.005;
         assert!((x - 1.0).abs() < 0.01, "{x}");
+    }
+
+    /// The folded power gain (frequency domain, the aliases' responses) is the spectrum of
+    /// the output autocovariance (time domain, from the impulse response): `r(0) + 2 sum_l
+    /// r(l) cos(2 pi f l tau0)` over its value at DC, for the DLPF rows at two decimations and
+    /// every generic shape, from DC to Nyquist.
+    #[test]
+    fn the_power_gain_is_the_autocovariances_spectrum() {
+        let mut filters: Vec<LowPass> = [(200.0, 42.0), (50.0, 42.0), (1000.0, 188.0)]
+            .iter()
+            .filter_map(|&(rate, bw)| {
+                let settings = SensorSettings::for_rate_and_bandwidth(rate, bw).ok()?;
+                LowPass::mpu6050(&settings, Sensor::Gyro)
+            })
+            .collect();
+        filters.extend(Shape::ALL.map(|shape| LowPass::generic(shape, 13.0, 100.0).unwrap()));
+        assert_eq!(filters.len(), 9);
+        for lp in &filters {
+            let spectrum = |f: f64| -> f64 {
+                let w = 2.0 * PI * f / lp.rate_hz;
+                let tail: f64 = lp.autocov[1..]
+                    .iter()
+                    .enumerate()
+                    .map(|(l, r)| r * (w * (l + 1) as f64).cos())
+                    .sum();
+                lp.autocov[0] + 2.0 * tail
+            };
+            for i in 0..=50 {
+                let f = lp.rate_hz / 2.0 * i as f64 / 50.0;
+                let (got, want) = (lp.power_gain(f), spectrum(f) / spectrum(0.0));
+                assert!(
+                    (got - want).abs() < 1e-6,
+                    "{} at {f} Hz: {got} vs {want}",
+                    lp.filter
+                );
+            }
+        }
     }
 
     /// Mean overlapping AVAR over `records` simulated records at factors `ms`, and its

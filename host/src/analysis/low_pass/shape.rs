@@ -157,7 +157,8 @@ pub(super) enum Section {
 }
 
 impl Section {
-    /// The response at `at`.
+    /// The response at `at`: the reference [`Section::power`] is tested against.
+    #[cfg(test)]
     fn response(&self, at: &Phasor) -> Complex<f64> {
         let z1 = at.z1;
         match *self {
@@ -231,7 +232,9 @@ pub(super) struct Cascade {
 }
 
 impl Cascade {
-    /// The cascade's response at `freq_hz`.
+    /// The cascade's response at `freq_hz`: the reference [`Cascade::power_at`] is tested
+    /// against.
+    #[cfg(test)]
     pub(super) fn response(&self, freq_hz: f64) -> Complex<f64> {
         let at = Phasor::new(freq_hz, self.rate_hz);
         self.sections
