@@ -944,8 +944,8 @@ pub(crate) mod tests {
 
     /// The folded power gain (frequency domain, the aliases' responses) is the spectrum of
     /// the output autocovariance (time domain, from the impulse response): `r(0) + 2 sum_l
-    /// r(l) cos(2 pi f l tau0)` over its value at DC, for the DLPF rows at two decimations and
-    /// every generic shape, from DC to Nyquist.
+    /// r(l) cos(2 pi f l tau0)` over its value at DC, for DLPF rows at three decimations (1, 5
+    /// and 20) and every generic shape, from DC to Nyquist.
     #[test]
     fn the_power_gain_is_the_autocovariances_spectrum() {
         let mut filters: Vec<LowPass> = [(200.0, 42.0), (50.0, 42.0), (1000.0, 188.0)]
