@@ -24,6 +24,7 @@ pub mod numerics;
 pub mod pipeline;
 pub mod precision;
 pub mod psd;
+pub mod square_fft;
 pub mod streaming;
 pub mod taus;
 pub mod units;

@@ -450,8 +450,10 @@ fn allan_stage(
     let lines_removed = line_free.is_some();
     // The fit's curve from the record without its lines, on the same taus.
     let clean_deviation = line_free.map(|r| {
-        let clean = phase_from_rate(&r, tau0);
-        drop(r);
+        let clean = match r {
+            Cow::Owned(rate) => super::into_phase(rate, tau0),
+            Cow::Borrowed(rate) => phase_from_rate(rate, tau0),
+        };
         let factors = taus::factors(
             options.taus,
             allan::max_factor(Estimator::Oadev, clean.len()),

@@ -169,10 +169,12 @@ fn default_budget_mb() -> f64 {
         .unwrap_or(4096.0)
 }
 
-/// Peak resident memory of a whole read and analysis over its samples' bytes: 4.6 measured
-/// on 10^7 samples (`bench` section 1; the line search's FFT plan, the detrended record and
-/// its DFT beside the record), rounded up.
-const WHOLE_READ_FACTOR: f64 = 5.0;
+/// Peak resident memory of a whole read and analysis over its samples' bytes: 3.4 measured
+/// on 10^7 samples of noise (`bench` section 1: the record, its phase and the PSD stage's
+/// buffers side by side; the line search's in-place DFT holds 2.2); a record with tones and
+/// resonances holds, during the line search, the record without its tones beside the DFT
+/// and, at the end, the DFT of its last samples: 4.
+const WHOLE_READ_FACTOR: f64 = 4.0;
 
 /// The input opened for streaming when it is an uncompressed .npy file whose whole read
 /// ([`WHOLE_READ_FACTOR`] times its samples, 8 bytes each) would exceed the memory budget;

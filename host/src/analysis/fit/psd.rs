@@ -266,12 +266,20 @@ fn pyramid(
         if series.len() / 2 < len {
             break;
         }
-        series = Cow::Owned(
-            series
-                .chunks_exact(2)
-                .map(|c| 0.5 * (c[0] + c[1]))
-                .collect(),
-        );
+        // Pairs averaged: the first level's into a new buffer, the deeper ones in it.
+        series = match series {
+            Cow::Borrowed(s) => {
+                Cow::Owned(s.chunks_exact(2).map(|c| 0.5 * (c[0] + c[1])).collect())
+            }
+            Cow::Owned(mut s) => {
+                let half = s.len() / 2;
+                for i in 0..half {
+                    s[i] = 0.5 * (s[2 * i] + s[2 * i + 1]);
+                }
+                s.truncate(half);
+                Cow::Owned(s)
+            }
+        };
         fs /= 2.0;
         level += 1;
     }

@@ -3,8 +3,8 @@
 
 use super::scan::DOF_GRID;
 use super::{BLOCKS_PER_DECADE, MEDIAN_HALF_WIDTH, MIN_BLOCK, SHAPE_ERROR};
-use std::cell::Cell;
 use std::f64::consts::LN_2;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A smooth background PSD per bin, the relative variance of its estimate, and the degrees of
 /// freedom `nu = 2 / rel_var` of the scaled chi-square that stands for it, rounded down to
@@ -14,8 +14,9 @@ pub(super) struct Background {
     /// (ln centre bin, ln level, relative variance) per block, in increasing frequency.
     blocks: Vec<(f64, f64, f64)>,
     /// The block found last: bins are mostly read in order, so the next one is usually
-    /// found there without a search.
-    hint: Cell<usize>,
+    /// found there without a search (shared by threads reading different ranges, where it
+    /// only saves less).
+    hint: AtomicUsize,
 }
 
 impl Background {
@@ -50,13 +51,13 @@ impl Background {
         }
         let x = (k as f64).ln();
         // The last block whose centre is at or below x (the first when none is).
-        let hint = self.hint.get();
+        let hint = self.hint.load(Ordering::Relaxed);
         let i = if hint + 1 < smoothed.len() && smoothed[hint].0 <= x && x < smoothed[hint + 1].0 {
             hint
         } else {
             smoothed.partition_point(|b| b.0 <= x).saturating_sub(1)
         };
-        self.hint.set(i);
+        self.hint.store(i, Ordering::Relaxed);
         Some(if x <= smoothed[0].0 {
             (smoothed[0].1, smoothed[0].2)
         } else if i + 1 >= smoothed.len() {
@@ -122,7 +123,7 @@ pub(super) fn background(
         .collect();
     Background {
         blocks: smoothed,
-        hint: Cell::new(0),
+        hint: AtomicUsize::new(0),
     }
 }
 

@@ -6,6 +6,7 @@ use super::{
     HANN_MEDIAN_VARIANCE, Line, Measured, RECT_MEDIAN_VARIANCE, SHAPE_ERROR, Search, TONE_LOBE,
     Tone, lorentzian,
 };
+use rayon::prelude::*;
 use realfft::num_complex::Complex;
 use statrs::distribution::{Continuous, FisherSnedecor};
 use statrs::function::beta::checked_beta_reg;
@@ -110,13 +111,8 @@ impl Search<'_> {
         ((self.opts.max_width_hz / self.df()).floor() as usize).max(1)
     }
 
-    /// The DFT of `x` (consumed: the transform works in it) and its periodograms.
-    pub(super) fn periodograms(&self, mut x: Vec<f64>) -> Spectra {
-        let mut dft = self.fft.make_output_vec();
-        self.fft
-            .process(&mut x, &mut dft)
-            .expect("buffer lengths match the FFT plan");
-        drop(x);
+    /// The periodograms of a DFT of the searched samples (bins 0..=n/2).
+    pub(super) fn periodograms(&self, dft: Vec<Complex<f64>>) -> Spectra {
         let n = self.n as f64;
         Spectra {
             dft,
@@ -164,23 +160,27 @@ impl Search<'_> {
                 s / (s + excess)
             })
         };
-        Backgrounds {
-            rect: background(
-                |k| spectra.rect(k) * share(&|b| &b.rect, k),
-                &mask,
-                self.k_hi,
-                self.widest(),
-                RECT_MEDIAN_VARIANCE,
-            ),
-            hann: background(
-                |k| spectra.hann(k) * share(&|b| &b.hann, k),
-                &mask,
-                self.k_hi,
-                self.widest(),
-                HANN_MEDIAN_VARIANCE,
-            ),
-            mask,
-        }
+        let (rect, hann) = rayon::join(
+            || {
+                background(
+                    |k| spectra.rect(k) * share(&|b| &b.rect, k),
+                    &mask,
+                    self.k_hi,
+                    self.widest(),
+                    RECT_MEDIAN_VARIANCE,
+                )
+            },
+            || {
+                background(
+                    |k| spectra.hann(k) * share(&|b| &b.hann, k),
+                    &mask,
+                    self.k_hi,
+                    self.widest(),
+                    HANN_MEDIAN_VARIANCE,
+                )
+            },
+        );
+        Backgrounds { rect, hann, mask }
     }
 
     /// Marks every band of `bands`, widened by its own width on each side.
@@ -316,10 +316,6 @@ impl Search<'_> {
                 p_values: Vec::new(),
             };
         }
-        let mut cum = vec![0.0; k_hi - k_lo + 2];
-        for k in k_lo..=k_hi {
-            cum[k - k_lo + 1] = cum[k - k_lo] + spectra.rect(k) / bg.rect.level(k);
-        }
         let widest = self.widest();
         let scales: Vec<usize> = std::iter::successors(Some(1usize), |l| Some(l * 2))
             .take_while(|&l| l <= widest)
@@ -327,61 +323,86 @@ impl Search<'_> {
         let allowed = |j: usize, l: usize| {
             l == 1 || l as f64 <= self.opts.max_relative_width * (j as f64 + (l as f64 - 1.0) / 2.0)
         };
-        let runs = |l: usize| {
+        // The runs of l bins starting in [from, to): every step-th bin from k_lo on.
+        let runs = |l: usize, from: usize, to: usize| {
             let step = (l / 2).max(1);
-            (k_lo..)
+            let first = k_lo + (from.saturating_sub(k_lo)).div_ceil(step) * step;
+            (first..to.min((k_hi + 2).saturating_sub(l)))
                 .step_by(step)
-                .take_while(move |&j| j + l - 1 <= k_hi)
                 .filter(move |&j| allowed(j, l))
         };
         let octave = |j: usize, l: usize| (j + l / 2).ilog2() as usize;
         let mut per_octave = vec![0usize; k_hi.ilog2() as usize + 1];
         for &l in &scales {
-            for j in runs(l) {
+            for j in runs(l, k_lo, k_hi + 1) {
                 per_octave[octave(j, l)] += 1;
             }
         }
         let octaves = per_octave.iter().filter(|&&c| c > 0).count().max(1);
-        let mut thresholds = Thresholds::default();
         let least_rel_var = [bg.hann.least_rel_var(), bg.rect.least_rel_var()];
-        // Passing tests, ranked by how unlikely they are without a line, so that each line is
-        // located by the run that fits it best.
-        let mut passed: Vec<Passed> = Vec::new();
-        for &l in &scales {
-            for j in runs(l) {
-                let o = octave(j, l);
-                let level = self.opts.false_alarm / (octaves * per_octave[o]) as f64;
-                let centre = j + l / 2;
-                let (mean, background) = if l == 1 {
-                    (spectra.hann(j) / bg.hann.level(j), &bg.hann)
-                } else {
-                    ((cum[j + l - k_lo] - cum[j - k_lo]) / l as f64, &bg.rect)
-                };
-                // Every threshold lies beyond two standard deviations (level < 1 %): most runs
-                // are settled without one, and most of those by the least variance alone.
-                let least = least_rel_var[usize::from(l > 1)];
-                if mean <= 1.0 + 2.0 * (1.0 / l as f64 + least).sqrt() {
-                    continue;
-                }
-                let v = background.rel_var(centre);
-                if mean <= 1.0 + 2.0 * (1.0 / l as f64 + v).sqrt() {
-                    continue;
-                }
-                let bucket = background.bucket(centre);
-                if mean > thresholds.get(l, bucket, o, level) {
-                    passed.push(Passed {
-                        surprise: surprise(mean, l, v),
-                        first: j,
-                        len: l,
-                        mean,
-                        bucket,
-                        tests: octaves * per_octave[o],
-                    });
+        // The runs starting in one chunk of bins, tested against the ratios' running sum over
+        // the chunk and the widest run beyond it: chunks go to threads, and no sum as long as
+        // the spectrum is held.
+        let chunk = (4 * widest).max(1 << 16);
+        let starts: Vec<usize> = (k_lo..=k_hi).step_by(chunk).collect();
+        let tested = |from: usize| -> Vec<Passed> {
+            let to = (from + chunk).min(k_hi + 1);
+            let end = (to + widest).min(k_hi + 1);
+            let mut cum = Vec::with_capacity(end - from + 1);
+            cum.push(0.0);
+            let mut sum = 0.0;
+            for k in from..end {
+                sum += spectra.rect(k) / bg.rect.level(k);
+                cum.push(sum);
+            }
+            let mut thresholds = Thresholds::default();
+            let mut passed = Vec::new();
+            for &l in &scales {
+                for j in runs(l, from, to) {
+                    let o = octave(j, l);
+                    let level = self.opts.false_alarm / (octaves * per_octave[o]) as f64;
+                    let centre = j + l / 2;
+                    let (mean, background) = if l == 1 {
+                        (spectra.hann(j) / bg.hann.level(j), &bg.hann)
+                    } else {
+                        ((cum[j + l - from] - cum[j - from]) / l as f64, &bg.rect)
+                    };
+                    // Every threshold lies beyond two standard deviations (level < 1 %): most
+                    // runs are settled without one, and most of those by the least variance
+                    // alone.
+                    let least = least_rel_var[usize::from(l > 1)];
+                    if mean <= 1.0 + 2.0 * (1.0 / l as f64 + least).sqrt() {
+                        continue;
+                    }
+                    let v = background.rel_var(centre);
+                    if mean <= 1.0 + 2.0 * (1.0 / l as f64 + v).sqrt() {
+                        continue;
+                    }
+                    let bucket = background.bucket(centre);
+                    if mean > thresholds.get(l, bucket, o, level) {
+                        passed.push(Passed {
+                            surprise: surprise(mean, l, v),
+                            first: j,
+                            len: l,
+                            mean,
+                            bucket,
+                            tests: octaves * per_octave[o],
+                        });
+                    }
                 }
             }
-        }
+            passed
+        };
+        // Passing tests, ranked by how unlikely they are without a line, so that each line is
+        // located by the run that fits it best (ties: the shorter, then the lower run first).
+        let mut passed: Vec<Passed> = starts.into_par_iter().flat_map_iter(tested).collect();
+        passed.sort_by(|a, b| {
+            b.surprise
+                .total_cmp(&a.surprise)
+                .then(a.len.cmp(&b.len))
+                .then(a.first.cmp(&b.first))
+        });
         // The best run first; a run that overlaps one already taken adds nothing.
-        passed.sort_by(|a, b| b.surprise.total_cmp(&a.surprise));
         let mut marked = vec![false; k_hi - k_lo + 1];
         let mut taken: Vec<&Passed> = Vec::new();
         for t in &passed {

@@ -723,7 +723,7 @@ fn background_calibration() {
         n,
         rate_hz: rate,
         opts: &opts,
-        fft: RealFftPlanner::<f64>::new().plan_fft_forward(n),
+        fft: Transform::for_record(n),
         k_lo: 5,
         k_hi: (n - 1) / 2,
     };
@@ -742,8 +742,8 @@ fn background_calibration() {
         let y: Vec<f64> = (0..n)
             .map(|_| rng.sample::<f64, _>(rand_distr::StandardNormal))
             .collect();
-        let (_, x) = detrend(&y);
-        let spectra = s.periodograms(x);
+        let (_, dft) = s.fft.dft_detrended(&y, n);
+        let spectra = s.periodograms(dft);
         let mask = vec![false; spectra.len()];
         let truth = 2.0 / rate;
         for (which, c) in [(0, RECT_MEDIAN_VARIANCE), (1, HANN_MEDIAN_VARIANCE)] {
@@ -936,4 +936,73 @@ fn a_tone_beyond_a_wide_lines_core_is_its_own_line() {
     assert!((wide.freq_hz - f_line).abs() < 0.5 * w, "{msg}");
     assert!((wide.power / line_power - 1.0).abs() < 0.2, "{msg}");
     assert!(wide.statistic > tone.statistic, "{msg}");
+}
+
+/// Variance of `y` between `lo` and `hi` Hz: its rectangular periodogram summed over the band.
+fn band_variance(y: &[f64], rate: f64, lo: f64, hi: f64) -> f64 {
+    let (_, mut x) = detrend(y);
+    let n = x.len();
+    let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(n);
+    let mut out = fft.make_output_vec();
+    fft.process(&mut x, &mut out).unwrap();
+    let df = rate / n as f64;
+    out.iter()
+        .enumerate()
+        .filter(|(k, _)| (lo..=hi).contains(&(*k as f64 * df)))
+        .map(|(_, c)| 2.0 * c.norm_sqr() / (rate * n as f64) * df)
+        .sum()
+}
+
+/// A record long enough for the square transform, of a length it does not fill (4735 samples
+/// after it): a tone and a resonance are found, and the resonance's excess is removed from the
+/// record's first, middle and last 4000 samples alike. Unit white noise at 100 Hz (one-sided
+/// PSD 0.02 u^2/Hz); the resonance, 0.5 Hz wide at 12 Hz, adds about 0.2 u^2. The removal
+/// scales the band's DFT so that its power falls to the background's: over 4000 samples a
+/// band of about 6 Hz holds 250 bins, so its white level is measured to +-6 %.
+#[test]
+fn a_long_record_is_searched_and_cleaned_to_its_end() {
+    let rate = 100.0;
+    let n = SQUARE_MIN_SAMPLES + 54_321;
+    let searched = Transform::for_record(n).len();
+    assert_eq!(n - searched, 4735);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut y: Vec<f64> = (0..n)
+        .map(|_| rng.sample::<f64, _>(rand_distr::StandardNormal))
+        .collect();
+    add_tone(&mut y, rate, 0.05, 31.0, 0.3);
+    crate::sim::noise::add_line(&mut y, rate, 12.0, 0.5, 0.69, &mut rng);
+    let cleaned = clean(&y, rate, &LineOptions::default()).unwrap();
+    let tone = cleaned
+        .lines
+        .iter()
+        .find(|l| (l.freq_hz - 31.0).abs() < 1e-3);
+    let tone = tone.unwrap_or_else(|| panic!("no tone at 31 Hz in {:?}", cleaned.lines));
+    assert!((tone.amplitude / 0.05 - 1.0).abs() < 0.1, "{tone:?}");
+    let resonance = cleaned
+        .lines
+        .iter()
+        .find(|l| (l.freq_hz - 12.0).abs() < 0.1);
+    let resonance =
+        resonance.unwrap_or_else(|| panic!("no resonance at 12 Hz in {:?}", cleaned.lines));
+    assert!((0.3..0.8).contains(&resonance.width_hz), "{resonance:?}");
+    assert_eq!(cleaned.rate.len(), n);
+    let (lo, hi) = cleaned.bands_hz[0];
+    assert!(lo < 11.0 && hi > 13.0, "band {lo}..{hi} Hz");
+    let white = 0.02 * (hi - lo);
+    for (name, range) in [
+        ("first", 0..4000),
+        ("middle", 500_000..504_000),
+        ("last", n - 4000..n),
+    ] {
+        let before = band_variance(&y[range.clone()], rate, lo, hi);
+        let after = band_variance(&cleaned.rate[range], rate, lo, hi);
+        assert!(
+            before > 2.0 * white,
+            "{name} 4000 samples before: {before}, white {white}"
+        );
+        assert!(
+            (0.8 * white..1.25 * white).contains(&after),
+            "{name} 4000 samples after: {after}, white {white}"
+        );
+    }
 }
