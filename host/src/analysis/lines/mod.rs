@@ -203,8 +203,9 @@ pub fn detect(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Vec<Line
 }
 
 /// [`detect`], and the record with the lines removed: each tone subtracted, and in each line's
-/// band the Fourier coefficients scaled so that the band's power falls to the background's
-/// (the background's own fluctuation within the band is kept; only the excess goes).
+/// band the Fourier coefficients scaled bin by bin by the background's share of the measured
+/// line's density there, then as a whole until the band's power is the background's (the
+/// background's own fluctuation within the band is kept; only the excess goes).
 pub fn remove(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<Removed, LineError> {
     let Cleaned { lines, rate, .. } = clean(rate, rate_hz, opts)?;
     Ok(Removed {
@@ -254,16 +255,22 @@ pub fn clean<'a>(
         .iter()
         .map(|&(a, b)| (a as f64 * df, b as f64 * df))
         .collect();
-    let scale = 2.0 / (rate_hz * n as f64);
+    let removal = Removal {
+        bands: &bands,
+        lines: &lines,
+        background: &background,
+        n,
+        rate_hz,
+    };
     // The samples after the searched ones: the same bands scaled down in the DFT of the
     // record's last n samples.
     let tail = (total > n).then(|| {
         let (trend, mut end) = transform.dft_detrended(&work[total - n..], 0);
-        scale_bands(&mut end, &bands, &background, scale);
+        removal.apply(&mut end);
         transform.samples(end, trend)[2 * n - total..].to_vec()
     });
     drop(work);
-    scale_bands(&mut spectrum, &bands, &background, scale);
+    removal.apply(&mut spectrum);
     let mut y = transform.samples(spectrum, trend);
     y.extend(tail.into_iter().flatten());
     Ok(Cleaned {
@@ -273,21 +280,55 @@ pub fn clean<'a>(
     })
 }
 
-/// Scales the DFT bins of each band (inclusive bin ranges) so that the band's periodogram
-/// power (`scale |X_k|^2`) falls to the background's expectation; a band already at or below
-/// it is left alone.
-fn scale_bands(
-    spectrum: &mut [Complex<f64>],
-    bands: &[(usize, usize)],
-    background: &Background,
-    scale: f64,
-) {
-    for &(a, b) in bands {
-        let observed: f64 = spectrum[a..=b].iter().map(|c| c.norm_sqr() * scale).sum();
-        let expected: f64 = (a..=b).map(|k| background.level(k)).sum();
-        if observed > expected && observed > 0.0 {
-            let g = (expected / observed).sqrt();
-            spectrum[a..=b].iter_mut().for_each(|c| *c *= g);
+/// The removal of the lines' excess from the DFT of `n` searched samples at `rate_hz`.
+struct Removal<'a> {
+    bands: &'a [(usize, usize)],
+    lines: &'a [Line],
+    background: &'a Background,
+    n: usize,
+    rate_hz: f64,
+}
+
+impl Removal<'_> {
+    /// Scales the DFT bins of each band (inclusive bin ranges) so that the band's excess goes
+    /// and its background stays. Each bin is first scaled by `sqrt(S / (S + L))`, S the
+    /// background and L the density its measured lines put there (their Lorentzians and
+    /// folded images, [`line_density`]): a bin of expected power `S + L` then has expected
+    /// power S, so the line's shape leaves the band and the background's own scatter stays.
+    /// The band is then scaled as a whole until its power is the background's, which alone
+    /// removes what a pure tone's or an unresolved line's bins hold (they have no
+    /// Lorentzian) and what a line not shaped like a Lorentzian leaves. A band already at or
+    /// below its background is left alone.
+    fn apply(&self, spectrum: &mut [Complex<f64>]) {
+        let scale = 2.0 / (self.rate_hz * self.n as f64);
+        let df = self.rate_hz / self.n as f64;
+        for &(a, b) in self.bands {
+            let inside: Vec<&Line> = self
+                .lines
+                .iter()
+                .filter(|l| {
+                    l.width_hz > 0.0
+                        && (a as f64 - 0.5) * df <= l.freq_hz
+                        && l.freq_hz <= (b as f64 + 0.5) * df
+                })
+                .collect();
+            for (k, c) in spectrum.iter_mut().enumerate().take(b + 1).skip(a) {
+                let s = self.background.level(k);
+                let f = k as f64 * df;
+                let excess: f64 = inside
+                    .iter()
+                    .map(|l| line_density(l.freq_hz, l.width_hz, l.power, self.rate_hz, f))
+                    .sum();
+                if excess > 0.0 {
+                    *c *= (s / (s + excess)).sqrt();
+                }
+            }
+            let observed: f64 = spectrum[a..=b].iter().map(|c| c.norm_sqr() * scale).sum();
+            let expected: f64 = (a..=b).map(|k| self.background.level(k)).sum();
+            if observed > expected && observed > 0.0 {
+                let g = (expected / observed).sqrt();
+                spectrum[a..=b].iter_mut().for_each(|c| *c *= g);
+            }
         }
     }
 }

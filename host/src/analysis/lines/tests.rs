@@ -957,8 +957,8 @@ fn band_variance(y: &[f64], rate: f64, lo: f64, hi: f64) -> f64 {
 /// after it): a tone and a resonance are found, and the resonance's excess is removed from the
 /// record's first, middle and last 4000 samples alike. Unit white noise at 100 Hz (one-sided
 /// PSD 0.02 u^2/Hz); the resonance, 0.5 Hz wide at 12 Hz, adds about 0.2 u^2. The removal
-/// scales the band's DFT so that its power falls to the background's: over 4000 samples a
-/// band of about 6 Hz holds 250 bins, so its white level is measured to +-6 %.
+/// scales the band's DFT so that its power, and its shape, fall to the background's: over
+/// 4000 samples a band of about 6 Hz holds 250 bins, so its white level is measured to +-6 %.
 #[test]
 fn a_long_record_is_searched_and_cleaned_to_its_end() {
     let rate = 100.0;
@@ -995,7 +995,7 @@ fn a_long_record_is_searched_and_cleaned_to_its_end() {
         ("last", n - 4000..n),
     ] {
         let before = band_variance(&y[range.clone()], rate, lo, hi);
-        let after = band_variance(&cleaned.rate[range], rate, lo, hi);
+        let after = band_variance(&cleaned.rate[range.clone()], rate, lo, hi);
         assert!(
             before > 2.0 * white,
             "{name} 4000 samples before: {before}, white {white}"
@@ -1003,6 +1003,18 @@ fn a_long_record_is_searched_and_cleaned_to_its_end() {
         assert!(
             (0.8 * white..1.25 * white).contains(&after),
             "{name} 4000 samples after: {after}, white {white}"
+        );
+        // The line's own shape goes too: between 11 and 13 Hz (80 bins, +-11 %) the white
+        // level's 0.04 u^2 is left, not the band's uniform share of the line.
+        let core_before = band_variance(&y[range.clone()], rate, 11.0, 13.0);
+        let core = band_variance(&cleaned.rate[range], rate, 11.0, 13.0);
+        assert!(
+            core_before > 0.12,
+            "{name} 4000 samples, 11-13 Hz before: {core_before}"
+        );
+        assert!(
+            (0.028..0.056).contains(&core),
+            "{name} 4000 samples, 11-13 Hz after: {core}"
         );
     }
 }
