@@ -302,7 +302,14 @@ impl Removal<'_> {
     fn apply(&self, spectrum: &mut [Complex<f64>]) {
         let scale = 2.0 / (self.rate_hz * self.n as f64);
         let df = self.rate_hz / self.n as f64;
+        let power = |spectrum: &[Complex<f64>], a: usize, b: usize| -> f64 {
+            spectrum[a..=b].iter().map(|c| c.norm_sqr() * scale).sum()
+        };
         for &(a, b) in self.bands {
+            let expected: f64 = (a..=b).map(|k| self.background.level(k)).sum();
+            if power(spectrum, a, b) <= expected {
+                continue;
+            }
             let inside: Vec<&Line> = self
                 .lines
                 .iter()
@@ -323,8 +330,7 @@ impl Removal<'_> {
                     *c *= (s / (s + excess)).sqrt();
                 }
             }
-            let observed: f64 = spectrum[a..=b].iter().map(|c| c.norm_sqr() * scale).sum();
-            let expected: f64 = (a..=b).map(|k| self.background.level(k)).sum();
+            let observed = power(spectrum, a, b);
             if observed > expected && observed > 0.0 {
                 let g = (expected / observed).sqrt();
                 spectrum[a..=b].iter_mut().for_each(|c| *c *= g);
