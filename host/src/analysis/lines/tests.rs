@@ -938,18 +938,23 @@ fn a_tone_beyond_a_wide_lines_core_is_its_own_line() {
     assert!(wide.statistic > tone.statistic, "{msg}");
 }
 
-/// Variance of `y` between `lo` and `hi` Hz: its rectangular periodogram summed over the band.
+/// Variance of `y` between `lo` and `hi` Hz: its rectangular periodogram (Welch with one
+/// segment) summed over the band.
 fn band_variance(y: &[f64], rate: f64, lo: f64, hi: f64) -> f64 {
-    let (_, mut x) = detrend(y);
-    let n = x.len();
-    let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(n);
-    let mut out = fft.make_output_vec();
-    fft.process(&mut x, &mut out).unwrap();
-    let df = rate / n as f64;
-    out.iter()
-        .enumerate()
-        .filter(|(k, _)| (lo..=hi).contains(&(*k as f64 * df)))
-        .map(|(_, c)| 2.0 * c.norm_sqr() / (rate * n as f64) * df)
+    use crate::analysis::psd::{WelchOptions, Window, welch};
+    let options = WelchOptions {
+        segment_len: y.len(),
+        overlap: 0.0,
+        window: Window::Rectangular,
+        detrend_mean: true,
+    };
+    let psd = welch(y, rate, &options).unwrap();
+    let df = rate / y.len() as f64;
+    psd.freq
+        .iter()
+        .zip(&psd.density)
+        .filter(|(f, _)| (lo..=hi).contains(*f))
+        .map(|(_, d)| d * df)
         .sum()
 }
 
