@@ -22,6 +22,7 @@ pub mod low_pass;
 pub mod noise_id;
 pub mod numerics;
 pub mod pipeline;
+pub mod power_fft;
 pub mod precision;
 pub mod psd;
 pub mod square_fft;
@@ -151,7 +152,9 @@ const PHASE_BLOCK: usize = 1024;
 pub fn into_phase(mut y: Vec<f64>, tau0: f64) -> Vec<f64> {
     use rayon::prelude::*;
     let n = y.len();
-    // x[0] = 0, and y moves one place up to become x[1..].
+    // x[0] = 0, and y moves one place up to become x[1..]. Exactly one more place: a full
+    // buffer would otherwise double.
+    y.reserve_exact(1);
     y.push(0.0);
     y.copy_within(0..n, 1);
     y[0] = 0.0;

@@ -296,6 +296,42 @@ pub fn analyze(
     options: &Options,
     tick: &(dyn Fn() + Sync),
 ) -> Result<Vec<ChannelResult>, AnalysisError> {
+    check_record(record, options)?;
+    record
+        .channels
+        .par_iter()
+        .map(|c| {
+            let values = Cow::Borrowed(&c.values[..]);
+            Ok(analyze_channel(c, values, record.rate_hz, options, tick))
+        })
+        .collect()
+}
+
+/// [`analyze`] of a record whose samples the caller gives up: each channel's buffer is
+/// searched for lines in place ([`lines::clean_in_place`]), becomes the phase in place
+/// ([`super::into_phase`]) and serves the Allan curves and every level of the spectrum, so
+/// for a rate record without lines the analysis holds little besides the record. A record
+/// with lines also holds its copy without them. The channels keep their names and units;
+/// their values are left empty.
+pub fn analyze_taking(
+    record: &mut Record,
+    options: &Options,
+    tick: &(dyn Fn() + Sync),
+) -> Result<Vec<ChannelResult>, AnalysisError> {
+    check_record(record, options)?;
+    let rate_hz = record.rate_hz;
+    record
+        .channels
+        .par_iter_mut()
+        .map(|c| {
+            let values = Cow::Owned(std::mem::take(&mut c.values));
+            Ok(analyze_channel(c, values, rate_hz, options, tick))
+        })
+        .collect()
+}
+
+/// What [`analyze`] checks before it starts: channels, options and every channel's samples.
+fn check_record(record: &Record, options: &Options) -> Result<(), AnalysisError> {
     if record.channels.is_empty() {
         return Err(AnalysisError::NoChannels);
     }
@@ -303,12 +339,7 @@ pub fn analyze(
         return Err(confidence_error(options.confidence));
     }
     record.channels.iter().try_for_each(validate)?;
-    check_options(options, record.rate_hz)?;
-    record
-        .channels
-        .par_iter()
-        .map(|c| Ok(analyze_channel(c, record.rate_hz, options, tick)))
-        .collect()
+    check_options(options, record.rate_hz)
 }
 
 fn confidence_error(confidence: f64) -> AnalysisError {
@@ -365,49 +396,78 @@ fn validate(c: &Channel) -> Result<(), AnalysisError> {
 
 fn analyze_channel(
     channel: &Channel,
+    values: Cow<[f64]>,
     rate_hz: f64,
     options: &Options,
     tick: &(dyn Fn() + Sync),
 ) -> ChannelResult {
     let tau0 = 1.0 / rate_hz;
-    // The rate for the line search and the PSD. The line search's full-record FFT (its
-    // plan, the detrended record and its DFT) sets the peak memory; what follows holds less.
-    let rate: Cow<[f64]> = match options.data_type {
-        DataType::Rate => Cow::Borrowed(&channel.values[..]),
-        DataType::Phase => Cow::Owned(
-            channel
-                .values
-                .windows(2)
-                .map(|w| (w[1] - w[0]) / tau0)
-                .collect(),
-        ),
+    let n = values.len();
+    let (mut rate, phase): (Cow<[f64]>, Option<Cow<[f64]>>) = match options.data_type {
+        DataType::Rate => (values, None),
+        DataType::Phase => {
+            let rate = values.windows(2).map(|w| (w[1] - w[0]) / tau0).collect();
+            (Cow::Owned(rate), Some(values))
+        }
     };
-    // Spectral lines leave the record before the fit's curve and the roll-off search.
-    let searched = options
-        .lines
-        .and_then(|opts| lines::clean(&rate, rate_hz, &opts).ok());
-    let low_pass = channel_low_pass(channel.quantity, &rate, searched.as_ref(), rate_hz, options);
-    let (lines, line_free) = match searched {
-        Some(c) if !c.lines.is_empty() => (c.lines, Some(c.rate)),
-        _ => (Vec::new(), None),
+    // Spectral lines leave the record before the fit's curve and the roll-off search. A
+    // record the analysis owns is searched in its own buffer (`lines::clean_in_place`).
+    let searched: Option<Option<lines::Cleaned<'static>>> =
+        options.lines.and_then(|opts| match &mut rate {
+            Cow::Owned(own) => lines::clean_in_place(own, rate_hz, &opts).ok(),
+            Cow::Borrowed(r) => lines::clean(r, rate_hz, &opts).ok().map(|c| c.changed()),
+        });
+    let low_pass = {
+        let quiet;
+        let as_searched = match &searched {
+            Some(Some(cleaned)) => Some(cleaned),
+            Some(None) => {
+                quiet = lines::Cleaned {
+                    lines: Vec::new(),
+                    rate: Cow::Borrowed(&rate[..]),
+                    bands_hz: Vec::new(),
+                };
+                Some(&quiet)
+            }
+            None => None,
+        };
+        channel_low_pass(channel.quantity, &rate, as_searched, rate_hz, options)
     };
-    // The spectrum and its fit need only the rate, so they run beside the Allan stage (which
-    // holds the phase and, with lines removed, the line-free record): on one channel of
-    // 10^7 samples on two cores the analysis takes 1.12 s instead of 1.25 s, at the same
-    // peak memory.
+    let (lines, line_free) = match searched.flatten() {
+        Some(c) => (c.lines, Some(c.rate.into_owned())),
+        None => (Vec::new(), None),
+    };
+    // One phase buffer serves the Allan family and, read as the rate's block means
+    // (`psd::Samples::of_phase`), every level of the spectrum: an owned rate record becomes
+    // it in place.
+    let phase: Cow<[f64]> = match phase {
+        Some(phase) => phase,
+        None => match rate {
+            Cow::Owned(own) => Cow::Owned(super::into_phase(own, tau0)),
+            Cow::Borrowed(r) => Cow::Owned(phase_from_rate(r, tau0)),
+        },
+    };
+    // The spectrum and its fit run beside the Allan stage, both reading the phase.
     let ((deviations, fit_curve, fit, readouts), (psd, psd_terms)) = rayon::join(
-        || allan_stage(channel, rate_hz, line_free, low_pass.clone(), options, tick),
+        || allan_stage(&phase, rate_hz, line_free, low_pass.clone(), options, tick),
         || {
-            let psd = spectrum(&rate, rate_hz, options);
+            let samples = psd::Samples::of_phase(&phase, tau0);
+            let segment = options
+                .psd_segment
+                .unwrap_or_else(|| psd::segment_len_for(samples.len()));
+            let transform = psd::SegmentTransform::new(segment.max(1), options.psd_window);
+            let psd = spectrum(samples, rate_hz, options, &transform);
             let psd_options = fit::psd::PsdFitOptions {
                 segment_len: options.psd_segment.unwrap_or(0),
                 window: options.psd_window,
                 confidence: options.confidence,
                 low_pass: low_pass.clone(),
             };
-            // The spectrum is the PSD fit's finest level: the same Welch estimate.
+            // The spectrum is the PSD fit's finest level: the same Welch estimate, window
+            // and plan.
             let welch = psd.as_ref().ok().map(|(p, _)| p);
-            let psd_terms = fit::psd::fit_psd_with(&rate, rate_hz, &psd_options, welch);
+            let given = (welch, Some(&transform));
+            let psd_terms = fit::psd::fit_psd_with(samples, rate_hz, &psd_options, given);
             tick();
             (psd, psd_terms)
         },
@@ -418,7 +478,7 @@ fn analyze_channel(
         kind: sensor_kind(channel.quantity),
         unit: channel.unit(),
         rate_hz,
-        n: channel.values.len(),
+        n,
         deviations,
         fit_curve,
         lines,
@@ -430,13 +490,14 @@ fn analyze_channel(
     }
 }
 
-/// The Allan curves of `options.estimators` with their intervals, the curve the noise terms
-/// are fitted to (the oadev of `line_free`, the record without its lines, when there is one;
-/// else the record's own) with its intervals, and the fit with its slope read-outs.
+/// The Allan curves of `options.estimators` on `phase` with their intervals, the curve the
+/// noise terms are fitted to (the oadev of `line_free`, the rate record without its lines,
+/// when there is one; else the record's own) with its intervals, and the fit with its slope
+/// read-outs.
 fn allan_stage(
-    channel: &Channel,
+    phase: &[f64],
     rate_hz: f64,
-    line_free: Option<Cow<[f64]>>,
+    line_free: Option<Vec<f64>>,
     low_pass: Option<LowPass>,
     options: &Options,
     tick: &(dyn Fn() + Sync),
@@ -449,25 +510,17 @@ fn allan_stage(
     let tau0 = 1.0 / rate_hz;
     let lines_removed = line_free.is_some();
     // The fit's curve from the record without its lines, on the same taus.
-    let clean_deviation = line_free.map(|r| {
-        let clean = match r {
-            Cow::Owned(rate) => super::into_phase(rate, tau0),
-            Cow::Borrowed(rate) => phase_from_rate(rate, tau0),
-        };
+    let clean_deviation = line_free.map(|rate| {
+        let clean = super::into_phase(rate, tau0);
         let factors = taus::factors(
             options.taus,
             allan::max_factor(Estimator::Oadev, clean.len()),
         );
         allan::deviation(Estimator::Oadev, &clean, tau0, &factors)
     });
-    // Phase for the Allan family.
-    let phase: Cow<[f64]> = match options.data_type {
-        DataType::Rate => Cow::Owned(phase_from_rate(&channel.values, tau0)),
-        DataType::Phase => Cow::Borrowed(&channel.values[..]),
-    };
     let curve = |est: Estimator| {
         let factors = taus::factors(options.taus, allan::max_factor(est, phase.len()));
-        allan::deviation(est, &phase, tau0, &factors)
+        allan::deviation(est, phase, tau0, &factors)
     };
     let curves: Vec<Deviation> = options.estimators.par_iter().map(|&e| curve(e)).collect();
     let fit_deviation = match clean_deviation {
@@ -482,7 +535,7 @@ fn allan_stage(
     // The intervals take the noise type from the fit where it has one (ci::intervals_with_model).
     let with_intervals = |deviation: Deviation| {
         let model = fit.as_ref().ok();
-        let intervals = ci::intervals_with_model(&deviation, &phase, options.confidence, model);
+        let intervals = ci::intervals_with_model(&deviation, phase, options.confidence, model);
         tick();
         DeviationResult {
             deviation,
@@ -602,15 +655,20 @@ pub(super) fn fit_noise(
     (fitted, fit::slope_readouts(&d.tau, &d.dev))
 }
 
-fn spectrum(rate: &[f64], rate_hz: f64, options: &Options) -> Result<(Psd, BinnedPsd), PsdError> {
+fn spectrum(
+    samples: psd::Samples,
+    rate_hz: f64,
+    options: &Options,
+    transform: &psd::SegmentTransform,
+) -> Result<(Psd, BinnedPsd), PsdError> {
     let welch = WelchOptions {
         segment_len: options
             .psd_segment
-            .unwrap_or_else(|| psd::segment_len_for(rate.len())),
+            .unwrap_or_else(|| psd::segment_len_for(samples.len())),
         window: options.psd_window,
         ..WelchOptions::default()
     };
-    let spectrum = psd::welch(rate, rate_hz, &welch)?;
+    let spectrum = psd::welch_of(samples, rate_hz, &welch, Some(transform))?;
     let binned = psd::log_binned(&spectrum, options.psd_bins_per_decade);
     Ok((spectrum, binned))
 }
@@ -725,5 +783,74 @@ mod tests {
             covered += usize::from(cutoff_z(&found, cutoff).abs() <= 1.0);
         }
         assert!(covered >= 6, "covered {covered} of 10");
+    }
+
+    /// An analysis given the samples (searched, made phase and read in their own buffer)
+    /// computes what one borrowing them computes, to the transforms' rounding: on a record
+    /// long enough for the in-place line search, with and without a line.
+    #[test]
+    fn an_analysis_taking_the_samples_matches_one_borrowing_them() {
+        let rate_hz = 100.0;
+        let n = lines::SQUARE_MIN_SAMPLES + 777;
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        let mut walk = 0.0;
+        let quiet: Vec<f64> = (0..n)
+            .map(|_| {
+                walk += 1e-3 * rng.sample::<f64, _>(rand_distr::StandardNormal);
+                2.0 + rng.sample::<f64, _>(rand_distr::StandardNormal) + walk
+            })
+            .collect();
+        let toned: Vec<f64> = quiet
+            .iter()
+            .enumerate()
+            .map(|(t, v)| v + 0.2 * (2.0 * std::f64::consts::PI * 23.0 * t as f64 / rate_hz).sin())
+            .collect();
+        let record = Record {
+            source: "test".into(),
+            rate_hz,
+            channels: vec![
+                Channel::named("gyro_x", quiet),
+                Channel::named("gyro_y", toned),
+            ],
+        };
+        let options = Options::default();
+        let borrowed = analyze(&record, &options, &|| {}).unwrap();
+        let mut taken = record.clone();
+        let owned = analyze_taking(&mut taken, &options, &|| {}).unwrap();
+        assert!(taken.channels.iter().all(|c| c.values.is_empty()));
+        assert_eq!(taken.channels.len(), 2);
+        let close = |a: f64, b: f64, what: &str| {
+            assert!((a - b).abs() <= 1e-9 * b.abs(), "{what}: {a} against {b}");
+        };
+        for (a, b) in owned.iter().zip(&borrowed) {
+            assert_eq!(a.n, n);
+            assert_eq!(a.lines.len(), b.lines.len(), "{}", a.name);
+            for (la, lb) in a.lines.iter().zip(&b.lines) {
+                close(la.freq_hz, lb.freq_hz, "line frequency");
+            }
+            let (da, db) = (&a.fit_curve.deviation, &b.fit_curve.deviation);
+            assert_eq!(da.m, db.m);
+            for (x, y) in da.dev.iter().zip(&db.dev) {
+                close(*x, *y, "fit curve");
+            }
+            for (x, y) in a.deviations[0]
+                .deviation
+                .dev
+                .iter()
+                .zip(&b.deviations[0].deviation.dev)
+            {
+                close(*x, *y, "own curve");
+            }
+            let (fa, fb) = (a.fit.as_ref().unwrap(), b.fit.as_ref().unwrap());
+            close(fa.n.value, fb.n.value, "N");
+            close(fa.k.value, fb.k.value, "K");
+            let (pa, pb) = (&a.psd.as_ref().unwrap().0, &b.psd.as_ref().unwrap().0);
+            for (x, y) in pa.density.iter().zip(&pb.density).skip(1) {
+                close(*x, *y, "PSD");
+            }
+            let (ta, tb) = (a.psd_terms.as_ref().unwrap(), b.psd_terms.as_ref().unwrap());
+            close(ta.n.value, tb.n.value, "PSD N");
+        }
+        assert!(owned[0].lines.is_empty() && !owned[1].lines.is_empty());
     }
 }

@@ -18,6 +18,7 @@
 //! coefficient N (AVAR = N^2/tau) has one-sided PSD `2 N^2`; IEEE-952's `S = N^2` is the
 //! two-sided density.
 
+use crate::analysis::power_fft::PowerFft;
 use rayon::prelude::*;
 use realfft::{RealFftPlanner, RealToComplex};
 use serde::Serialize;
@@ -86,20 +87,70 @@ impl Window {
 
     /// The periodic window of length `len` (see the type's documentation).
     pub fn coefficients(self, len: usize) -> Vec<f64> {
-        let terms = self.cosine_terms();
-        (0..len)
-            .map(|k| {
-                let phase = 2.0 * PI * k as f64 / len as f64;
-                terms
-                    .iter()
-                    .enumerate()
-                    .map(|(m, a)| {
-                        let sign = if m % 2 == 0 { 1.0 } else { -1.0 };
-                        sign * a * (m as f64 * phase).cos()
-                    })
-                    .sum()
+        (0..len).map(|k| self.at(k, len)).collect()
+    }
+
+    /// Coefficient k of the periodic window of length `len`.
+    fn at(self, k: usize, len: usize) -> f64 {
+        let phase = 2.0 * PI * k as f64 / len as f64;
+        self.cosine_terms()
+            .iter()
+            .enumerate()
+            .map(|(m, a)| {
+                let sign = if m % 2 == 0 { 1.0 } else { -1.0 };
+                sign * a * (m as f64 * phase).cos()
             })
-            .collect()
+            .sum()
+    }
+}
+
+/// A periodic window held by its first half: `w[k] = w[L - k]` (each term is a cosine of
+/// `2 pi m k / L`), so coefficients `0..=L/2` give the rest, and a segment's window costs
+/// half a segment of memory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Taper {
+    kind: Window,
+    len: usize,
+    /// `w[k]`, k = 0..=L/2.
+    half: Vec<f64>,
+}
+
+impl Taper {
+    /// The window `kind` for segments of `len` samples.
+    pub fn new(kind: Window, len: usize) -> Taper {
+        Taper {
+            kind,
+            len,
+            half: (0..len.div_ceil(2) + usize::from(len.is_multiple_of(2)))
+                .map(|k| kind.at(k, len))
+                .collect(),
+        }
+    }
+
+    /// Coefficients, L.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Which window.
+    pub fn kind(&self) -> Window {
+        self.kind
+    }
+
+    /// The coefficients `w[0..L]` in order.
+    pub fn iter(&self) -> impl Iterator<Item = f64> + '_ {
+        let rising = &self.half[..self.half.len().min(self.len)];
+        let falling = &self.half[1..self.len - rising.len() + 1];
+        rising.iter().chain(falling.iter().rev()).copied()
+    }
+
+    /// `sum w[k]^2`.
+    pub fn sum_of_squares(&self) -> f64 {
+        self.iter().map(|w| w * w).sum()
     }
 }
 
@@ -195,51 +246,186 @@ pub struct Psd {
 /// Welch's one-sided PSD of `y` sampled at `rate_hz` (see the module documentation for the
 /// exact definition; it equals scipy's `welch` with `scaling='density'`).
 pub fn welch(y: &[f64], rate_hz: f64, opts: &WelchOptions) -> Result<Psd, PsdError> {
-    welch_with(y, rate_hz, opts, None)
+    welch_of(Samples::rate(y), rate_hz, opts, None)
 }
 
-/// [`welch`], with the window's coefficients when the caller has them for the segment length
-/// (a caller computing several spectra with one window computes it once).
-pub fn welch_with(
-    y: &[f64],
+/// [`welch`] of the series `samples` reads, whose own sample rate is `rate_hz`, with the
+/// segment length's window and FFT plan when the caller has them (a caller computing several
+/// spectra with one segment length makes them once).
+pub fn welch_of(
+    samples: Samples,
     rate_hz: f64,
     opts: &WelchOptions,
-    window: Option<&[f64]>,
+    transform: Option<&SegmentTransform>,
 ) -> Result<Psd, PsdError> {
-    let plan = SegmentPlan::new(y, rate_hz, opts)?;
-    let window: Cow<[f64]> = match window {
-        Some(w) if w.len() == plan.len => Cow::Borrowed(w),
-        _ => Cow::Owned(opts.window.coefficients(plan.len)),
+    let plan = SegmentPlan::new(&samples, rate_hz, opts)?;
+    let transform = match transform {
+        Some(t) if t.len() == plan.len && t.window.kind() == opts.window => Cow::Borrowed(t),
+        _ => Cow::Owned(SegmentTransform::new(plan.len, opts.window)),
     };
-    let sums = plan.sum_periodograms(y, &window, opts.detrend_mean);
-    Ok(density_of(&sums, &window, plan.count, rate_hz))
+    let sums = plan.sum_periodograms(&samples, &transform, opts.detrend_mean);
+    Ok(density_of(sums, &transform.window, plan.count, rate_hz))
+}
+
+/// A segment length's window coefficients and transform.
+#[derive(Clone)]
+pub struct SegmentTransform {
+    window: Taper,
+    fft: SegmentFft,
+}
+
+/// How segments are transformed: by a real-FFT plan, or, from [`LONG_SEGMENT`] samples on,
+/// by [`PowerFft`] in one buffer of the segment's length (a plan of that length holds a table
+/// about as large as the segment, and its output lies beside its input).
+#[derive(Clone)]
+enum SegmentFft {
+    Plan(Arc<dyn RealToComplex<f64>>),
+    Powers(Arc<PowerFft>),
+}
+
+impl SegmentTransform {
+    /// The window `kind`'s coefficients for segments of `len` samples, and their transform.
+    pub fn new(len: usize, kind: Window) -> Self {
+        let powers = (len >= LONG_SEGMENT).then(|| PowerFft::new(len)).flatten();
+        SegmentTransform {
+            window: Taper::new(kind, len),
+            fft: match powers {
+                Some(p) => SegmentFft::Powers(Arc::new(p)),
+                None => SegmentFft::Plan(RealFftPlanner::<f64>::new().plan_fft_forward(len)),
+            },
+        }
+    }
+
+    /// Samples per segment.
+    pub fn len(&self) -> usize {
+        self.window.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.window.is_empty()
+    }
+
+    /// The window.
+    pub fn window(&self) -> &Taper {
+        &self.window
+    }
+}
+
+/// The series a Welch estimate reads: a rate record, or the rate whose phase is held, as
+/// block means of `factor` consecutive samples.
+///
+/// From the phase `x[k] = tau0 sum_{j<k} (y[j] - c)` (the Allan family's input, `c` a constant
+/// such as the mean that [`crate::analysis::into_phase`] takes out) the rate is
+/// `y[k] - c = (x[k+1] - x[k]) / tau0`, and the mean of `f` consecutive rates is
+/// `(x[(k+1) f] - x[k f]) / (f tau0)`: one buffer serves the Allan curves and every level of
+/// the multi-resolution PSD, with no copy of the rate or of its decimated versions. The
+/// constant is lost, which no estimate that removes each segment's mean sees; the difference
+/// of two phase values carries their rounding, about `1e-16 max|x| / tau0`.
+#[derive(Debug, Clone, Copy)]
+pub struct Samples<'a> {
+    source: Source<'a>,
+    factor: usize,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Source<'a> {
+    Rate(&'a [f64]),
+    Phase { x: &'a [f64], tau0: f64 },
+}
+
+impl<'a> Samples<'a> {
+    /// The rate samples `y`.
+    pub fn rate(y: &'a [f64]) -> Self {
+        Samples {
+            source: Source::Rate(y),
+            factor: 1,
+        }
+    }
+
+    /// The rate whose phase, sampled every `tau0` seconds, is `x`.
+    pub fn of_phase(x: &'a [f64], tau0: f64) -> Self {
+        Samples {
+            source: Source::Phase { x, tau0 },
+            factor: 1,
+        }
+    }
+
+    /// Means of `by` consecutive samples of this series (trailing samples that fill no block
+    /// dropped).
+    pub fn decimated(self, by: usize) -> Self {
+        Samples {
+            factor: self.factor * by.max(1),
+            ..self
+        }
+    }
+
+    /// Samples in the series.
+    pub fn len(&self) -> usize {
+        match self.source {
+            Source::Rate(y) => y.len() / self.factor,
+            Source::Phase { x, .. } => x.len().saturating_sub(1) / self.factor,
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The first value held that is not finite, with its index in the buffer held.
+    fn first_non_finite(&self) -> Option<(usize, f64)> {
+        let held = match self.source {
+            Source::Rate(y) => y,
+            Source::Phase { x, .. } => x,
+        };
+        held.iter()
+            .copied()
+            .enumerate()
+            .find(|(_, v)| !v.is_finite())
+    }
+
+    /// Samples `start..start + out.len()` into `out`.
+    fn read(&self, start: usize, out: &mut [f64]) {
+        let f = self.factor;
+        match self.source {
+            Source::Rate(y) if f == 1 => out.copy_from_slice(&y[start..start + out.len()]),
+            Source::Rate(y) => {
+                let blocks = y[start * f..(start + out.len()) * f].chunks_exact(f);
+                for (o, block) in out.iter_mut().zip(blocks) {
+                    *o = block.iter().sum::<f64>() / f as f64;
+                }
+            }
+            Source::Phase { x, tau0 } => {
+                let scale = 1.0 / (f as f64 * tau0);
+                for (i, o) in out.iter_mut().enumerate() {
+                    let k = (start + i) * f;
+                    *o = (x[k + f] - x[k]) * scale;
+                }
+            }
+        }
+    }
 }
 
 /// The one-sided density from the sum over `count` segments of `|X[j]|^2` (the module
 /// documentation's normalisation).
-fn density_of(sums: &[f64], window: &[f64], count: usize, rate_hz: f64) -> Psd {
+fn density_of(mut sums: Vec<f64>, window: &Taper, count: usize, rate_hz: f64) -> Psd {
     let len = window.len();
-    let sum_w2: f64 = window.iter().map(|w| w * w).sum();
+    let sum_w2 = window.sum_of_squares();
     let scale = 1.0 / (rate_hz * sum_w2 * count as f64);
     let nyquist = if len.is_multiple_of(2) {
         len / 2
     } else {
         usize::MAX
     };
-    let density = sums
-        .iter()
-        .enumerate()
-        .map(|(j, s)| {
-            let one_sided = if j == 0 || j == nyquist { 1.0 } else { 2.0 };
-            s * scale * one_sided
-        })
-        .collect();
+    for (j, s) in sums.iter_mut().enumerate() {
+        let one_sided = if j == 0 || j == nyquist { 1.0 } else { 2.0 };
+        *s *= scale * one_sided;
+    }
     let freq = (0..=len / 2)
         .map(|j| j as f64 * rate_hz / len as f64)
         .collect();
     Psd {
         freq,
-        density,
+        density: sums,
         segments: count,
     }
 }
@@ -266,15 +452,21 @@ impl Periodogram {
     }
 
     /// Remove the segment's mean (when `detrend`), taper, transform, and add.
-    fn add(&mut self, seg: &[f64], window: &[f64], detrend: bool) {
-        let mean = if detrend {
-            seg.iter().sum::<f64>() / seg.len() as f64
-        } else {
-            0.0
-        };
-        for ((dst, &v), &w) in self.input.iter_mut().zip(seg).zip(window) {
-            *dst = (v - mean) * w;
-        }
+    fn add(&mut self, seg: &[f64], window: &Taper, detrend: bool) {
+        self.input.copy_from_slice(seg);
+        self.add_input(window, detrend);
+    }
+
+    /// [`Periodogram::add`] of the segment of `samples` from `start`, read straight into the
+    /// transform's input.
+    fn add_read(&mut self, samples: &Samples, start: usize, window: &Taper, detrend: bool) {
+        samples.read(start, &mut self.input);
+        self.add_input(window, detrend);
+    }
+
+    /// [`Periodogram::add`] of the segment already in the transform's input.
+    fn add_input(&mut self, window: &Taper, detrend: bool) {
+        taper(&mut self.input, window, detrend);
         // Lengths come from the plan itself, so this cannot fail.
         self.fft
             .process_with_scratch(&mut self.input, &mut self.spectrum, &mut self.scratch)
@@ -282,6 +474,18 @@ impl Periodogram {
         for (a, c) in self.acc.iter_mut().zip(&self.spectrum) {
             *a += c.norm_sqr();
         }
+    }
+}
+
+/// A segment less its mean (when `detrend`), times the window.
+fn taper(segment: &mut [f64], window: &Taper, detrend: bool) {
+    let mean = if detrend {
+        segment.iter().sum::<f64>() / segment.len() as f64
+    } else {
+        0.0
+    };
+    for (v, w) in segment.iter_mut().zip(window.iter()) {
+        *v = (*v - mean) * w;
     }
 }
 
@@ -298,7 +502,7 @@ thread_local! {
 pub struct WelchStream {
     rate_hz: f64,
     detrend: bool,
-    window: Arc<[f64]>,
+    window: Arc<Taper>,
     fft: Arc<dyn RealToComplex<f64>>,
     step: usize,
     /// Samples of the segment being filled (the next segment starts at its front).
@@ -320,7 +524,7 @@ impl WelchStream {
         Ok(WelchStream {
             rate_hz,
             detrend: opts.detrend_mean,
-            window: opts.window.coefficients(plan.len).into(),
+            window: Arc::new(Taper::new(opts.window, plan.len)),
             fft: RealFftPlanner::<f64>::new().plan_fft_forward(plan.len),
             step: plan.step,
             pending: Vec::with_capacity(plan.len),
@@ -374,7 +578,7 @@ impl WelchStream {
             return Err(PsdError::Empty);
         }
         Ok(density_of(
-            &self.acc,
+            self.acc.clone(),
             &self.window,
             self.count,
             self.rate_hz,
@@ -390,14 +594,14 @@ struct SegmentPlan {
 }
 
 impl SegmentPlan {
-    fn new(y: &[f64], rate_hz: f64, opts: &WelchOptions) -> Result<Self, PsdError> {
+    fn new(y: &Samples, rate_hz: f64, opts: &WelchOptions) -> Result<Self, PsdError> {
         if y.is_empty() {
             return Err(PsdError::Empty);
         }
         if !(rate_hz.is_finite() && rate_hz > 0.0) {
             return Err(PsdError::BadRate(rate_hz));
         }
-        if let Some((index, &value)) = y.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        if let Some((index, value)) = y.first_non_finite() {
             return Err(PsdError::NonFinite { index, value });
         }
         Self::for_length(y.len(), rate_hz, opts)
@@ -430,10 +634,31 @@ impl SegmentPlan {
         Ok(SegmentPlan { len, step, count })
     }
 
-    /// Sum over segments of `|X[j]|^2`, `j = 0..=len/2`; segments are split into contiguous
-    /// groups handled in parallel and the group sums are added in order (deterministic).
-    fn sum_periodograms(&self, y: &[f64], window: &[f64], detrend: bool) -> Vec<f64> {
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(self.len);
+    /// Sum over segments of `|X[j]|^2`, `j = 0..=len/2`. With a plan, segments are split
+    /// into contiguous groups handled in parallel and the group sums are added in order
+    /// (deterministic); with [`PowerFft`] one buffer of a segment's length serves every
+    /// segment in turn, while a record with segments that long keeps the other cores busy
+    /// with its Allan curves ([`crate::analysis::pipeline`]).
+    fn sum_periodograms(
+        &self,
+        y: &Samples,
+        transform: &SegmentTransform,
+        detrend: bool,
+    ) -> Vec<f64> {
+        let fft = match &transform.fft {
+            SegmentFft::Plan(fft) => fft,
+            SegmentFft::Powers(powers) => {
+                let mut segment = vec![0.0; self.len];
+                let mut sums = powers.sums();
+                for s in 0..self.count {
+                    y.read(s * self.step, &mut segment);
+                    taper(&mut segment, &transform.window, detrend);
+                    powers.add(&mut segment, &mut sums);
+                }
+                drop(segment);
+                return powers.natural(&sums);
+            }
+        };
         let groups = (rayon::current_num_threads() * 2).clamp(1, self.count);
         let per_group = self.count.div_ceil(groups);
         let partial: Vec<Vec<f64>> = (0..groups)
@@ -441,16 +666,17 @@ impl SegmentPlan {
             .map(|g| {
                 let first = g * per_group;
                 let last = ((g + 1) * per_group).min(self.count);
-                let mut periodogram = Periodogram::new(fft.clone(), vec![0.0; self.len / 2 + 1]);
+                let acc = vec![0.0; self.len / 2 + 1];
+                let mut periodogram = Periodogram::new(fft.clone(), acc);
                 for s in first..last {
-                    let seg = &y[s * self.step..s * self.step + self.len];
-                    periodogram.add(seg, window, detrend);
+                    periodogram.add_read(y, s * self.step, &transform.window, detrend);
                 }
                 periodogram.acc
             })
             .collect();
-        let mut total = vec![0.0; self.len / 2 + 1];
-        for acc in partial {
+        let mut parts = partial.into_iter();
+        let mut total = parts.next().unwrap_or_else(|| vec![0.0; self.len / 2 + 1]);
+        for acc in parts {
             for (t, a) in total.iter_mut().zip(acc) {
                 *t += a;
             }
@@ -458,6 +684,10 @@ impl SegmentPlan {
         total
     }
 }
+
+/// Segments from this length on are transformed by [`PowerFft`] when their length allows
+/// ([`SegmentTransform::new`]).
+pub const LONG_SEGMENT: usize = 1 << 18;
 
 /// A PSD averaged into logarithmically spaced frequency bins.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -786,5 +1016,106 @@ mod tests {
                 samples: 10
             })
         );
+    }
+
+    #[test]
+    fn a_taper_holds_every_coefficient_of_its_window() {
+        for kind in Window::ALL {
+            for len in [1, 2, 3, 4, 5, 8, 255, 256, 1001] {
+                let taper = Taper::new(kind, len);
+                let direct = kind.coefficients(len);
+                let held: Vec<f64> = taper.iter().collect();
+                assert_eq!(held.len(), len, "{kind} {len}");
+                for (k, (a, b)) in held.iter().zip(&direct).enumerate() {
+                    assert!(
+                        (a - b).abs() < 1e-15,
+                        "{kind} {len} at {k}: {a} against {b}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The rate's running sum times tau0, x[0] = 0.
+    fn phase_of(y: &[f64], tau0: f64) -> Vec<f64> {
+        std::iter::once(0.0)
+            .chain(y.iter().scan(0.0, |x, v| {
+                *x += v * tau0;
+                Some(*x)
+            }))
+            .collect()
+    }
+
+    #[test]
+    fn the_rate_read_from_its_phase_and_in_block_means_is_the_rate() {
+        let y: Vec<f64> = white(4099, 1.0, 11).iter().map(|v| v + 0.2).collect();
+        let tau0 = 0.01;
+        let x = phase_of(&y, tau0);
+        for factor in [1, 2, 4, 7] {
+            let from_rate = Samples::rate(&y).decimated(factor);
+            let from_phase = Samples::of_phase(&x, tau0).decimated(factor);
+            assert_eq!(from_rate.len(), y.len() / factor);
+            assert_eq!(from_phase.len(), y.len() / factor);
+            let (mut a, mut b) = (vec![0.0; 100], vec![0.0; 100]);
+            from_rate.read(37, &mut a);
+            from_phase.read(37, &mut b);
+            for (i, (p, q)) in a.iter().zip(&b).enumerate() {
+                let block = &y[(37 + i) * factor..(38 + i) * factor];
+                let mean = block.iter().sum::<f64>() / factor as f64;
+                assert!(
+                    (p - mean).abs() < 1e-12,
+                    "factor {factor}, rate, sample {i}"
+                );
+                assert!(
+                    (q - mean).abs() < 1e-9,
+                    "factor {factor}, phase, sample {i}"
+                );
+            }
+        }
+        // Welch from the phase is Welch from the rate.
+        let opts = WelchOptions {
+            segment_len: 512,
+            ..WelchOptions::default()
+        };
+        let direct = welch(&y, 100.0, &opts).unwrap();
+        let read = welch_of(Samples::of_phase(&x, tau0), 100.0, &opts, None).unwrap();
+        for (a, b) in read.density.iter().zip(&direct.density).skip(1) {
+            assert!((a / b - 1.0).abs() < 1e-9, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn long_segments_are_summed_in_one_buffer_as_a_plan_sums_them() {
+        // Segments of LONG_SEGMENT samples take PowerFft's route; the reference is Welch's
+        // definition computed segment by segment with realfft's plan.
+        let len = LONG_SEGMENT;
+        let y = white(2 * len + len / 2 + 3, 0.5, 5);
+        let opts = WelchOptions {
+            segment_len: len,
+            ..WelchOptions::default()
+        };
+        let transform = SegmentTransform::new(len, Window::Hann);
+        assert!(matches!(transform.fft, SegmentFft::Powers(_)));
+        let got = welch_of(Samples::rate(&y), 20.0, &opts, Some(&transform)).unwrap();
+        let plan = RealFftPlanner::<f64>::new().plan_fft_forward(len);
+        let w = Window::Hann.coefficients(len);
+        let mut sums = vec![0.0; len / 2 + 1];
+        let step = len / 2;
+        let count = (y.len() - step) / step;
+        for s in 0..count {
+            let seg = &y[s * step..s * step + len];
+            let mean = seg.iter().sum::<f64>() / len as f64;
+            let mut input: Vec<f64> = seg.iter().zip(&w).map(|(v, w)| (v - mean) * w).collect();
+            let mut out = plan.make_output_vec();
+            plan.process(&mut input, &mut out).unwrap();
+            for (a, x) in sums.iter_mut().zip(&out) {
+                *a += x.norm_sqr();
+            }
+        }
+        let want = density_of(sums, &Taper::new(Window::Hann, len), count, 20.0);
+        assert_eq!(got.segments, count);
+        for (k, (a, b)) in got.density.iter().zip(&want.density).enumerate() {
+            assert!((a / b - 1.0).abs() < 1e-9, "bin {k}: {a} vs {b}");
+        }
     }
 }

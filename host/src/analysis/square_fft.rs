@@ -55,24 +55,68 @@ fn largest_prime_factor(mut m: usize) -> usize {
 }
 
 /// Columns gathered at once: 8 complex values are two 64-byte cache lines of a row.
-const COLUMN_BLOCK: usize = 8;
+pub(crate) const COLUMN_BLOCK: usize = 8;
 
 /// The in-place real DFT of `2 m^2` samples ([module documentation](self)).
 pub struct SquareRealFft {
     m: usize,
     forward: Arc<dyn Fft<f64>>,
     inverse: Arc<dyn Fft<f64>>,
-    /// `W_m^a`, a < m.
+    /// `W_N^p`, p < N.
+    twiddles: Twiddles,
+    /// `W_n^k`, k <= N / 2 (n = 2 N): the real pairing's twiddles.
+    real_twiddles: Twiddles,
+}
+
+/// `W_q^p = e^(-2 pi i p / q)` for `p = a s + b` (b < s) as `W_q^(a s) W_q^b`: a table of the
+/// coarse steps and one of the fine, where a table of every p would be as long as the
+/// transform.
+pub(crate) struct Twiddles {
+    side: usize,
+    /// `W_q^(a s)`.
     coarse: Vec<C>,
-    /// `W_N^b`, b < m.
+    /// `W_q^b`, b < s.
     fine: Vec<C>,
-    /// `W_n^(a m)` for a <= m / 2 and `W_n^b` for b < m (n = 2 N): the real pairing's twiddles.
-    real_coarse: Vec<C>,
-    real_fine: Vec<C>,
+}
+
+impl Twiddles {
+    /// `W_q^p` for `p < steps * side`, in steps of `side`.
+    pub(crate) fn new(q: usize, side: usize, steps: usize) -> Twiddles {
+        Twiddles {
+            side,
+            coarse: (0..steps).map(|a| unit(a * side, q)).collect(),
+            fine: (0..side).map(|b| unit(b, q)).collect(),
+        }
+    }
+
+    /// `W_q^p`.
+    pub(crate) fn at(&self, p: usize) -> C {
+        self.split(p / self.side, p % self.side)
+    }
+
+    /// `W_q^(a s + b)`, b < s.
+    pub(crate) fn split(&self, a: usize, b: usize) -> C {
+        self.coarse[a] * self.fine[b]
+    }
+
+    /// `out[i]` times `W_q^(i step)` (conjugated when `conjugate`), `step < side`, without a
+    /// division per element.
+    pub(crate) fn scale_run(&self, step: usize, conjugate: bool, out: &mut [C]) {
+        let (mut a, mut b) = (0usize, 0usize);
+        for v in out.iter_mut() {
+            let w = self.split(a, b);
+            *v *= if conjugate { w.conj() } else { w };
+            b += step;
+            if b >= self.side {
+                b -= self.side;
+                a += 1;
+            }
+        }
+    }
 }
 
 /// `e^(-2 pi i p / q)`.
-fn unit(p: usize, q: usize) -> C {
+pub(crate) fn unit(p: usize, q: usize) -> C {
     let (s, c) = (-2.0 * PI * p as f64 / q as f64).sin_cos();
     C::new(c, s)
 }
@@ -87,10 +131,8 @@ impl SquareRealFft {
             m,
             forward: planner.plan_fft_forward(m),
             inverse: planner.plan_fft_inverse(m),
-            coarse: (0..m).map(|a| unit(a, m)).collect(),
-            fine: (0..m).map(|b| unit(b, big)).collect(),
-            real_coarse: (0..=m / 2).map(|a| unit(a * m, 2 * big)).collect(),
-            real_fine: (0..m).map(|b| unit(b, 2 * big)).collect(),
+            twiddles: Twiddles::new(big, m, m),
+            real_twiddles: Twiddles::new(2 * big, m, m / 2 + 1),
         }
     }
 
@@ -170,17 +212,7 @@ impl SquareRealFft {
 
     /// `W_N^(r c)` (conjugated for the inverse) for r, c < m.
     fn twiddle_row(&self, r: usize, conjugate: bool, out: &mut [C]) {
-        let m = self.m;
-        let (mut a, mut b) = (0usize, 0usize);
-        for v in out.iter_mut() {
-            let w = self.coarse[a] * self.fine[b];
-            *v *= if conjugate { w.conj() } else { w };
-            b += r;
-            if b >= m {
-                b -= m;
-                a += 1;
-            }
-        }
+        self.twiddles.scale_run(r, conjugate, out);
     }
 
     /// Length-m DFTs along every row; with `twiddle`, row r then times `W_N^(r c)` at column c
@@ -257,7 +289,7 @@ impl SquareRealFft {
 
     /// `W_n^k`, k <= N / 2.
     fn real_twiddle(&self, k: usize) -> C {
-        self.real_coarse[k / self.m] * self.real_fine[k % self.m]
+        self.real_twiddles.at(k)
     }
 
     /// Step 1 forward: `Z` (k < N) to `X` (k <= N) in place.

@@ -386,14 +386,16 @@ pub fn analyse(loaded: Loaded, args: &AnalysisArgs) -> Result<Analysed> {
         report: read,
         ..
     } = loaded;
-    let record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
+    let mut record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
     if let Some(segment) = args.psd_segment {
         check_psd_segment(segment, Some(record.len()))?;
     }
     let options = request(args).options(settings);
     let steps = record.channels.len() * pipeline::steps_per_channel(&options);
     let bar = crate::cli::progress::bar(steps as u64, "analysing");
-    let results = pipeline::analyze(&record, &options, &|| bar.inc(1))
+    // The samples are given up to the analysis, which works in their buffers; the outputs
+    // need only the record's name and rate.
+    let results = pipeline::analyze_taking(&mut record, &options, &|| bar.inc(1))
         .with_context(|| record.source.clone())?;
     bar.finish_and_clear();
     write_outputs(&record, options, &results, &read, args)

@@ -182,24 +182,43 @@ fn read(mut reader: impl Read, len: u64) -> Result<Table, ReadError> {
     let count = rows * cols;
     let mut columns: Vec<Vec<f64>> = (0..cols).map(|_| Vec::with_capacity(rows)).collect();
     let mut bytes = vec![0u8; CHUNK * dtype.size];
+    let mut values = Vec::with_capacity(CHUNK);
     let mut at = 0;
-    // The file's order runs along a row (C order) or down a column (Fortran order):
-    // `row_start` is the index of that run's first element, `column` the Fortran column.
-    let (mut row_start, mut column) = (0, 0);
+    // Where the next element goes: the file's order runs along a row (C order) or down a
+    // column (Fortran order).
+    let (mut row, mut col) = (0, 0);
     while at < count {
         let take = CHUNK.min(count - at);
         let chunk = &mut bytes[..take * dtype.size];
         layout.read_exact(&mut reader, chunk, at * dtype.size)?;
-        for (i, b) in (at..).zip(chunk.chunks_exact(dtype.size)) {
-            // Element i of the file's order is in column i / rows (Fortran order) or
-            // i % cols (C order).
-            let col = if fortran { column } else { i - row_start };
-            let row = if fortran { i - row_start } else { i / cols };
-            columns[col].push(layout.value(b, row, col)?);
-            let stride = if fortran { rows } else { cols };
-            if i + 1 - row_start == stride {
-                row_start += stride;
-                column += usize::from(fortran);
+        values.clear();
+        dtype.decode(chunk, &mut values);
+        if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+            let (row, col) = if fortran {
+                ((row + i) % rows, col + (row + i) / rows)
+            } else {
+                (row + (col + i) / cols, (col + i) % cols)
+            };
+            let value = values[i];
+            return Err(NpyError::NotFinite { row, col, value }.into());
+        }
+        if cols == 1 {
+            columns[0].extend_from_slice(&values);
+            row += take;
+        } else {
+            for &v in &values {
+                columns[col].push(v);
+                if fortran {
+                    row += 1;
+                    if row == rows {
+                        (row, col) = (0, col + 1);
+                    }
+                } else {
+                    col += 1;
+                    if col == cols {
+                        (row, col) = (row + 1, 0);
+                    }
+                }
             }
         }
         at += take;
@@ -442,6 +461,20 @@ impl Dtype {
         })
     }
 
+    /// Every element of `bytes` (whole elements of this type), appended to `out`; the
+    /// common little-endian float64 without a per-element dispatch.
+    fn decode(&self, bytes: &[u8], out: &mut Vec<f64>) {
+        if self.kind == 'f' && self.size == 8 && !self.big_endian {
+            out.extend(bytes.chunks_exact(8).map(|b| {
+                let mut buf = [0u8; 8];
+                buf.copy_from_slice(b);
+                f64::from_le_bytes(buf)
+            }));
+        } else {
+            out.extend(bytes.chunks_exact(self.size).map(|b| self.read(b)));
+        }
+    }
+
     fn read(&self, b: &[u8]) -> f64 {
         let mut buf = [0u8; 8];
         buf[..self.size].copy_from_slice(b);
@@ -498,6 +531,35 @@ mod tests {
         let f = parse_bytes(&npy("<f8", true, "(3, 2)", &data)).unwrap();
         assert_eq!(f.channels[0].1, [1.0, 2.0, 3.0]);
         assert_eq!(f.channels[1].1, [4.0, 5.0, 6.0]);
+    }
+
+    /// A value that is not finite is named by its row and column, across the reader's chunks
+    /// and in both orders.
+    #[test]
+    fn a_value_not_finite_is_named_where_it_is() {
+        let (rows, cols) = (5000, 3);
+        for (fortran, at) in [
+            (false, (1, 1)),
+            (false, (4000, 2)),
+            (true, (2, 0)),
+            (true, (4321, 2)),
+        ] {
+            let mut values = vec![1.0f64; rows * cols];
+            let index = if fortran {
+                at.1 * rows + at.0
+            } else {
+                at.0 * cols + at.1
+            };
+            values[index] = f64::NAN;
+            let data: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+            let shape = format!("({rows}, {cols})");
+            let error = parse_bytes(&npy("<f8", fortran, &shape, &data)).unwrap_err();
+            let text = error.to_string();
+            assert!(
+                text.contains(&format!("element [{}, {}] is NaN", at.0, at.1)),
+                "fortran {fortran}: {text}"
+            );
+        }
     }
 
     #[test]

@@ -70,7 +70,10 @@
 use super::{longest_run, ls_slope};
 use crate::analysis::low_pass::{LowPass, LowPassSource};
 use crate::analysis::numerics::inverse;
-use crate::analysis::psd::{self, PsdError, WelchOptions, Window};
+use crate::analysis::psd::{
+    self, PsdError, Samples, SegmentTransform, Taper, WelchOptions, Window,
+};
+use realfft::num_complex::Complex;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
 use std::borrow::Cow;
@@ -207,21 +210,30 @@ pub fn spectrum(
     segment_len: usize,
     window: Window,
 ) -> Result<Vec<SpectrumPoint>, PsdError> {
-    Ok(pyramid(rate, rate_hz, segment_len, window, None)?
-        .into_iter()
-        .map(|p| p.public)
-        .collect())
+    Ok(pyramid(
+        Samples::rate(rate),
+        rate_hz,
+        segment_len,
+        window,
+        (None, None),
+    )?
+    .into_iter()
+    .map(|p| p.public)
+    .collect())
 }
 
+/// Every level's points. Level `l` reads the record as means of `2^l` samples
+/// ([`Samples::decimated`]), so no decimated copy is held; every level uses one segment
+/// length, window and FFT plan (the caller's `transform` when it has that length).
 fn pyramid(
-    rate: &[f64],
+    samples: Samples,
     rate_hz: f64,
     segment_len: usize,
     window: Window,
-    level0: Option<&psd::Psd>,
+    (level0, transform): (Option<&psd::Psd>, Option<&SegmentTransform>),
 ) -> Result<Vec<Point>, PsdError> {
     let len = match segment_len {
-        0 => psd::segment_len_for(rate.len()),
+        0 => psd::segment_len_for(samples.len()),
         l => l,
     };
     let opts = WelchOptions {
@@ -230,23 +242,25 @@ fn pyramid(
         window,
         detrend_mean: true,
     };
-    let w = window.coefficients(len);
-    let turns = Turns::new(len);
-    let lag_corr = ordinate_correlation_with(&w, &turns);
-    let smoothing = window_smoothing_with(&w, &turns);
-    drop(turns);
+    let transform = match transform {
+        Some(t) if t.len() == len => Cow::Borrowed(t),
+        _ => Cow::Owned(SegmentTransform::new(len, window)),
+    };
+    let w = transform.window();
+    let lags = LagPowers::of(w);
+    let lag_corr = correlation_of(w, &lags);
+    let smoothing = smoothing_of(&lags);
     let mut points = Vec::new();
-    let mut series: Cow<[f64]> = Cow::Borrowed(rate);
-    let mut fs = rate_hz;
     let mut level = 0;
     loop {
+        let series = samples.decimated(1 << level);
+        let fs = rate_hz / (1u64 << level) as f64;
         let spec = match level0 {
             // The caller's Welch estimate of the record with these options.
             Some(p) if level == 0 && p.density.len() == len / 2 + 1 => Cow::Borrowed(p),
-            _ => Cow::Owned(psd::welch_with(&series, fs, &opts, Some(&w))?),
+            _ => Cow::Owned(psd::welch_of(series, fs, &opts, Some(&transform))?),
         };
-        let k_eff =
-            effective_segments(&w, len - (len as f64 * 0.5).floor() as usize, spec.segments);
+        let k_eff = effective_segments(w, len - (len as f64 * 0.5).floor() as usize, spec.segments);
         // Level 0: up to Nyquist (excluded: one degree of freedom); deeper levels: the
         // octave below the previous level's first ordinate.
         let end = if level == 0 {
@@ -266,21 +280,6 @@ fn pyramid(
         if series.len() / 2 < len {
             break;
         }
-        // Pairs averaged: the first level's into a new buffer, the deeper ones in it.
-        series = match series {
-            Cow::Borrowed(s) => {
-                Cow::Owned(s.chunks_exact(2).map(|c| 0.5 * (c[0] + c[1])).collect())
-            }
-            Cow::Owned(mut s) => {
-                let half = s.len() / 2;
-                for i in 0..half {
-                    s[i] = 0.5 * (s[2 * i] + s[2 * i + 1]);
-                }
-                s.truncate(half);
-                Cow::Owned(s)
-            }
-        };
-        fs /= 2.0;
         level += 1;
     }
     points.sort_by(|a, b| a.public.freq.total_cmp(&b.public.freq));
@@ -355,6 +354,11 @@ fn bin_level(
     out
 }
 
+#[cfg(test)]
+fn window_smoothing(w: &Taper) -> [f64; MAX_LAG + 1] {
+    smoothing_of(&LagPowers::of(w))
+}
+
 /// The weights `|W(m)|^2 / sum_m |W(m)|^2`, m = 0..=MAX_LAG (each applying at +m and -m), of
 /// the window's DFT `W(m) = sum_t w_t e^(-2 pi i m t / L)`: a windowed ordinate is the
 /// combination `sum_m W(m) X(j + m) / L` of the rectangular ordinates X, which for the
@@ -362,71 +366,74 @@ fn bin_level(
 /// so its expected value is `sum_m |W(m)|^2 S(f_j+m)` normalised (Hann: 2/3 at 0, 1/6 at
 /// +-1). On the steep spectra of the lowest ordinates this matters: for `1 / f^2` at j = 3 the
 /// smoothed value is 13.5 % above `S(f_3)`.
-#[cfg(test)]
-fn window_smoothing(w: &[f64]) -> [f64; MAX_LAG + 1] {
-    window_smoothing_with(w, &Turns::new(w.len()))
-}
-
-fn window_smoothing_with(w: &[f64], turns: &Turns) -> [f64; MAX_LAG + 1] {
-    let power: [f64; MAX_LAG + 1] = std::array::from_fn(|m| dft_power(w, m, turns));
+fn smoothing_of(lags: &LagPowers) -> [f64; MAX_LAG + 1] {
+    let power = lags.window;
     let total = power[0] + 2.0 * power[1..].iter().sum::<f64>();
     power.map(|p| p / total)
 }
 
-/// `|sum_t v_t e^(-2 pi i m t / L)|^2`, L the length of v; 0 below rounding (a generalised
-/// cosine window's transform is exactly 0 beyond its reach).
-fn dft_power(v: &[f64], m: usize, turns: &Turns) -> f64 {
-    let (mut re, mut im) = (0.0, 0.0);
-    let len = turns.0.len();
-    // The entry of `m t mod L`, advanced by m per sample.
-    let mut j = 0;
-    for x in v {
-        let (sin, cos) = turns.0[j];
-        re += x * cos;
-        im -= x * sin;
-        j += m;
-        while j >= len {
-            j -= len;
-        }
-    }
-    let scale: f64 = v.iter().map(|x| x.abs()).sum();
-    let p = re * re + im * im;
-    if p.sqrt() < 1e-9 * scale { 0.0 } else { p }
+/// `|sum_t v_t e^(-2 pi i m t / L)|^2`, m = 0..=MAX_LAG, of the window (v = w) and of its
+/// square (v = w^2), L the window's length; 0 below rounding (a generalised cosine window's
+/// transform is exactly 0 beyond its reach).
+struct LagPowers {
+    window: [f64; MAX_LAG + 1],
+    squared: [f64; MAX_LAG + 1],
 }
 
-/// `(sin, cos)` of `2 pi j / L` for j = 0..L: the phases of a length-L DFT, each computed
-/// once for every lag (`2 pi m t / L` is the entry `m t mod L`, equal to the direct
-/// evaluation to rounding).
-struct Turns(Vec<(f64, f64)>);
-
-impl Turns {
-    fn new(len: usize) -> Turns {
-        let l = len as f64;
-        Turns(
-            (0..len)
-                .map(|j| (2.0 * PI * j as f64 / l).sin_cos())
-                .collect(),
-        )
+impl LagPowers {
+    /// One pass over the window: `e^(-2 pi i m t / L)` is the m-th power of
+    /// `e^(-2 pi i t / L)`, whose sine and cosine are computed once per sample (no table of
+    /// L phases is held).
+    fn of(w: &Taper) -> LagPowers {
+        let l = w.len() as f64;
+        let mut window = [Complex::new(0.0, 0.0); MAX_LAG + 1];
+        let mut squared = window;
+        let (mut scale, mut scale2) = (0.0, 0.0);
+        for (t, x) in w.iter().enumerate() {
+            let (sin, cos) = (2.0 * PI * t as f64 / l).sin_cos();
+            let turn = Complex::new(cos, -sin);
+            let mut phase = Complex::new(1.0, 0.0);
+            let x2 = x * x;
+            for (a, b) in window.iter_mut().zip(squared.iter_mut()) {
+                *a += phase * x;
+                *b += phase * x2;
+                phase *= turn;
+            }
+            scale += x.abs();
+            scale2 += x2;
+        }
+        let power = |sum: &[Complex<f64>; MAX_LAG + 1], scale: f64| {
+            sum.map(|z| {
+                if z.norm() < 1e-9 * scale {
+                    0.0
+                } else {
+                    z.norm_sqr()
+                }
+            })
+        };
+        LagPowers {
+            window: power(&window, scale),
+            squared: power(&squared, scale2),
+        }
     }
 }
 
 /// `c(m)^2`, m = 0..=MAX_LAG: the squared correlation of Welch ordinates m apart for a
 /// window `w` (see the module documentation).
 #[cfg(test)]
-fn ordinate_correlation(w: &[f64]) -> [f64; MAX_LAG + 1] {
-    ordinate_correlation_with(w, &Turns::new(w.len()))
+fn ordinate_correlation(w: &Taper) -> [f64; MAX_LAG + 1] {
+    correlation_of(w, &LagPowers::of(w))
 }
 
-fn ordinate_correlation_with(w: &[f64], turns: &Turns) -> [f64; MAX_LAG + 1] {
-    let w2: Vec<f64> = w.iter().map(|x| x * x).collect();
-    let total: f64 = w2.iter().sum();
-    std::array::from_fn(|m| dft_power(&w2, m, turns) / (total * total))
+fn correlation_of(w: &Taper, lags: &LagPowers) -> [f64; MAX_LAG + 1] {
+    let total = w.sum_of_squares();
+    lags.squared.map(|p| p / (total * total))
 }
 
 /// Welch's segments counted as independent ones (Percival & Walden eq. 292b), for `count`
 /// segments of window `w` starting every `step` samples.
-fn effective_segments(w: &[f64], step: usize, count: usize) -> f64 {
-    let sum_w2: f64 = w.iter().map(|x| x * x).sum();
+fn effective_segments(w: &Taper, step: usize, count: usize) -> f64 {
+    let sum_w2 = w.sum_of_squares();
     let k = count as f64;
     let mut denominator = 1.0;
     for m in 1..count {
@@ -434,7 +441,7 @@ fn effective_segments(w: &[f64], step: usize, count: usize) -> f64 {
         if shift >= w.len() {
             break;
         }
-        let overlap: f64 = w[shift..].iter().zip(w).map(|(a, b)| a * b).sum();
+        let overlap: f64 = w.iter().skip(shift).zip(w.iter()).map(|(a, b)| a * b).sum();
         denominator += 2.0 * (1.0 - m as f64 / k) * (overlap / sum_w2).powi(2);
     }
     k / denominator
@@ -464,22 +471,24 @@ pub fn fit_psd(
     rate_hz: f64,
     opts: &PsdFitOptions,
 ) -> Result<PsdNoiseTerms, PsdFitError> {
-    fit_psd_with(rate, rate_hz, opts, None)
+    fit_psd_with(Samples::rate(rate), rate_hz, opts, (None, None))
 }
 
-/// [`fit_psd`], given the record's own Welch estimate with the fit's segment length and
-/// window (Hann or `opts.window`, 50 % overlap, segment means removed), which is then not
-/// computed again; a `welch` of another segment length is not used.
+/// [`fit_psd`] of the series `samples` reads (a rate record or the rate of a phase record),
+/// given the record's own Welch estimate with the fit's segment length and window (Hann or
+/// `opts.window`, 50 % overlap, segment means removed), which is then not computed again, and
+/// that segment length's window and plan; a `welch` or `transform` of another segment
+/// length is not used.
 pub fn fit_psd_with(
-    rate: &[f64],
+    samples: Samples,
     rate_hz: f64,
     opts: &PsdFitOptions,
-    welch: Option<&psd::Psd>,
+    given: (Option<&psd::Psd>, Option<&SegmentTransform>),
 ) -> Result<PsdNoiseTerms, PsdFitError> {
     if !(opts.confidence > 0.0 && opts.confidence < 1.0) {
         return Err(PsdFitError::BadConfidence(opts.confidence));
     }
-    let mut all: Vec<Point> = pyramid(rate, rate_hz, opts.segment_len, opts.window, welch)?
+    let mut all: Vec<Point> = pyramid(samples, rate_hz, opts.segment_len, opts.window, given)?
         .into_iter()
         .filter(|p| p.public.density > 0.0)
         .collect();
@@ -545,7 +554,7 @@ pub fn fit_psd_with(
         points: pts.len(),
         reduced_chi2: residual / dof,
         segment_len: match opts.segment_len {
-            0 => psd::segment_len_for(rate.len()),
+            0 => psd::segment_len_for(samples.len()),
             l => l,
         },
         spectrum: all.into_iter().map(|p| p.public).collect(),

@@ -103,7 +103,7 @@ use std::borrow::Cow;
 use std::f64::consts::PI;
 use tone::{Tone, fit_tone, jacobsen, subtract};
 pub use transform::SQUARE_MIN_SAMPLES;
-use transform::Transform;
+use transform::{InPlace, Transform};
 
 /// One spectral line.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -222,6 +222,21 @@ pub struct Cleaned<'a> {
     /// The frequency ranges (Hz, inclusive) whose excess was scaled down to the background:
     /// a wide line's wings beyond its range are still in `rate`.
     pub bands_hz: Vec<(f64, f64)>,
+}
+
+impl Cleaned<'_> {
+    /// The record without its lines when there were lines; `None` when it is the record
+    /// itself.
+    pub fn changed(self) -> Option<Cleaned<'static>> {
+        match self.rate {
+            Cow::Borrowed(_) => None,
+            Cow::Owned(line_free) => Some(Cleaned {
+                lines: self.lines,
+                rate: Cow::Owned(line_free),
+                bands_hz: self.bands_hz,
+            }),
+        }
+    }
 }
 
 /// [`remove`] without a copy of a record that has no lines.
@@ -588,19 +603,59 @@ fn validate(rate: &[f64], rate_hz: f64, opts: &LineOptions) -> Result<(), LineEr
     Ok(())
 }
 
+impl<'a> Search<'a> {
+    /// The search of a record of `samples` samples.
+    fn new(samples: usize, rate_hz: f64, opts: &'a LineOptions) -> Self {
+        let fft = Transform::for_record(samples);
+        let n = fft.len();
+        Search {
+            n,
+            rate_hz,
+            opts,
+            fft,
+            k_lo: (opts.min_cycles.ceil() as usize).max(2),
+            // The Nyquist bin of an even length is real (one degree of freedom): not searched.
+            k_hi: (n - 1) / 2,
+        }
+    }
+}
+
+/// [`clean`] of a record its caller gives up for the search's duration: from
+/// [`SQUARE_MIN_SAMPLES`] on, the first round's DFT is taken in `rate`'s own buffer, and when
+/// no band stands out of the background (no line, as [`clean`] would find) `rate` is
+/// transformed back and `None` returned: the search costs no copy of the record. `rate` then
+/// holds the record to the transforms' rounding (about `1e-15` of its largest value). When
+/// something stands out, `rate` is restored and [`clean`] searches it again on a copy, which
+/// it returns.
+pub fn clean_in_place(
+    rate: &mut Vec<f64>,
+    rate_hz: f64,
+    opts: &LineOptions,
+) -> Result<Option<Cleaned<'static>>, LineError> {
+    validate(rate, rate_hz, opts)?;
+    let s = Search::new(rate.len(), rate_hz, opts);
+    if let Some(in_place) = s.fft.dft_in_place(rate) {
+        let InPlace { trend, dft, tail } = in_place;
+        let spectra = s.periodograms(dft);
+        let (backgrounds, bands) = s.backgrounds_and_bands(&spectra);
+        let quiet = s.measure_bands(&spectra, &backgrounds, &bands).is_empty();
+        drop(backgrounds);
+        *rate = s.fft.restore(InPlace {
+            trend,
+            dft: spectra.dft,
+            tail,
+        });
+        if quiet {
+            return Ok(None);
+        }
+    }
+    Ok(clean(rate, rate_hz, opts)?.changed())
+}
+
 fn search<'a>(rate: &'a [f64], rate_hz: f64, opts: &LineOptions) -> Result<Found<'a>, LineError> {
     validate(rate, rate_hz, opts)?;
-    let fft = Transform::for_record(rate.len());
-    let n = fft.len();
-    let s = Search {
-        n,
-        rate_hz,
-        opts,
-        fft,
-        k_lo: (opts.min_cycles.ceil() as usize).max(2),
-        // The Nyquist bin of an even length is real (one degree of freedom): not searched.
-        k_hi: (n - 1) / 2,
-    };
+    let s = Search::new(rate.len(), rate_hz, opts);
+    let n = s.n;
     let mut work = Cow::Borrowed(rate);
     let mut tones: Vec<Tone> = Vec::new();
     let mut round = 0;

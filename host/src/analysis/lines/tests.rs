@@ -1023,3 +1023,41 @@ fn a_long_record_is_searched_and_cleaned_to_its_end() {
         );
     }
 }
+
+/// A record given up to the search is searched in its own buffer: without lines it comes back
+/// to the transforms' rounding and nothing is returned; with a line the search is
+/// [`clean`]'s.
+#[test]
+fn a_record_given_up_is_searched_in_place() {
+    let rate = 100.0;
+    let n = SQUARE_MIN_SAMPLES + 1001;
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let y: Vec<f64> = (0..n)
+        .map(|_| 3.0 + rng.sample::<f64, _>(rand_distr::StandardNormal))
+        .collect();
+    let mut own = y.clone();
+    let found = clean_in_place(&mut own, rate, &LineOptions::default()).unwrap();
+    assert!(found.is_none(), "lines in white noise: {found:?}");
+    assert_eq!(own.len(), n);
+    let largest = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let worst = own
+        .iter()
+        .zip(&y)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-12 * largest, "restored to {worst}");
+    let mut toned = y.clone();
+    add_tone(&mut toned, rate, 0.05, 17.0, 0.0);
+    let borrowed = clean(&toned, rate, &LineOptions::default()).unwrap();
+    let mut own = toned.clone();
+    let found = clean_in_place(&mut own, rate, &LineOptions::default())
+        .unwrap()
+        .expect("the tone");
+    assert_eq!(found.lines.len(), borrowed.lines.len());
+    for (a, b) in found.lines.iter().zip(&borrowed.lines) {
+        assert!(
+            (a.freq_hz - b.freq_hz).abs() < 1e-9 && (a.amplitude / b.amplitude - 1.0).abs() < 1e-9
+        );
+    }
+    assert_eq!(found.rate.len(), n);
+}

@@ -23,6 +23,16 @@ use std::sync::Arc;
 /// the module's families were calibrated on keep their whole-record periodogram.
 pub const SQUARE_MIN_SAMPLES: usize = 1 << 20;
 
+/// A record's DFT held in the record's own buffer ([`Transform::dft_in_place`]).
+pub(super) struct InPlace {
+    /// The least-squares line of the samples transformed.
+    pub(super) trend: Trend,
+    /// Their DFT less the line, bins 0..=len/2 (and one slot more).
+    pub(super) dft: Vec<Complex<f64>>,
+    /// The record's samples after those transformed.
+    pub(super) tail: Vec<f64>,
+}
+
 /// A DFT of the samples the search transforms.
 pub(super) enum Transform {
     /// The whole record, by realfft's plan.
@@ -79,6 +89,51 @@ impl Transform {
                 (trend, data)
             }
         }
+    }
+
+    /// [`Transform::dft_detrended`] of a record given up by its caller, in its own buffer; the
+    /// samples after the square are handed back apart (the DFT's Nyquist slot takes the place
+    /// of the first two), for [`Transform::restore`]. `None` (and the record untouched) for
+    /// the whole-record plan, which transforms out of place.
+    pub(super) fn dft_in_place(&self, y: &mut Vec<f64>) -> Option<InPlace> {
+        let Transform::Square(square) = self else {
+            return None;
+        };
+        let n = square.len();
+        let total = y.len();
+        let tail = y[n..].to_vec();
+        let trend = super::line_of(&y[..n]);
+        y.truncate(n);
+        // Room for the record again, even for the cast to complex values.
+        let room = (2 * square.buffer_len()).max(total).next_multiple_of(2);
+        if y.capacity() < room {
+            y.reserve_exact(room - n);
+        } else {
+            y.shrink_to(room);
+        }
+        for (t, v) in y.iter_mut().enumerate() {
+            *v -= trend.at(t, n);
+        }
+        y.resize(2 * square.buffer_len(), 0.0);
+        let mut dft = match bytemuck::allocation::try_cast_vec(std::mem::take(y)) {
+            Ok(dft) => dft,
+            // A capacity the allocator left odd: the samples are copied once.
+            Err((_, samples)) => samples
+                .chunks_exact(2)
+                .map(|pair| Complex::new(pair[0], pair[1]))
+                .collect(),
+        };
+        square.forward(&mut dft);
+        Some(InPlace { trend, dft, tail })
+    }
+
+    /// The record [`Transform::dft_in_place`] transformed, from its (possibly changed) DFT:
+    /// the inverse, the line added back and the samples after the square appended.
+    pub(super) fn restore(&self, in_place: InPlace) -> Vec<f64> {
+        let InPlace { trend, dft, tail } = in_place;
+        let mut y = self.samples(dft, trend);
+        y.extend_from_slice(&tail);
+        y
     }
 
     /// The [`Transform::len`] samples whose DFT is `dft` (bins 0..=len/2), plus `trend`: the

@@ -114,7 +114,7 @@ fn white_noise_claims_no_flicker_or_random_walk() {
 
 #[test]
 fn hann_kernels_match_their_closed_forms() {
-    let w = Window::Hann.coefficients(1024);
+    let w = Taper::new(Window::Hann, 1024);
     // Hann's transform is 1/2, -1/4, -1/4: powers 1/4, 1/16, 1/16 of total 3/8.
     let s = window_smoothing(&w);
     assert!((s[0] - 2.0 / 3.0).abs() < 1e-12 && (s[1] - 1.0 / 6.0).abs() < 1e-12);
