@@ -169,11 +169,11 @@ fn default_budget_mb() -> f64 {
         .unwrap_or(4096.0)
 }
 
-/// Peak resident memory of a whole read and analysis over its samples' bytes: 3.4 measured
-/// on 10^7 samples of noise (`bench` section 1: the record, its phase and the PSD stage's
-/// buffers side by side; the line search's in-place DFT holds 2.2); a record with tones and
-/// resonances holds, during the line search, the record without its tones beside the DFT
-/// and, at the end, the DFT of its last samples: 4.
+/// Peak resident memory of a whole read and analysis over its samples' bytes, for the record
+/// with the most lines: the analysis works in the samples' buffer, 1.48 measured on 10^7
+/// samples of noise (`bench` section 1), but a record in which the line search finds
+/// something is searched again on a copy and keeps its line-free copy beside it (3.3 measured
+/// on 10^7 samples with one tone).
 const WHOLE_READ_FACTOR: f64 = 4.0;
 
 /// The input opened for streaming when it is an uncompressed .npy file whose whole read
