@@ -28,6 +28,19 @@ impl Background {
         })
     }
 
+    /// The lowest [`Background::level`] over bins `lo..=hi` (`1 <= lo <= hi`): the level is
+    /// monotone between block centres and constant beyond the ends, so it is the least of
+    /// the levels at the ends and at the centres between them.
+    pub(super) fn lowest(&self, lo: usize, hi: usize) -> f64 {
+        let (x_lo, x_hi) = ((lo.max(1) as f64).ln(), (hi.max(1) as f64).ln());
+        let first = self.blocks.partition_point(|b| b.0 <= x_lo);
+        let inside = self.blocks[first..]
+            .iter()
+            .take_while(|b| b.0 < x_hi)
+            .map(|b| b.1.exp().max(f64::MIN_POSITIVE));
+        inside.fold(self.level(lo).min(self.level(hi)), f64::min)
+    }
+
     /// The relative variance of [`Background::level`] at bin k.
     pub(super) fn rel_var(&self, k: usize) -> f64 {
         self.at(k).map_or(1.0, |(_, var)| var)

@@ -79,6 +79,9 @@ pub(super) struct Bands {
 /// first makes the correction; the second changes width and power by under 1 %.
 const WING_ROUNDS: usize = 2;
 
+/// Bins whose background's lowest level is found at once for the single-bin tests.
+const SETTLED_STRETCH: usize = 256;
+
 /// A line narrower than this many bins is not resolved: its power lies in its own bins.
 const RESOLVED_WIDTH_BINS: f64 = 4.0;
 
@@ -358,22 +361,34 @@ impl Search<'_> {
             let mut thresholds = Thresholds::default();
             let mut passed = Vec::new();
             for &l in &scales {
+                // Every threshold lies beyond two standard deviations (level < 1 %): most
+                // runs are settled without one, and most of those by the least variance
+                // alone.
+                let settled =
+                    1.0 + 2.0 * (1.0 / l as f64 + least_rel_var[usize::from(l > 1)]).sqrt();
+                // A single bin at most `settled` times the background's lowest level over its
+                // stretch is settled without its own level (an exponential per bin).
+                let mut floor = (usize::MAX, 0.0);
                 for j in runs(l, from, to) {
-                    let o = octave(j, l);
-                    let level = self.opts.false_alarm / (octaves * per_octave[o]) as f64;
-                    let centre = j + l / 2;
                     let (mean, background) = if l == 1 {
-                        (spectra.hann(j) / bg.hann.level(j), &bg.hann)
+                        if j >= floor.0 {
+                            let end = (j + SETTLED_STRETCH).min(k_hi + 1);
+                            floor = (end, settled * bg.hann.lowest(j, end - 1) * (1.0 - 1e-12));
+                        }
+                        let power = spectra.hann(j);
+                        if power <= floor.1 {
+                            continue;
+                        }
+                        (power / bg.hann.level(j), &bg.hann)
                     } else {
                         ((cum[j + l - from] - cum[j - from]) / l as f64, &bg.rect)
                     };
-                    // Every threshold lies beyond two standard deviations (level < 1 %): most
-                    // runs are settled without one, and most of those by the least variance
-                    // alone.
-                    let least = least_rel_var[usize::from(l > 1)];
-                    if mean <= 1.0 + 2.0 * (1.0 / l as f64 + least).sqrt() {
+                    if mean <= settled {
                         continue;
                     }
+                    let o = octave(j, l);
+                    let level = self.opts.false_alarm / (octaves * per_octave[o]) as f64;
+                    let centre = j + l / 2;
                     let v = background.rel_var(centre);
                     if mean <= 1.0 + 2.0 * (1.0 / l as f64 + v).sqrt() {
                         continue;

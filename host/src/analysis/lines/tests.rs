@@ -1061,3 +1061,45 @@ fn a_record_given_up_is_searched_in_place() {
     }
     assert_eq!(found.rate.len(), n);
 }
+
+/// The lowest level over a stretch of bins is the least of the levels in it, on a background
+/// that rises, falls and bends (white noise through a resonance and a roll-off).
+#[test]
+fn the_lowest_background_over_a_stretch_is_its_least_level() {
+    let rate = 100.0;
+    let n = 1 << 16;
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let white: Vec<f64> = (0..n)
+        .map(|_| rng.sample::<f64, _>(rand_distr::StandardNormal))
+        .collect();
+    let mut filter = DlpfDesign::design(20.0, 0.0, rate).filter();
+    let mut y: Vec<f64> = white.iter().map(|v| filter.process(*v)).collect();
+    crate::sim::noise::add_line(&mut y, rate, 12.0, 2.0, 3.0, &mut rng);
+    let opts = LineOptions::default();
+    let s = Search::new(n, rate, &opts);
+    let (_, dft) = s.fft.dft_detrended(&y, n);
+    let spectra = s.periodograms(dft);
+    let mask = vec![false; spectra.len()];
+    let bg = background(
+        |k| spectra.hann(k),
+        &mask,
+        s.k_hi,
+        s.widest(),
+        HANN_MEDIAN_VARIANCE,
+    );
+    for (lo, hi) in [
+        (1, 1),
+        (3, 40),
+        (100, 355),
+        (5000, 9000),
+        (20_000, s.k_hi),
+        (7, s.k_hi),
+    ] {
+        let least = (lo..=hi).map(|k| bg.level(k)).fold(f64::INFINITY, f64::min);
+        let lowest = bg.lowest(lo, hi);
+        assert!(
+            (lowest / least - 1.0).abs() < 1e-12,
+            "bins {lo}..={hi}: {lowest} against {least}"
+        );
+    }
+}
