@@ -455,8 +455,10 @@ fn analyze_channel(
             let segment = options
                 .psd_segment
                 .unwrap_or_else(|| psd::segment_len_for(samples.len()));
-            let transform = psd::SegmentTransform::new(segment.max(1), options.psd_window);
-            let psd = spectrum(samples, rate_hz, options, &transform);
+            // A segment longer than the record is refused by the estimate itself.
+            let transform = (segment <= samples.len())
+                .then(|| psd::SegmentTransform::new(segment, options.psd_window));
+            let psd = spectrum(samples, rate_hz, options, transform.as_ref());
             let psd_options = fit::psd::PsdFitOptions {
                 segment_len: options.psd_segment.unwrap_or(0),
                 window: options.psd_window,
@@ -466,7 +468,7 @@ fn analyze_channel(
             // The spectrum is the PSD fit's finest level: the same Welch estimate, window
             // and plan.
             let welch = psd.as_ref().ok().map(|(p, _)| p);
-            let given = (welch, Some(&transform));
+            let given = (welch, transform.as_ref());
             let psd_terms = fit::psd::fit_psd_with(samples, rate_hz, &psd_options, given);
             tick();
             (psd, psd_terms)
@@ -659,7 +661,7 @@ fn spectrum(
     samples: psd::Samples,
     rate_hz: f64,
     options: &Options,
-    transform: &psd::SegmentTransform,
+    transform: Option<&psd::SegmentTransform>,
 ) -> Result<(Psd, BinnedPsd), PsdError> {
     let welch = WelchOptions {
         segment_len: options
@@ -668,7 +670,7 @@ fn spectrum(
         window: options.psd_window,
         ..WelchOptions::default()
     };
-    let spectrum = psd::welch_of(samples, rate_hz, &welch, Some(transform))?;
+    let spectrum = psd::welch_of(samples, rate_hz, &welch, transform)?;
     let binned = psd::log_binned(&spectrum, options.psd_bins_per_decade);
     Ok((spectrum, binned))
 }

@@ -624,9 +624,10 @@ impl<'a> Search<'a> {
 /// [`SQUARE_MIN_SAMPLES`] on, the first round's DFT is taken in `rate`'s own buffer, and when
 /// no band stands out of the background (no line, as [`clean`] would find) `rate` is
 /// transformed back and `None` returned: the search costs no copy of the record. `rate` then
-/// holds the record to the transforms' rounding (about `1e-15` of its largest value). When
-/// something stands out, `rate` is restored and [`clean`] searches it again on a copy, which
-/// it returns.
+/// holds the record to the transforms' rounding (within `1e-12` of its largest value, test
+/// `a_record_given_up_is_searched_in_place`). When something stands out, `rate` is restored
+/// and [`clean`] searches it again; the record without its lines is returned (`None` when
+/// that search finds none after all). Below [`SQUARE_MIN_SAMPLES`] this is [`clean`].
 pub fn clean_in_place(
     rate: &mut Vec<f64>,
     rate_hz: f64,
