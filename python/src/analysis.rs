@@ -1,4 +1,4 @@
-//! The whole analysis of a record (`analysis::pipeline::analyze`), returned as the JSON
+//! The whole analysis of a record (`analysis::pipeline::analyze_taking`), returned as the JSON
 //! document `imunoise analyze --json` writes, with the filter numbers when a filter period
 //! is given and Kalibr's YAML.
 
@@ -41,7 +41,7 @@ pub fn analyze(
     source: &str,
 ) -> PyResult<(String, Option<String>, Option<String>)> {
     check_rate(rate)?;
-    let record = record(names, &columns, rate, source)?;
+    let mut record = record(names, &columns, rate, source)?;
     let psd_segment = psd_segment
         .map(|segment| segment_len(segment, record.len(), "psd_segment"))
         .transpose()?;
@@ -77,7 +77,8 @@ pub fn analyze(
     };
     let options = request.options(settings);
     py.detach(|| -> Result<_, String> {
-        let results = pipeline::analyze(&record, &options, &|| {})
+        // The record is this call's own copy of the arrays: the analysis works in it.
+        let results = pipeline::analyze_taking(&mut record, &options, &|| {})
             .map_err(|e| format!("{}: {e}", record.source))?;
         let mut document = report::json::document(&record, &options, &results);
         document["input"] = input;
