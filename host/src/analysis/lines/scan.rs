@@ -368,7 +368,7 @@ impl Search<'_> {
                     1.0 + 2.0 * (1.0 / l as f64 + least_rel_var[usize::from(l > 1)]).sqrt();
                 // A single bin at most `settled` times the background's lowest level over its
                 // stretch is settled without its own level (an exponential per bin).
-                let mut floor = (usize::MAX, 0.0);
+                let mut floor = (0, 0.0);
                 for j in runs(l, from, to) {
                     let (mean, background) = if l == 1 {
                         if j >= floor.0 {
