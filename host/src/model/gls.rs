@@ -440,60 +440,82 @@ pub enum Likelihood {
 /// Mead, "A simplex method for function minimization", Computer Journal 7, 1965; standard
 /// coefficients), until the simplex's values agree within 1e-4 or 200 evaluations.
 pub(super) fn nelder_mead(f: &dyn Fn([f64; 2]) -> f64, start: [f64; 2], step: f64) -> [f64; 2] {
-    let mut simplex: Vec<([f64; 2], f64)> = [
-        start,
-        [start[0] + step, start[1]],
-        [start[0], start[1] + step],
-    ]
-    .iter()
-    .map(|&p| (p, f(p)))
-    .collect();
-    let at =
-        |a: [f64; 2], b: [f64; 2], t: f64| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-    let mut evaluations = 3;
-    while evaluations < 200 {
+    let best = nelder_mead_n(&|u: &[f64]| f([u[0], u[1]]), &start, step);
+    [best[0], best[1]]
+}
+
+/// Minimise `f` over the `d = start.len()` variables from `start` with a simplex of side
+/// `step` (Nelder & Mead, 1965; reflection 1, expansion 2, contraction and shrinkage 1/2),
+/// until the simplex's values agree within 1e-4 or `100 d` evaluations.
+pub(super) fn nelder_mead_n(f: &dyn Fn(&[f64]) -> f64, start: &[f64], step: f64) -> Vec<f64> {
+    let d = start.len();
+    let mut simplex: Vec<(Vec<f64>, f64)> = (0..=d)
+        .map(|i| {
+            let mut p = start.to_vec();
+            if i > 0 {
+                p[i - 1] += step;
+            }
+            let v = f(&p);
+            (p, v)
+        })
+        .collect();
+    let at = |a: &[f64], b: &[f64], t: f64| -> Vec<f64> {
+        a.iter().zip(b).map(|(x, y)| x + t * (y - x)).collect()
+    };
+    let mut evaluations = d + 1;
+    while evaluations < 100 * d {
         simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let (best, worst) = (simplex[0].1, simplex[2].1);
+        let (best, worst) = (simplex[0].1, simplex[d].1);
         if worst.is_finite() && worst - best < 1e-4 {
             break;
         }
-        let centroid = at(simplex[0].0, simplex[1].0, 0.5);
-        let reflected = at(centroid, simplex[2].0, -1.0);
-        let fr = f(reflected);
+        // The centroid of all but the worst vertex, as offsets from the best.
+        let centroid: Vec<f64> = (0..d)
+            .map(|k| {
+                let first = simplex[0].0[k];
+                first
+                    + simplex[1..d]
+                        .iter()
+                        .map(|p| (p.0[k] - first) / d as f64)
+                        .sum::<f64>()
+            })
+            .collect();
+        let reflected = at(&centroid, &simplex[d].0, -1.0);
+        let fr = f(&reflected);
         evaluations += 1;
         if fr < simplex[0].1 {
-            let expanded = at(centroid, simplex[2].0, -2.0);
-            let fe = f(expanded);
+            let expanded = at(&centroid, &simplex[d].0, -2.0);
+            let fe = f(&expanded);
             evaluations += 1;
-            simplex[2] = if fe < fr {
+            simplex[d] = if fe < fr {
                 (expanded, fe)
             } else {
                 (reflected, fr)
             };
-        } else if fr < simplex[1].1 {
-            simplex[2] = (reflected, fr);
+        } else if fr < simplex[d - 1].1 {
+            simplex[d] = (reflected, fr);
         } else {
-            let contracted = if fr < simplex[2].1 {
-                at(centroid, reflected, 0.5)
+            let contracted = if fr < simplex[d].1 {
+                at(&centroid, &reflected, 0.5)
             } else {
-                at(centroid, simplex[2].0, 0.5)
+                at(&centroid, &simplex[d].0, 0.5)
             };
-            let fc = f(contracted);
+            let fc = f(&contracted);
             evaluations += 1;
-            if fc < fr.min(simplex[2].1) {
-                simplex[2] = (contracted, fc);
+            if fc < fr.min(simplex[d].1) {
+                simplex[d] = (contracted, fc);
             } else {
-                let anchor = simplex[0].0;
+                let anchor = simplex[0].0.clone();
                 for v in simplex.iter_mut().skip(1) {
-                    v.0 = at(anchor, v.0, 0.5);
-                    v.1 = f(v.0);
+                    v.0 = at(&anchor, &v.0, 0.5);
+                    v.1 = f(&v.0);
                 }
-                evaluations += 2;
+                evaluations += d;
             }
         }
     }
     simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
-    simplex[0].0
+    simplex.swap_remove(0).0
 }
 
 /// The parts of the likelihoods a GLS solution gives.
@@ -501,7 +523,7 @@ pub(super) struct Solution {
     /// `r^T S^-1 r`, r the GLS residual.
     pub(super) residual: f64,
     /// `ln |X^T S^-1 X|`.
-    log_det_normal: f64,
+    pub(super) log_det_normal: f64,
 }
 
 /// Design columns whitened and scaled to unit norm (the normal equations then stay

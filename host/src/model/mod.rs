@@ -640,6 +640,8 @@ pub fn run(
 #[cfg(test)]
 pub mod families;
 #[cfg(test)]
+mod gauss_markov_power;
+#[cfg(test)]
 mod independent;
 #[cfg(test)]
 mod ramp_power;

@@ -31,7 +31,7 @@ use std::f64::consts::PI;
 
 /// The orthonormal DCT-II coefficients 1..=kmax of `x` (Makhoul's even-odd reordering and
 /// one real FFT of the same length: IEEE Trans. ASSP 28, 1980).
-fn dct2(x: &[f64], kmax: usize) -> Vec<f64> {
+pub(super) fn dct2(x: &[f64], kmax: usize) -> Vec<f64> {
     let n = x.len();
     let half = n.div_ceil(2);
     let mut v: Vec<f64> = (0..n)
@@ -60,7 +60,12 @@ fn dct2(x: &[f64], kmax: usize) -> Vec<f64> {
 
 /// Variances of DCT coefficients 1..=kmax for `n` samples at `rate_hz`: the fixed part (white
 /// and quantization of `terms`), and per unit B^2 and per unit K^2.
-fn coefficient_variances(terms: &NoiseTerms, rate_hz: f64, n: usize, kmax: usize) -> [Vec<f64>; 3] {
+pub(super) fn coefficient_variances(
+    terms: &NoiseTerms,
+    rate_hz: f64,
+    n: usize,
+    kmax: usize,
+) -> [Vec<f64>; 3] {
     let tau0 = 1.0 / rate_hz;
     let w = |k: usize| PI * k as f64 / n as f64;
     let poles: Vec<(f64, f64)> =
