@@ -8,7 +8,7 @@
 //! | slow line | low-frequency periodogram ([`super::spectrum`]) | the largest bin over the fitted background |
 //! | rate ramp | regression on time | likelihood ratio of the block means with and without the slope ([`super::regression`]) |
 //! | temperature | regression on temperature and its derivative | likelihood ratio with and without both coefficients |
-//! | Gauss-Markov | nested fit of the Allan curve | misfit(model') - misfit(model' + term), model' the model with B and K free, both refitted |
+//! | Gauss-Markov | nested fit of the Allan curve, and the likelihood of the record's cosine transform ([`super::cosine`]); the stronger, its p doubled ([`stronger_of_two`]) | misfit(model') - misfit(model' + term), model' the model with B and K free, both refitted; the likelihood ratio with and without the term, B and K searched on both sides |
 //! | B, K, Q | nested fit of the Allan curve | misfit(model) - misfit(model + term), both refitted |
 //! | the sensor's low-pass | PSD roll-off ([`crate::analysis::low_pass::detect_outside`]) | likelihood ratio of a filter against none, the removed lines' bands left out |
 //!
@@ -42,6 +42,9 @@ pub enum View {
     RegressionOnTemperature,
     /// Misfit drop of the Allan curve when the term joins the model.
     NestedFit,
+    /// Likelihood ratio of the record's cosine transform with and without a Gauss-Markov
+    /// term ([`super::cosine`]).
+    CosineLikelihood,
     /// The spectrum's roll-off against a low-pass-free model ([`crate::analysis::low_pass::detect`]).
     RollOff,
     /// The largest low-frequency periodogram bin over the fitted background
@@ -56,6 +59,7 @@ impl View {
             View::RegressionOnTime => "regression on time",
             View::RegressionOnTemperature => "regression on temperature",
             View::NestedFit => "Allan misfit drop",
+            View::CosineLikelihood => "cosine-transform likelihood",
             View::RollOff => "spectrum roll-off",
             View::LowSpectrum => "low-frequency periodogram",
         }
@@ -63,7 +67,7 @@ impl View {
 
     /// Deterministic views are judged before the stochastic terms that could absorb them.
     pub fn is_deterministic(self) -> bool {
-        !matches!(self, View::NestedFit)
+        !matches!(self, View::NestedFit | View::CosineLikelihood)
     }
 
     /// Whether a step named in this view must bring the simulations closer to the record
@@ -74,7 +78,10 @@ impl View {
     /// regressor is a signal the realisations carry as estimated and stays on its own
     /// evidence.
     pub fn must_close_gap(self) -> bool {
-        matches!(self, View::NestedFit | View::RollOff)
+        matches!(
+            self,
+            View::NestedFit | View::CosineLikelihood | View::RollOff
+        )
     }
 }
 
@@ -477,11 +484,7 @@ impl Evidence {
             / (simulated.len().max(2) - 1) as f64;
         let max = simulated.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let (statistic, effect) = measured;
-        // Clamped where the normal quantile runs out of double precision (p below 1e-300)
-        // and, symmetrically, where p is 1.
-        let z = Normal::standard()
-            .inverse_cdf((1.0 - p_value).clamp(1e-300, 1.0 - 1e-300))
-            .clamp(-40.0, 40.0);
+        let z = standard_quantile(p_value);
         let p_needed = super::FAMILY_ALPHA / candidates.max(1) as f64;
         Evidence {
             candidate,
@@ -498,6 +501,29 @@ impl Evidence {
             passes: super::names(statistic, p_value, p_needed, max) && effect.is_some(),
         }
     }
+}
+
+/// The stronger of two views' evidence for one candidate, its p-value doubled (Bonferroni
+/// over the two views): a candidate judged in two views must not pass twice as often on
+/// pure noise.
+pub fn stronger_of_two(a: Evidence, b: Evidence) -> Evidence {
+    let chosen = if b.p_value < a.p_value { b } else { a };
+    let p_value = (2.0 * chosen.p_value).min(1.0);
+    Evidence {
+        z: standard_quantile(p_value),
+        passes: super::names(chosen.statistic, p_value, chosen.p_needed, chosen.sim_max)
+            && chosen.effect.is_some(),
+        p_value,
+        ..chosen
+    }
+}
+
+/// The standard normal quantile of `1 - p`, clamped where it runs out of double precision
+/// (p below 1e-300) and, symmetrically, where p is 1.
+fn standard_quantile(p: f64) -> f64 {
+    Normal::standard()
+        .inverse_cdf((1.0 - p).clamp(1e-300, 1.0 - 1e-300))
+        .clamp(-40.0, 40.0)
 }
 
 /// `P(s chi2_k > statistic)` for the scaled chi-square with the mean and variance of the

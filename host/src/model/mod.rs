@@ -58,6 +58,7 @@
 mod candidates;
 use candidates::{add, choose, detect_lines};
 pub mod clean;
+pub mod cosine;
 pub mod evidence;
 pub mod gls;
 pub mod refit;

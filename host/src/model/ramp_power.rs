@@ -23,71 +23,10 @@
 //! ramps the workflow misses are those whose likelihood ratio collapses once K is free: a
 //! random walk a few times the true one explains them almost as well.
 
+use super::cosine::{coefficient_variances, dct2};
 use super::families::{self, Kind, STUDY_SHAPE};
 use super::gls::{self, Blocks, Estimator, Likelihood, Whitener, covariance};
-use crate::sim::noise::{NoiseTerms, flicker_poles, flicker_tau_max, flicker_white_density};
-use realfft::RealFftPlanner;
-use std::f64::consts::PI;
-
-/// The orthonormal DCT-II coefficients 1..=kmax of `x` (Makhoul's even-odd reordering and
-/// one real FFT of the same length: IEEE Trans. ASSP 28, 1980).
-pub(super) fn dct2(x: &[f64], kmax: usize) -> Vec<f64> {
-    let n = x.len();
-    let half = n.div_ceil(2);
-    let mut v: Vec<f64> = (0..n)
-        .map(|i| {
-            if i < half {
-                x[2 * i]
-            } else {
-                x[2 * (n - i) - 1]
-            }
-        })
-        .collect();
-    let r2c = RealFftPlanner::<f64>::new().plan_fft_forward(n);
-    let mut out = r2c.make_output_vec();
-    r2c.process(&mut v, &mut out)
-        .expect("buffers of the plan's sizes");
-    let scale = (2.0 / n as f64).sqrt();
-    out[1..=kmax]
-        .iter()
-        .enumerate()
-        .map(|(i, z)| {
-            let a = -PI * (i + 1) as f64 / (2.0 * n as f64);
-            (z.re * a.cos() - z.im * a.sin()) * scale
-        })
-        .collect()
-}
-
-/// Variances of DCT coefficients 1..=kmax for `n` samples at `rate_hz`: the fixed part (white
-/// and quantization of `terms`), and per unit B^2 and per unit K^2.
-pub(super) fn coefficient_variances(
-    terms: &NoiseTerms,
-    rate_hz: f64,
-    n: usize,
-    kmax: usize,
-) -> [Vec<f64>; 3] {
-    let tau0 = 1.0 / rate_hz;
-    let w = |k: usize| PI * k as f64 / n as f64;
-    let poles: Vec<(f64, f64)> =
-        flicker_poles(1.0, tau0, flicker_tau_max(n as f64 * tau0, tau0)).collect();
-    let ar1 = |sigma: f64, tau_c: f64, w: f64| {
-        let phi = (-tau0 / tau_c).exp();
-        sigma * sigma * (1.0 - phi * phi) / (1.0 - 2.0 * phi * w.cos() + phi * phi)
-    };
-    let fixed = (1..=kmax)
-        .map(|k| terms.n * terms.n / tau0 + (terms.q / tau0).powi(2) * (2.0 - 2.0 * w(k).cos()))
-        .collect();
-    let flicker = (1..=kmax)
-        .map(|k| {
-            flicker_white_density(1.0, tau0).powi(2) / tau0
-                + poles.iter().map(|&(s, t)| ar1(s, t, w(k))).sum::<f64>()
-        })
-        .collect();
-    let walk = (1..=kmax)
-        .map(|k| tau0 / (2.0 - 2.0 * w(k).cos()))
-        .collect();
-    [fixed, flicker, walk]
-}
+use crate::sim::noise::NoiseTerms;
 
 /// Twice the negative log-likelihood of the coefficients `c` with variances `v`, after the
 /// weighted least-squares fit of the ramp's coefficients `t` when `ramp`.

@@ -3,12 +3,12 @@
 //! realisation ([`simulate_round`]).
 
 use super::candidates::{open_noise, probes};
-use super::clean::Removal;
-use super::evidence::{self, Context, Evidence, Probe};
+use super::clean::{self, Removal};
+use super::evidence::{self, Context, Evidence, Probe, View};
 use super::{
     Band, Comparison, Data, Effect, GAUSS_MARKOV_MIN_SAMPLES, Line, Model, REFINE,
-    REGRESSION_DRAWS, Range, UNSURE_ABOVE, UNSURE_BELOW, Z_DISAGREE, gls, refit, regression,
-    spectrum,
+    REGRESSION_DRAWS, Range, UNSURE_ABOVE, UNSURE_BELOW, Z_DISAGREE, cosine, gls, refit,
+    regression, spectrum,
 };
 use crate::analysis::Deviation;
 use crate::analysis::low_pass::{LowPass, LowPassSource};
@@ -255,12 +255,65 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
             evidence[j] = judge(p, &simulated, REFINE * REGRESSION_DRAWS);
         }
     }
+    if let Some(j) = probes.iter().position(|p| *p == Probe::GaussMarkov) {
+        let allan = evidence[j].clone();
+        if let Some(cosine) = cosine_evidence(data, model, removal, probes.len()) {
+            evidence[j] = evidence::stronger_of_two(allan, cosine);
+        }
+    }
     Round {
         comparison,
         sd_ln,
         probes,
         evidence,
     }
+}
+
+/// The Gauss-Markov candidate's evidence in the cosine-transform view ([`cosine`]): the
+/// record with the named lines notched, the named regressors as fixed effects, under the
+/// model's white noise, quantization and filter; judged again on [`REFINE`] times as many
+/// draws when unsure.
+fn cosine_evidence(
+    data: &Data,
+    model: &Model,
+    removal: &Removal,
+    candidates: usize,
+) -> Option<Evidence> {
+    let notched = if removal.notches.is_empty() {
+        std::borrow::Cow::Borrowed(data.rate)
+    } else {
+        std::borrow::Cow::Owned(clean::notch(data.rate, data.rate_hz, &removal.notches))
+    };
+    let regressors = removal.design(data.rate.len(), data.rate_hz, data.temperature.as_ref());
+    let terms = model.stochastic();
+    let view = cosine::CosineLikelihood::new(
+        &notched,
+        data.rate_hz,
+        &terms,
+        model.low_pass.as_ref(),
+        &regressors,
+    )?;
+    let start = [terms.b * terms.b, terms.k * terms.k];
+    let judged = |draws: usize| {
+        let verdict = view.test(start, draws, data.settings.seed);
+        let effect = (verdict.sigma > 0.0).then_some(Effect::GaussMarkov {
+            tau_c: verdict.tau_c,
+            sigma: verdict.sigma,
+        });
+        Evidence::new(
+            Probe::GaussMarkov.name(),
+            View::CosineLikelihood,
+            (verdict.statistic, effect),
+            &verdict.null,
+            candidates,
+        )
+    };
+    let first = judged(REGRESSION_DRAWS);
+    Some(if unsure(&first) {
+        judged(REFINE * REGRESSION_DRAWS)
+    } else {
+        first
+    })
 }
 
 /// Whether a candidate's verdict rests on the tail of too few simulations (see
