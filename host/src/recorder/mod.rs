@@ -18,7 +18,9 @@ use std::time::{Duration, Instant};
 /// served promptly even on a silent link.
 const READ_TIMEOUT: Duration = Duration::from_millis(100);
 /// A watched capture also ends when the host's clock passes the duration by this fraction
-/// (the sensor's clock may be that much slow) plus [`OVERTIME_GRACE_S`].
+/// (the sensor's clock may be that much slow) plus [`OVERTIME_GRACE_S`], and no sample has
+/// been accounted for during the last [`OVERTIME_GRACE_S`]: a board that is merely slower
+/// than the host's clock (an emulated one on a loaded machine) still streams, and runs on.
 const OVERTIME: f64 = 0.05;
 const OVERTIME_GRACE_S: f64 = 60.0;
 
@@ -160,6 +162,8 @@ fn run(
     }
     // The last snapshot's precision, for the end reason when the duration comes first.
     let mut last_snapshot: Option<Snapshot> = None;
+    // The host's clock when the samples accounted for last grew.
+    let (mut accounted, mut accounted_at_us) = (0u64, started_us);
     let ending = loop {
         if stop.load(Ordering::Relaxed) {
             break Ending::Stopped;
@@ -205,6 +209,9 @@ fn run(
             .zip(rate_hz)
             .map(|(d, r)| (d * r).round() as u64);
         let expected = decoder.accounting().expected();
+        if expected > accounted {
+            (accounted, accounted_at_us) = (expected, link.clock_us());
+        }
         let new_board_errors = decoder.board_errors()[board_errors_shown..].to_vec();
         board_errors_shown += new_board_errors.len();
         let new_recoveries = decoder.recoveries()[recoveries_shown..].to_vec();
@@ -242,11 +249,14 @@ fn run(
         }
         // A board that brings nothing (its sensor gone for good) must not hold the capture
         // past its time: on the host's clock, the duration plus the sensor clock's tolerance
-        // and a minute ends it too (the silence is counted lost).
+        // and a minute, with a minute of nothing, ends it too (the silence is counted lost).
+        let now_us = link.clock_us();
+        let grace_us = OVERTIME_GRACE_S * 1e6;
         if keepalive.is_some()
+            && now_us.saturating_sub(accounted_at_us) as f64 >= grace_us
             && options.duration_s.is_some_and(|d| {
-                let limit_us = (d * (1.0 + OVERTIME) + OVERTIME_GRACE_S) * 1e6;
-                link.clock_us().saturating_sub(started_us) as f64 >= limit_us
+                let limit_us = d * (1.0 + OVERTIME) * 1e6 + grace_us;
+                now_us.saturating_sub(started_us) as f64 >= limit_us
             })
         {
             break Ending::DurationReached;
@@ -510,6 +520,53 @@ mod tests {
         );
         let session = store.get(outcome.session_id).unwrap().unwrap();
         assert_eq!(session.counts.samples_lost, lost);
+    }
+
+    /// The host's clock beside a board ten times slower than real time (an emulated board
+    /// on a loaded machine): the board keeps streaming, so the capture runs to its samples
+    /// however long the host waits.
+    struct SlowBoard<'a>(&'a mut VirtualBoard);
+
+    impl Link for SlowBoard<'_> {
+        fn read(&mut self, buf: &mut [u8], timeout: Duration) -> std::io::Result<usize> {
+            Ok(self.0.read(buf, timeout))
+        }
+        fn write_all(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+            Link::write_all(self.0, bytes)
+        }
+        fn describe(&self) -> String {
+            "a slow board".into()
+        }
+        fn clock_us(&self) -> u64 {
+            self.0.time_us() * 10
+        }
+    }
+
+    #[test]
+    fn a_board_slower_than_the_hosts_clock_is_captured_to_its_duration() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        let mut board = started(5);
+        let settings = SensorSettings::for_rate_and_bandwidth(200.0, 42.0).unwrap();
+        let options = RecordOptions {
+            duration_s: Some(10.0),
+            keep_samples: true,
+            watch: Some(Plan::mpu6050(settings)),
+            ..RecordOptions::default()
+        };
+        let outcome = record(
+            &mut SlowBoard(&mut board),
+            &store,
+            &options,
+            &AtomicBool::new(false),
+            &mut |_| {},
+        )
+        .unwrap();
+        assert!(matches!(outcome.ending, Ending::DurationReached));
+        let capture = outcome.capture.unwrap();
+        let accounting = &capture.first().accounting;
+        assert_eq!(accounting.lost(), 0);
+        assert!(accounting.received() >= 2000, "{}", accounting.received());
     }
 
     /// A virtual board (seed `seed`, full speed) streaming at 200 Hz / 42 Hz.
