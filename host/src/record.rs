@@ -19,20 +19,44 @@ pub enum Quantity {
 }
 
 impl Quantity {
-    /// Recognise the usual IMU column names: `gx`, `gyro_x`, `wx` are rates; `ax`, `acc_x`,
-    /// `accel_x` are accelerations; `temp`, `temperature` is the die temperature.
+    /// Recognise the usual IMU column names: `gx`, `gyro_x`, `wx`, `Gyroscope x` are rates;
+    /// `ax`, `acc_x`, `accel_x`, `field.linear_acceleration.x` are accelerations; `temp`,
+    /// `temperature` is the die temperature.
     pub fn from_name(name: &str) -> Quantity {
         let n = name.trim().to_ascii_lowercase();
         let axis = |prefixes: &[&str]| {
             prefixes.iter().any(|p| {
                 n.strip_prefix(p)
-                    .map(|rest| matches!(rest.trim_start_matches(['_', '.']), "x" | "y" | "z"))
+                    .map(|rest| {
+                        matches!(
+                            rest.trim_start_matches(['_', '.', ' ', '-']),
+                            "x" | "y" | "z"
+                        )
+                    })
                     .unwrap_or(false)
             })
         };
-        if axis(&["g", "gyro", "gyr", "w", "omega"]) {
+        // ROS's `field.angular_velocity.x` and the phone apps' `Gyroscope x` too.
+        if axis(&[
+            "g",
+            "gyro",
+            "gyr",
+            "gyroscope",
+            "w",
+            "omega",
+            "angular_velocity",
+            "field.angular_velocity",
+        ]) {
             Quantity::AngularRate
-        } else if axis(&["a", "acc", "accel"]) {
+        } else if axis(&[
+            "a",
+            "acc",
+            "accel",
+            "accelerometer",
+            "acceleration",
+            "linear_acceleration",
+            "field.linear_acceleration",
+        ]) {
             Quantity::Acceleration
         } else if matches!(
             n.as_str(),
@@ -159,6 +183,10 @@ mod tests {
             ("ax", Quantity::Acceleration),
             ("accel.y", Quantity::Acceleration),
             ("acc_z", Quantity::Acceleration),
+            ("Gyroscope x", Quantity::AngularRate),
+            ("field.angular_velocity.z", Quantity::AngularRate),
+            ("field.linear_acceleration.y", Quantity::Acceleration),
+            ("Accelerometer-Y", Quantity::Acceleration),
             ("temp", Quantity::Temperature),
             ("time", Quantity::Other),
             ("gain", Quantity::Other),

@@ -438,6 +438,30 @@ fn host_stamped_log(rows: usize, rate_hz: f64, bursts: &[std::ops::Range<usize>]
 const GYRO_DPS: f64 = 0.05;
 const ACCEL_G: f64 = 0.002;
 
+/// `imunoise analyze PATH --confidence 0.997 --json -`: its document and its output.
+fn analysed_at_997(path: &Path) -> (Value, std::process::Output) {
+    let out = run(&[
+        "analyze",
+        path.to_str().unwrap(),
+        "--confidence",
+        "0.997",
+        "--json",
+        "-",
+    ]);
+    (json_of(&out), out)
+}
+
+/// The channel's N interval holds `truth`.
+fn n_covers(channel: &Value, gyro: bool, truth: f64) {
+    let n = noise_n(channel, gyro);
+    let (lo, hi) = (n["lo"].as_f64().unwrap(), n["hi"].as_f64().unwrap());
+    assert!(
+        lo <= truth && truth <= hi,
+        "{}: {truth} not in [{lo}, {hi}]",
+        channel["name"]
+    );
+}
+
 /// The done-means case: ten minutes of a 100 Hz sensor whose clock runs 0.13 % slow, logged
 /// by a host with jitter and two USB bursts, unit-suffixed and gzipped, analyses as it is.
 /// The rate comes out within 0.1 % of the sensor's (the nominal 100 Hz would not), and N in
@@ -451,15 +475,7 @@ fn a_host_stamped_gzipped_log_with_units_analyses_with_no_preparation() {
     let text = host_stamped_log(60_000, rate, &[20_000..20_012, 45_000..45_020]);
     let path = tmp.path().join("arduino.csv.gz");
     std::fs::write(&path, gzipped(&text)).unwrap();
-    let out = run(&[
-        "analyze",
-        path.to_str().unwrap(),
-        "--confidence",
-        "0.997",
-        "--json",
-        "-",
-    ]);
-    let doc = json_of(&out);
+    let (doc, out) = analysed_at_997(&path);
     let got = doc["rate_hz"].as_f64().unwrap();
     assert!((got / rate - 1.0).abs() < 1e-3, "{got} Hz");
     assert_eq!(doc["samples"], 60_000);
@@ -484,20 +500,83 @@ fn a_host_stamped_gzipped_log_with_units_analyses_with_no_preparation() {
         } else {
             ACCEL_G * 9.80665
         };
-        let truth = sigma / rate.sqrt();
-        let n = noise_n(c, gyro);
-        let (lo, hi) = (n["lo"].as_f64().unwrap(), n["hi"].as_f64().unwrap());
-        assert!(
-            lo <= truth && truth <= hi,
-            "{}: {truth} not in [{lo}, {hi}]",
-            c["name"]
-        );
+        n_covers(c, gyro, sigma / rate.sqrt());
     }
     assert_eq!(channels[6]["unit"], "degC");
 }
 
+/// Exports written by other people's tools analyse as they are: a phone app's CSV (a
+/// byte-order mark, quoted names with bracketed units, CRLF) and `rostopic echo -p` output
+/// (stamps in nanoseconds, a sequence number, ROS field names). The rate comes from the
+/// stamps, deg/s is converted, the counter and the second stamp are set aside and said so,
+/// and N in SI lies in its 99.7 % interval (both files: probability 0.99).
+#[test]
+fn phone_app_and_rostopic_exports_analyse_as_they_are() {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let tmp = scratch();
+    let (rate, rows) = (200.0, 40_000);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(29);
+    let gyro = Normal::new(0.0, GYRO_DPS).unwrap();
+    let mut phone =
+        String::from("\u{feff}\"Time (s)\",\"Gyroscope x (deg/s)\",\"Gyroscope y (deg/s)\"\r\n");
+    let mut ros =
+        String::from("%time,field.header.seq,field.header.stamp,field.angular_velocity.x\n");
+    for i in 0..rows {
+        let t = i as f64 / rate;
+        let (x, y) = (gyro.sample(&mut rng), gyro.sample(&mut rng));
+        phone.push_str(&format!("\"{t:.4}\",\"{x:.7}\",\"{y:.7}\"\r\n"));
+        let ns = 1_700_000_000_000_000_000u64 + i as u64 * 5_000_000;
+        ros.push_str(&format!("{ns},{i},{ns},{:.9}\n", x.to_radians()));
+    }
+    let cases = [
+        (
+            "phone.csv",
+            phone,
+            "Time (s)",
+            "s, by its name",
+            vec!["Gyroscope x", "Gyroscope y"],
+        ),
+        (
+            "rostopic.csv",
+            ros,
+            "%time",
+            "ns, by its name",
+            vec!["field.angular_velocity.x"],
+        ),
+    ];
+    for (file, text, column, unit, names) in cases {
+        let path = tmp.path().join(file);
+        std::fs::write(&path, text).unwrap();
+        let doc = analysed_at_997(&path).0;
+        let timing = &doc["input"]["timing"];
+        assert_eq!(timing["column"], column, "{file}");
+        assert_eq!(timing["unit"], unit, "{file}");
+        assert!(
+            (doc["rate_hz"].as_f64().unwrap() - rate).abs() < 1e-3,
+            "{file}"
+        );
+        let channels = doc["channels"].as_array().unwrap();
+        let got: Vec<&str> = channels
+            .iter()
+            .map(|c| c["name"].as_str().unwrap())
+            .collect();
+        assert_eq!(got, names, "{file}");
+        for c in channels {
+            n_covers(c, true, GYRO_DPS.to_radians() / rate.sqrt());
+        }
+    }
+    let out = run(&["analyze", tmp.path().join("rostopic.csv").to_str().unwrap()]);
+    let shown = String::from_utf8_lossy(&out.stdout).to_string() + &stderr(&out);
+    assert!(
+        shown.contains("not analysed (further time stamps, sample counters): 'field.header.seq', 'field.header.stamp'"),
+        "{shown}"
+    );
+}
+
 /// `--rate` overrides a time column with a warning stating both; a real gap is refused by
-/// line, time and count; `--ignore-time` takes the rows as they are, also for an import.
+/// line, time and count; `--longest-run` keeps the longest run between gaps; `--ignore-time`
+/// takes the rows as they are, also for an import.
 #[test]
 fn rate_overrides_and_ignore_time_sets_aside_a_time_column() {
     let tmp = scratch();
@@ -536,6 +615,19 @@ fn rate_overrides_and_ignore_time_sets_aside_a_time_column() {
         "{shown}"
     );
     assert!(shown.contains("2995 samples at 100.000 Hz"), "{shown}");
+    // --longest-run keeps the 1995 rows after the gap, at the stamps' own rate.
+    let out = run(&["analyze", gapped, "--longest-run", "--json", "-"]);
+    assert!(
+        stderr(&out).contains(
+            "note: time column 't': 5 sample(s) missing in 1 gap(s); analysed the longest \
+             gap-free run (--longest-run): lines 1002 to 2996, 1995 of 2995 rows"
+        ),
+        "{}",
+        stderr(&out)
+    );
+    let doc = json_of(&out);
+    assert_eq!(doc["samples"], 1995);
+    assert!((doc["rate_hz"].as_f64().unwrap() - 100.5).abs() < 1e-3);
 
     let whole = tmp.path().join("whole.csv");
     let mut text = String::from("t,gx\n");

@@ -274,7 +274,8 @@ pub struct ReadArgs {
     /// Multiply a channel by a factor, e.g. gx=0.001 (repeatable)
     #[arg(long, value_name = "NAME=FACTOR", value_parser = parse_scale)]
     pub scale: Vec<(String, f64)>,
-    /// A capture with gaps: analyse its longest gap-free run (the losses are reported)
+    /// A capture with gaps, or a time column with samples missing: analyse the longest
+    /// gap-free run (the losses are reported)
     #[arg(long)]
     pub longest_run: bool,
     /// A ROS bag's sensor_msgs/Imu topic (needed when the bag has several)

@@ -5,6 +5,7 @@
 //!
 //! Every error names the file and, where there is one, the line and column at fault.
 
+mod names;
 mod npy;
 pub mod rosbag;
 mod text;
@@ -41,7 +42,8 @@ pub struct LoadOptions {
     pub counts: Option<CountScale>,
     /// Multiply the named channel by a factor (after any counts conversion).
     pub scales: Vec<(String, f64)>,
-    /// A capture with gaps: analyse its longest gap-free run instead of refusing.
+    /// A capture with gaps, or a time column with samples missing: analyse the longest
+    /// gap-free run instead of refusing (the losses are reported).
     pub longest_run: bool,
     /// The topic to read from a ROS bag (needed when it has several IMU topics).
     pub topic: Option<String>,
@@ -72,6 +74,10 @@ pub struct ReadReport {
     pub timing: Option<Timing>,
     /// A time column `--ignore-time` set aside.
     pub ignored_time_column: Option<String>,
+    /// Columns that are neither the time base nor signals: further time stamps and sample
+    /// counters (ROS's `field.header.stamp` and `field.header.seq`), by name.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub set_aside_columns: Vec<String>,
     /// Units taken from column-name suffixes.
     pub units: Vec<UnitConversion>,
     /// What the user should know before trusting the result (jitter, an overridden rate).
@@ -93,6 +99,17 @@ impl ReadReport {
         }
         if let Some(name) = &self.ignored_time_column {
             lines.push(format!("time column '{name}' ignored (--ignore-time)"));
+        }
+        if !self.set_aside_columns.is_empty() {
+            let named: Vec<String> = self
+                .set_aside_columns
+                .iter()
+                .map(|n| format!("'{n}'"))
+                .collect();
+            lines.push(format!(
+                "not analysed (further time stamps, sample counters): {}",
+                named.join(", ")
+            ));
         }
         if !self.units.is_empty() {
             let units: Vec<String> = self.units.iter().map(|u| u.to_string()).collect();
@@ -158,6 +175,8 @@ struct Table {
     timing: Option<Timing>,
     /// A time column `--ignore-time` set aside, by name.
     ignored_time: Option<String>,
+    /// Further time columns and sample counters, by name.
+    set_aside: Vec<String>,
 }
 
 /// A sample rate the file itself states, and how it says it (for error messages).
@@ -223,7 +242,11 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Loaded, InputError> {
         } else if is_npy {
             npy::parse(path, &bytes)?
         } else {
-            text::parse(path, &bytes, options.ignore_time)?
+            let time = text::TimeOptions {
+                ignore_time: options.ignore_time,
+                longest_run: options.longest_run,
+            };
+            text::parse(path, &bytes, time, &mut notes)?
         }
     };
     let record = build_record(path, table, options, &mut report)?;
@@ -312,6 +335,7 @@ pub fn open_npy(path: &Path, options: &LoadOptions) -> Result<Option<NpyStream>,
         rate_hz: None,
         timing: None,
         ignored_time: None,
+        set_aside: Vec::new(),
     };
     let mut report = ReadReport::default();
     let record = build_record(path, table, options, &mut report)?;
@@ -384,6 +408,7 @@ fn capture_table(
         }),
         timing: None,
         ignored_time: None,
+        set_aside: Vec::new(),
         channels: record
             .channels
             .into_iter()
@@ -456,6 +481,7 @@ fn build_record(
         &mut report.warnings,
     )?;
     report.ignored_time_column = table.ignored_time;
+    report.set_aside_columns = table.set_aside;
     let mut channels = table.channels;
     if !options.names.is_empty() {
         if options.names.len() != channels.len() {
@@ -665,6 +691,7 @@ mod tests {
             }),
             timing: None,
             ignored_time: None,
+            set_aside: Vec::new(),
         }
     }
 

@@ -233,6 +233,7 @@ fn read(mut reader: impl Read, len: u64) -> Result<Table, ReadError> {
         rate_hz: None,
         timing: None,
         ignored_time: None,
+        set_aside: Vec::new(),
     })
 }
 

@@ -1,11 +1,16 @@
-//! Text tables: numeric columns separated by commas, semicolons, tabs or spaces; `#` comments
-//! and blank lines anywhere; before the data, optional `key,value` metadata lines (the
-//! MPU-6050 logger's `Fs,100` gives the rate) and an optional header line of column names.
-//! A `time` column (seconds; `time_ms`, `time_us` scaled) gives the rate by least squares;
-//! jitter is accepted and gaps of missing samples are refused ([`super::timing`]).
+//! Text tables: numeric columns separated by commas, semicolons, tabs or spaces (with a
+//! decimal comma where the separator is not a comma); `#` comments and blank lines
+//! anywhere; fields and names in quotes or not; before the data, optional `key,value`
+//! metadata lines (the MPU-6050 logger's `Fs,100` gives the rate) and an optional header
+//! line of column names, a UTF-8 byte-order mark before it ignored. A time column
+//! ([`names::time_column`]: `time`, `Time (s)`, `time_ms`, ROS's `%time` in nanoseconds...)
+//! gives the rate by least squares; jitter is accepted and gaps of missing samples are
+//! refused ([`super::timing`]). Other time columns and sample counters (`field.header.seq`)
+//! are set aside, by name.
 //!
 //! The data lines are parsed in parallel chunks: a 300 MB 8-hour log is read in about a second.
 
+use super::names::{self, unquote};
 use super::timing::{self, Timing, TimingError};
 use super::{InputError, RateSource, Table};
 use rayon::prelude::*;
@@ -19,8 +24,26 @@ type Chunk = (usize, Result<Vec<Vec<f64>>, (usize, String)>);
 /// Chunk size for parallel parsing; each chunk ends at a line end.
 const CHUNK_BYTES: usize = 1 << 20;
 
-/// The table in `bytes`; a time column is fitted unless `ignore_time` sets it aside.
-pub(super) fn parse(path: &Path, bytes: &[u8], ignore_time: bool) -> Result<Table, InputError> {
+/// How a table's time column is used.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct TimeOptions {
+    /// Set the time column aside: the rows are uniform samples.
+    pub ignore_time: bool,
+    /// Where samples are missing, keep the longest run of rows between gaps (a note says
+    /// which rows and what was left out) instead of refusing the file.
+    pub longest_run: bool,
+}
+
+/// The table in `bytes`; a time column is fitted unless `time.ignore_time` sets it aside.
+/// What the caller must show the user (the run kept) goes into `notes`.
+pub(super) fn parse(
+    path: &Path,
+    bytes: &[u8],
+    time: TimeOptions,
+    notes: &mut Vec<String>,
+) -> Result<Table, InputError> {
+    // Spreadsheet exports start with a byte-order mark; lines are counted as before.
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let mut preamble = read_preamble(path, bytes)?;
     let width = preamble.names.len();
     let columns = parse_data(path, bytes, &preamble)?;
@@ -32,16 +55,57 @@ pub(super) fn parse(path: &Path, bytes: &[u8], ignore_time: bool) -> Result<Tabl
         preamble.names.iter().cloned().zip(columns).collect();
     debug_assert_eq!(channels.len(), width);
     let (mut timing, mut ignored_time) = (None, None);
-    if let Some(at) = channels.iter().position(|(n, _)| time_scale(n).is_some()) {
+    if let Some(at) = channels
+        .iter()
+        .position(|(n, _)| names::time_column(n).is_some())
+    {
         let (name, mut times) = channels.remove(at);
-        if ignore_time {
+        if time.ignore_time {
             ignored_time = Some(name);
         } else {
-            let scale = time_scale(&name).unwrap_or(1.0);
-            times.iter_mut().for_each(|t| *t *= scale);
-            timing = Some(time_base(path, bytes, &preamble, &name, &times)?);
+            let unit = names::time_column(&name).unwrap_or(names::TimeUnit::Unstated);
+            let (scale, how) = unit.resolve(times[0]);
+            if scale != 1.0 {
+                times.iter_mut().for_each(|t| *t *= scale);
+            }
+            let mut fitted = match timing::analyse(&name, &times) {
+                Err(TimingError::Gaps { gaps, .. }) if time.longest_run => {
+                    let run = timing::longest_run(&gaps, times.len());
+                    let kept = timing::analyse(&name, &times[run.clone()]);
+                    let fitted = time_base(path, bytes, &preamble, &name, kept, run.start)?;
+                    let lines = row_lines(bytes, &preamble, &[run.start, run.end - 1]);
+                    let missing: u64 = gaps.iter().map(|g| g.missing).sum();
+                    notes.push(format!(
+                        "time column '{name}': {missing} sample(s) missing in {} gap(s); \
+                         analysed the longest gap-free run (--longest-run): lines {} to {}, \
+                         {} of {} rows",
+                        gaps.len(),
+                        lines(run.start),
+                        lines(run.end - 1),
+                        run.len(),
+                        times.len()
+                    ));
+                    for (_, values) in &mut channels {
+                        values.truncate(run.end);
+                        values.drain(..run.start);
+                    }
+                    fitted
+                }
+                fitted => time_base(path, bytes, &preamble, &name, fitted, 0)?,
+            };
+            fitted.unit = how;
+            timing = Some(fitted);
         }
     }
+    // Further stamps and counters are neither the time base nor signals.
+    let mut set_aside = Vec::new();
+    channels.retain(|(n, _)| {
+        let keep = names::time_column(n).is_none() && !names::counter_column(n);
+        if !keep {
+            set_aside.push(n.clone());
+        }
+        keep
+    });
     if channels.is_empty() {
         return Err(InputError::file(path, "no data columns besides time"));
     }
@@ -50,27 +114,39 @@ pub(super) fn parse(path: &Path, bytes: &[u8], ignore_time: bool) -> Result<Tabl
         rate_hz: preamble.rate_hz.take(),
         timing,
         ignored_time,
+        set_aside,
     })
 }
 
-/// The time column's fit with its worst step's line, or an error naming the lines at fault.
+/// The time column's fit (of the rows from `first_row` on) with its worst step's line, or
+/// an error naming the lines at fault.
 fn time_base(
     path: &Path,
     bytes: &[u8],
     pre: &Preamble,
     name: &str,
-    times: &[f64],
+    fitted: Result<Timing, TimingError>,
+    first_row: usize,
 ) -> Result<Timing, InputError> {
-    match timing::analyse(name, times) {
+    match fitted {
         Ok(mut t) => {
-            t.worst_step.line = row_lines(bytes, pre, &[t.worst_step.row])(t.worst_step.row);
+            let row = first_row + t.worst_step.row;
+            t.worst_step.row = row;
+            t.worst_step.line = row_lines(bytes, pre, &[row])(row);
             Ok(t)
         }
         Err(e) => {
-            let lines = row_lines(bytes, pre, &e.rows());
-            let message = e.explain(name, &|row| format!("line {}", lines(row)));
+            let rows: Vec<usize> = e.rows().iter().map(|r| first_row + r).collect();
+            let lines = row_lines(bytes, pre, &rows);
+            let place = |row| format!("line {}", lines(first_row + row));
+            let mut message = e.explain(name, &place);
+            if matches!(e, TimingError::Gaps { .. }) {
+                message.push_str(", or --longest-run to analyse the longest run between gaps");
+            }
             Err(match e {
-                TimingError::Backwards { row, .. } => InputError::line(path, lines(row), message),
+                TimingError::Backwards { row, .. } => {
+                    InputError::line(path, lines(first_row + row), message)
+                }
                 _ => InputError::file(path, message),
             })
         }
@@ -101,20 +177,12 @@ fn row_lines(bytes: &[u8], pre: &Preamble, rows: &[usize]) -> impl Fn(usize) -> 
     move |row| found.get(&row).copied().unwrap_or(first)
 }
 
-/// A time column's factor to seconds, or None if the name is not a time column's.
-fn time_scale(name: &str) -> Option<f64> {
-    match name.trim().to_ascii_lowercase().as_str() {
-        "time" | "t" | "timestamp" | "time_s" | "t_s" | "timestamp_s" => Some(1.0),
-        "time_ms" | "t_ms" | "timestamp_ms" => Some(1e-3),
-        "time_us" | "t_us" | "timestamp_us" => Some(1e-6),
-        _ => None,
-    }
-}
-
 /// Everything before the first data line.
 struct Preamble {
     names: Vec<String>,
     delimiter: Delimiter,
+    /// Numbers are written with a decimal comma (`0,25;1,5`).
+    decimal_comma: bool,
     rate_hz: Option<RateSource>,
     /// Byte offset and 1-based line number of the first data line.
     data_start: usize,
@@ -128,8 +196,10 @@ enum Delimiter {
 }
 
 impl Delimiter {
+    /// A semicolon or a tab before a comma: where either separates, a comma is a decimal
+    /// comma.
     fn detect(line: &str) -> Delimiter {
-        [',', ';', '\t']
+        [';', '\t', ',']
             .into_iter()
             .find(|c| line.contains(*c))
             .map_or(Delimiter::Whitespace, Delimiter::Char)
@@ -137,8 +207,8 @@ impl Delimiter {
 
     fn split(self, line: &str) -> Box<dyn Iterator<Item = &str> + '_> {
         match self {
-            Delimiter::Char(c) => Box::new(line.split(c).map(str::trim)),
-            Delimiter::Whitespace => Box::new(line.split_whitespace()),
+            Delimiter::Char(c) => Box::new(line.split(c).map(unquote)),
+            Delimiter::Whitespace => Box::new(line.split_whitespace().map(unquote)),
         }
     }
 }
@@ -183,8 +253,13 @@ fn read_preamble(path: &Path, bytes: &[u8]) -> Result<Preamble, InputError> {
         }
         let delimiter = Delimiter::detect(line);
         let fields: Vec<&str> = delimiter.split(line).collect();
-        let numeric = fields.iter().all(|f| f.parse::<f64>().is_ok());
-        if numeric {
+        let numeric = |decimal_comma| {
+            fields
+                .iter()
+                .all(|f| read_number(f, decimal_comma).is_some())
+        };
+        let decimal_comma = delimiter != Delimiter::Char(',') && !numeric(false) && numeric(true);
+        if numeric(decimal_comma) {
             let width = fields.len();
             let names = match names {
                 Some(n) if n.len() != width => {
@@ -200,6 +275,7 @@ fn read_preamble(path: &Path, bytes: &[u8]) -> Result<Preamble, InputError> {
             return Ok(Preamble {
                 names,
                 delimiter,
+                decimal_comma,
                 rate_hz,
                 data_start: offset,
                 first_data_line: number,
@@ -258,7 +334,7 @@ fn parse_data(path: &Path, bytes: &[u8], pre: &Preamble) -> Result<Vec<Vec<f64>>
     let width = pre.names.len();
     let chunks: Vec<Chunk> = bounds
         .par_windows(2)
-        .map(|w| parse_chunk(&body[w[0]..w[1]], width, pre.delimiter, &pre.names))
+        .map(|w| parse_chunk(&body[w[0]..w[1]], pre, width))
         .collect();
     let mut columns: Vec<Vec<f64>> = vec![Vec::new(); width];
     let mut line = pre.first_data_line;
@@ -275,8 +351,18 @@ fn parse_data(path: &Path, bytes: &[u8], pre: &Preamble) -> Result<Vec<Vec<f64>>
     Ok(columns)
 }
 
+/// A field's number, read with a decimal comma if `decimal_comma`; None if it is none.
+fn read_number(field: &str, decimal_comma: bool) -> Option<f64> {
+    if decimal_comma && field.contains(',') {
+        field.replacen(',', ".", 1).parse().ok()
+    } else {
+        field.parse().ok()
+    }
+}
+
 /// One chunk: its line count and its columns, or the chunk-relative line of the first error.
-fn parse_chunk(chunk: &[u8], width: usize, delimiter: Delimiter, names: &[String]) -> Chunk {
+fn parse_chunk(chunk: &[u8], pre: &Preamble, width: usize) -> Chunk {
+    let (delimiter, names) = (pre.delimiter, &pre.names);
     let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(chunk.len() / (8 * width + 1)); width];
     let mut count = 0;
     for (i, (_, raw)) in lines(chunk, 0).enumerate() {
@@ -293,12 +379,12 @@ fn parse_chunk(chunk: &[u8], width: usize, delimiter: Delimiter, names: &[String
                 n += 1;
                 continue;
             };
-            match field.parse::<f64>() {
-                Ok(v) if v.is_finite() => column.push(v),
-                Ok(v) => {
+            match read_number(field, pre.decimal_comma) {
+                Some(v) if v.is_finite() => column.push(v),
+                Some(v) => {
                     return (count, Err((i, format!("column '{}' is {v}", names[n]))));
                 }
-                Err(_) => {
+                None => {
                     let message = format!("column '{}': '{field}' is not a number", names[n]);
                     return (count, Err((i, message)));
                 }
@@ -320,7 +406,12 @@ mod tests {
     use super::*;
 
     fn parse_str(s: &str) -> Result<Table, InputError> {
-        parse(Path::new("t.csv"), s.as_bytes(), false)
+        parse(
+            Path::new("t.csv"),
+            s.as_bytes(),
+            TimeOptions::default(),
+            &mut Vec::new(),
+        )
     }
 
     #[test]
@@ -348,6 +439,84 @@ mod tests {
         let t = parse_str("time_ms;gx\n0;1\n5;2\n10;3\n").unwrap();
         assert_eq!(t.timing.unwrap().rate_hz, 200.0);
         assert!(t.rate_hz.is_none());
+    }
+
+    #[test]
+    fn quoted_names_bracketed_units_and_a_byte_order_mark() {
+        // A phone app's export: BOM, quoted names with units, CRLF.
+        let text = "\u{feff}\"Time (s)\",\"Gyroscope x (rad/s)\",\"Gyroscope y (rad/s)\"\r\n\
+                    0.000,1,2\r\n0.005,3,4\r\n0.010,5,6\r\n";
+        let t = parse_str(text).unwrap();
+        let timing = t.timing.unwrap();
+        assert_eq!(
+            (timing.column.as_str(), timing.rate_hz),
+            ("Time (s)", 200.0)
+        );
+        assert_eq!(timing.unit, "s, by its name");
+        let names: Vec<_> = t.channels.iter().map(|c| c.0.as_str()).collect();
+        assert_eq!(names, ["Gyroscope x (rad/s)", "Gyroscope y (rad/s)"]);
+        assert_eq!(t.channels[1].1, [2.0, 4.0, 6.0]);
+        // Quoted numbers too.
+        let t = parse_str("\"gx\",\"gy\"\n\"1.5\",\"2\"\n").unwrap();
+        assert_eq!(t.channels[0].1, [1.5]);
+    }
+
+    #[test]
+    fn a_decimal_comma_beside_semicolons_or_tabs() {
+        let t = parse_str("time;gx;gy\n0,00;1,5;-2\n0,01;2,25;3e-3\n").unwrap();
+        assert_eq!(t.timing.unwrap().rate_hz, 100.0);
+        assert_eq!(t.channels[0].1, [1.5, 2.25]);
+        assert_eq!(t.channels[1].1, [-2.0, 3e-3]);
+        let t = parse_str("gx\tgy\n0,5\t1\n").unwrap();
+        assert_eq!(t.channels[0].1, [0.5]);
+        // A comma that separates is never a decimal comma.
+        let t = parse_str("gx,gy\n0,5\n").unwrap();
+        assert_eq!((t.channels[0].1[0], t.channels[1].1[0]), (0.0, 5.0));
+        let err = parse_str("gx;gy\n0,5;1\n1,5;1,2,3\n")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(err, "t.csv:3: column 'gy': '1,2,3' is not a number");
+    }
+
+    #[test]
+    fn ros_stamps_in_nanoseconds_and_counters_set_aside() {
+        // `rostopic echo -p` output: receive time and header stamp in ns, a sequence number.
+        let mut text =
+            String::from("%time,field.header.seq,field.header.stamp,field.angular_velocity.x\n");
+        for i in 0..50u64 {
+            let ns = 1_700_000_000_000_000_000 + i * 5_000_000;
+            text.push_str(&format!("{ns},{i},{ns},{}\n", i % 3));
+        }
+        let t = parse_str(&text).unwrap();
+        let timing = t.timing.unwrap();
+        assert_eq!(timing.column, "%time");
+        assert_eq!(timing.unit, "ns, by its name");
+        // Stamps near 1.7e18 hold 256 ns in a double: 5e-5 of a period per stamp.
+        assert!((timing.rate_hz - 200.0).abs() < 1e-4, "{timing:?}");
+        let names: Vec<_> = t.channels.iter().map(|c| c.0.as_str()).collect();
+        assert_eq!(names, ["field.angular_velocity.x"]);
+        assert_eq!(t.set_aside, ["field.header.seq", "field.header.stamp"]);
+    }
+
+    #[test]
+    fn unstated_epoch_stamps_are_read_by_their_size() {
+        for (scale, unit) in [(1.0, "s"), (1e3, "ms"), (1e6, "us"), (1e9, "ns")] {
+            let mut text = String::from("timestamp,gx\n");
+            for i in 0..40 {
+                let t = (1.7e9 + i as f64 * 0.01) * scale;
+                text.push_str(&format!("{t:.0},{i}\n"));
+            }
+            if scale == 1.0 {
+                // Seconds are printed to the period's precision.
+                text = String::from("timestamp,gx\n");
+                for i in 0..40 {
+                    text.push_str(&format!("{:.2},{i}\n", 1.7e9 + i as f64 * 0.01));
+                }
+            }
+            let timing = parse_str(&text).unwrap().timing.unwrap();
+            assert!((timing.rate_hz - 100.0).abs() < 1e-3, "{unit}: {timing:?}");
+            assert!(timing.unit.starts_with(unit), "{unit}: {}", timing.unit);
+        }
     }
 
     #[test]
@@ -443,8 +612,36 @@ mod tests {
             line_of_row(2101, 4)
         );
         assert!(err.starts_with(&expected), "{err}\n{expected}");
+        assert!(
+            err.ends_with(", or --longest-run to analyse the longest run between gaps"),
+            "{err}"
+        );
+        // With --longest-run, the rows between the two gaps (stamps 5.03 s to 20.99 s).
+        let mut notes = Vec::new();
+        let longest = TimeOptions {
+            longest_run: true,
+            ..TimeOptions::default()
+        };
+        let t = parse(Path::new("t.csv"), text.as_bytes(), longest, &mut notes).unwrap();
+        assert_eq!(t.channels[0].1.len(), 1597);
+        assert_eq!(t.channels[0].1[0], (503 % 7) as f64);
+        let timing = t.timing.unwrap();
+        assert!((timing.rate_hz - 100.0).abs() < 1e-6, "{timing:?}");
+        assert_eq!(
+            notes,
+            [format!(
+                "time column 't': 4 sample(s) missing in 2 gap(s); analysed the longest gap-free \
+                 run (--longest-run): lines {} to {}, 1597 of 2996 rows",
+                line_of_row(503, 3),
+                line_of_row(2099, 3)
+            )]
+        );
         // The time column set aside, the rows are taken as they are.
-        let t = parse(Path::new("t.csv"), text.as_bytes(), true).unwrap();
+        let ignore = TimeOptions {
+            ignore_time: true,
+            ..TimeOptions::default()
+        };
+        let t = parse(Path::new("t.csv"), text.as_bytes(), ignore, &mut Vec::new()).unwrap();
         assert!(t.timing.is_none());
         assert_eq!(t.ignored_time.as_deref(), Some("t"));
         assert_eq!(t.channels[0].1.len(), 2996);

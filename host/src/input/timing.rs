@@ -50,6 +50,9 @@ const SHORT_WINDOW: usize = 8;
 pub struct Timing {
     /// The time column's name in the file.
     pub column: String,
+    /// The unit its values were read in, and how it was decided (`s, unstated`; `ns, by
+    /// its name`).
+    pub unit: String,
     pub stamps: usize,
     /// 1 / period, Hz.
     pub rate_hz: f64,
@@ -70,8 +73,8 @@ impl std::fmt::Display for Timing {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "time column '{}': {} Hz by least squares over {} stamps",
-            self.column, self.rate_hz, self.stamps
+            "time column '{}' ({}): {} Hz by least squares over {} stamps",
+            self.column, self.unit, self.rate_hz, self.stamps
         )?;
         if self.uniform {
             return write!(f, ", every step within 1 % of the period");
@@ -184,6 +187,22 @@ impl TimingError {
     }
 }
 
+/// The longest run of rows between `gaps` (each starting at its `row`) of `rows` rows; the
+/// first such run on a tie.
+pub fn longest_run(gaps: &[Gap], rows: usize) -> std::ops::Range<usize> {
+    let mut bounds: Vec<usize> = gaps.iter().map(|g| g.row).collect();
+    bounds.push(rows);
+    let mut best = 0..0;
+    let mut start = 0;
+    for end in bounds {
+        if end - start > best.len() {
+            best = start..end;
+        }
+        start = end;
+    }
+    best
+}
+
 /// Fit a time column (seconds) and judge it; `column` names it in the result. Line numbers are
 /// left 0 for the caller to fill in.
 pub fn analyse(column: &str, times: &[f64]) -> Result<Timing, TimingError> {
@@ -246,6 +265,7 @@ pub fn analyse(column: &str, times: &[f64]) -> Result<Timing, TimingError> {
         .fold(0.0, f64::max);
     Ok(Timing {
         column: column.to_string(),
+        unit: "s".into(),
         stamps: n,
         rate_hz: round_to_print(1.0 / period),
         period_s: period,

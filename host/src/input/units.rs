@@ -1,8 +1,10 @@
-//! Units stated by a column name's suffix (`gx_dps`, `az_g`, `temp_C`): the values are
-//! converted to SI and the suffix is dropped, so `gx_dps` becomes the angular-rate channel
-//! `gx` in rad/s, and every conversion is reported.
+//! Units stated by a column name's suffix (`gx_dps`, `az_g`, `temp_C`) or in brackets
+//! (`Gyroscope x (rad/s)`, `ax [m/s^2]`, `temp (°C)`): the values are converted to SI and
+//! the unit is dropped from the name, so `gx_dps` becomes the angular-rate channel `gx` in
+//! rad/s, and every conversion is reported.
 
 use super::InputError;
+use super::names::{bracketed, folded_unit};
 use crate::record::{Channel, Quantity};
 use serde::Serialize;
 use std::path::Path;
@@ -10,9 +12,11 @@ use std::path::Path;
 /// Standard gravity, m/s^2 (CGPM 1901; NIST SP 330).
 pub const STANDARD_GRAVITY: f64 = 9.80665;
 
-/// A unit a suffix names: its label, what it measures and its factor to SI.
+/// A unit a suffix or a bracket names: its label, what it measures and its factor to SI.
 struct Unit {
     suffixes: &'static [&'static str],
+    /// Its spellings in brackets, as [`folded_unit`] folds them.
+    bracketed: &'static [&'static str],
     label: &'static str,
     quantity: Quantity,
     to_si: f64,
@@ -22,36 +26,42 @@ struct Unit {
 const UNITS: [Unit; 6] = [
     Unit {
         suffixes: &["_dps", "_degps"],
+        bracketed: &["deg/s", "dps", "degps", "degree/s", "degrees/s"],
         label: "deg/s",
         quantity: Quantity::AngularRate,
         to_si: std::f64::consts::PI / 180.0,
     },
     Unit {
         suffixes: &["_rads", "_rad_s"],
+        bracketed: &["rad/s", "rads", "rad.s^-1", "rads^-1"],
         label: "rad/s",
         quantity: Quantity::AngularRate,
         to_si: 1.0,
     },
     Unit {
         suffixes: &["_mg"],
+        bracketed: &["mg"],
         label: "mg",
         quantity: Quantity::Acceleration,
         to_si: STANDARD_GRAVITY * 1e-3,
     },
     Unit {
         suffixes: &["_g"],
+        bracketed: &["g"],
         label: "g",
         quantity: Quantity::Acceleration,
         to_si: STANDARD_GRAVITY,
     },
     Unit {
         suffixes: &["_mps2", "_ms2"],
+        bracketed: &["m/s^2", "m/s2", "m/s/s", "ms^-2", "m.s^-2", "mps2"],
         label: "m/s^2",
         quantity: Quantity::Acceleration,
         to_si: 1.0,
     },
     Unit {
         suffixes: &["_degc", "_c"],
+        bracketed: &["degc", "c", "celsius", "degreesc"],
         label: "degC",
         quantity: Quantity::Temperature,
         to_si: 1.0,
@@ -88,9 +98,16 @@ impl std::fmt::Display for UnitConversion {
     }
 }
 
-/// The unit `name`'s suffix states (matched without regard to case) and the name without it;
-/// None when the name has no unit suffix or nothing before it.
+/// The unit `name`'s suffix or bracket states (matched without regard to case) and the name
+/// without it; None when the name states no unit this knows or has nothing before it.
 fn split(name: &str) -> Option<(&str, &'static Unit)> {
+    if let Some((stem, written)) = bracketed(name) {
+        let folded = folded_unit(written);
+        return UNITS
+            .iter()
+            .find(|u| u.bracketed.contains(&folded.as_str()))
+            .map(|unit| (stem, unit));
+    }
     let lower = name.to_ascii_lowercase();
     UNITS.iter().find_map(|unit| {
         let suffix = unit

@@ -390,6 +390,7 @@ pub(super) fn table(
             rate_hz: None,
             timing,
             ignored_time,
+            set_aside: Vec::new(),
         },
         read,
     ))
