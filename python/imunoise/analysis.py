@@ -75,8 +75,8 @@ def load(path, *, rate=None, names=None, ignore_time=False, longest_run=False, t
 
     ``rate`` (Hz) is needed when the file has no time column and no rate in its header;
     ``names`` names the channels of a headerless file; ``ignore_time`` treats a time column
-    as absent; ``longest_run`` reads the longest gap-free run of a capture with gaps
-    (otherwise refused). Raises ``OSError`` for a file that cannot be read and
+    as absent; ``longest_run`` reads the longest gap-free run of a capture with gaps, or of
+    a time column with samples missing (otherwise refused). Raises ``OSError`` for a file that cannot be read and
     ``ValueError`` (naming the file, line and field) for one whose content is wrong.
     """
     return _record(
