@@ -1,8 +1,8 @@
 //! Text tables: numeric columns separated by commas, semicolons, tabs or spaces (with a
-//! decimal comma where the separator is not a comma); `#` comments and blank lines
-//! anywhere; fields and names in quotes or not; before the data, optional `key,value`
-//! metadata lines (the MPU-6050 logger's `Fs,100` gives the rate) and an optional header
-//! line of column names, a UTF-8 byte-order mark before it ignored. A time column
+//! decimal comma where the separator is not a comma); `#` comments, `//` comment lines and
+//! blank lines anywhere; fields and names in quotes or not; before the data, optional
+//! metadata lines (a rate among them: [`stated_rate`]) and an optional header line of
+//! column names, a UTF-8 byte-order mark and a `sep=;` hint ignored. A time column
 //! ([`names::time_column`]: `time`, `Time (s)`, `time_ms`, ROS's `%time` in nanoseconds...)
 //! gives the rate by least squares; jitter is accepted and gaps of missing samples are
 //! refused ([`super::timing`]). Other time columns and sample counters (`field.header.seq`)
@@ -231,12 +231,57 @@ fn lines(bytes: &[u8], start: usize) -> impl Iterator<Item = (usize, &[u8])> {
     })
 }
 
+/// A line without its comment: from `#` on, or the whole line when it starts with `//`.
 fn clean(line: &[u8]) -> &[u8] {
     let line = line
         .iter()
         .position(|&b| b == b'#')
-        .map_or(line, |p| &line[..p]);
-    line.trim_ascii()
+        .map_or(line, |p| &line[..p])
+        .trim_ascii();
+    if line.starts_with(b"//") { &[] } else { line }
+}
+
+/// Keys that state a sample rate in a preamble line, lower case, spaces as `_`.
+const RATE_KEYS: [&str; 13] = [
+    "fs",
+    "rate",
+    "rate_hz",
+    "sample_rate",
+    "sampling_rate",
+    "sample_rate_hz",
+    "sampling_rate_hz",
+    "update_rate",
+    "output_rate",
+    "data_rate",
+    "output_data_rate",
+    "sampling_frequency",
+    "sample_frequency",
+];
+
+/// The sample rate a preamble line states, commented or not, with the key as written:
+/// `Fs,100` (the MPU-6050 logger's), `sample rate = 200 Hz`, `# rate: 100`, Xsens MT
+/// Manager's `// Update Rate: 100.0Hz`.
+fn stated_rate(line: &str) -> Option<(&str, f64)> {
+    let line = line.trim();
+    let line = line
+        .strip_prefix("//")
+        .or_else(|| line.strip_prefix('#'))
+        .unwrap_or(line)
+        .trim();
+    let at = line.find([',', ';', '\t', ':', '='])?;
+    let key = line[..at].trim();
+    let normal = unquote(key).to_ascii_lowercase().replace([' ', '-'], "_");
+    if !RATE_KEYS.contains(&normal.as_str()) {
+        return None;
+    }
+    let value = unquote(&line[at + 1..]);
+    let digits = value
+        .strip_suffix("Hz")
+        .or_else(|| value.strip_suffix("hz"))
+        .or_else(|| value.strip_suffix("HZ"))
+        .unwrap_or(value)
+        .trim();
+    digits.parse().ok().map(|hz| (key, hz))
 }
 
 fn utf8<'a>(path: &Path, number: usize, line: &'a [u8]) -> Result<&'a str, InputError> {
@@ -247,6 +292,22 @@ fn read_preamble(path: &Path, bytes: &[u8]) -> Result<Preamble, InputError> {
     let mut names: Option<Vec<String>> = None;
     let mut rate_hz = None;
     for (number, (offset, raw)) in lines(bytes, 0).enumerate().map(|(i, l)| (i + 1, l)) {
+        if names.is_none()
+            && let Some((key, hz)) = stated_rate(utf8(path, number, raw)?)
+        {
+            if !(hz.is_finite() && hz > 0.0) {
+                return Err(InputError::line(
+                    path,
+                    number,
+                    format!("{key}: the rate must be a positive number of Hz"),
+                ));
+            }
+            rate_hz = Some(RateSource {
+                hz,
+                from: format!("rate in the header ({key}, line {number})"),
+            });
+            continue;
+        }
         let line = utf8(path, number, clean(raw))?;
         if line.is_empty() {
             continue;
@@ -282,26 +343,14 @@ fn read_preamble(path: &Path, bytes: &[u8]) -> Result<Preamble, InputError> {
             });
         }
         if names.is_none()
-            && let [key, value] = fields[..]
-            && let Ok(v) = value.parse::<f64>()
+            && let [_, value] = fields[..]
+            && value.parse::<f64>().is_ok()
         {
-            // Metadata `key,value`: the MPU-6050 logger writes `Fs,100` for its rate.
-            if matches!(
-                key.to_ascii_lowercase().as_str(),
-                "fs" | "rate" | "rate_hz" | "sample_rate" | "sampling_rate"
-            ) {
-                if !(v.is_finite() && v > 0.0) {
-                    return Err(InputError::line(
-                        path,
-                        number,
-                        format!("{key},{value}: the rate must be a positive number of Hz"),
-                    ));
-                }
-                rate_hz = Some(RateSource {
-                    hz: v,
-                    from: format!("rate in the header ({key}, line {number})"),
-                });
-            }
+            // Metadata `key,value`; a rate among them was read above.
+            continue;
+        }
+        if names.is_none() && line.to_ascii_lowercase().starts_with("sep=") {
+            // A spreadsheet's separator hint (`sep=;`): the separator is detected anyway.
             continue;
         }
         if names.is_some() {
@@ -421,6 +470,28 @@ mod tests {
         let names: Vec<_> = t.channels.iter().map(|c| c.0.as_str()).collect();
         assert_eq!(names, ["ax", "ay", "gz"]);
         assert_eq!(t.channels[2].1, [3.0, 6.0]);
+    }
+
+    #[test]
+    fn rates_stated_before_the_header() {
+        for (preamble, hz) in [
+            ("Fs,100\n", 100.0),
+            ("sample rate = 200 Hz\n", 200.0),
+            ("# Sampling Rate: 50\n", 50.0),
+            (
+                "// Update Rate: 400.0Hz\n// Filter Profile: general\n",
+                400.0,
+            ),
+            ("sep=;\nrate;25\n", 25.0),
+        ] {
+            let t = parse_str(&format!("{preamble}gx;gy\n1;2\n")).unwrap();
+            assert_eq!(t.rate_hz.map(|r| r.hz), Some(hz), "{preamble}");
+            assert_eq!(t.channels[1].1, [2.0], "{preamble}");
+        }
+        let err = parse_str("fs: 0 Hz\ngx\n1\n").unwrap_err().to_string();
+        assert_eq!(err, "t.csv:1: fs: the rate must be a positive number of Hz");
+        // A rate named after the header is data, and refused as such.
+        assert!(parse_str("gx\nrate: 5\n").is_err());
     }
 
     #[test]
