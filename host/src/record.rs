@@ -56,6 +56,8 @@ impl Quantity {
             "acceleration",
             "linear_acceleration",
             "field.linear_acceleration",
+            // Kalibr's imu.csv: `omega_x` the rate, `alpha_x` the specific force.
+            "alpha",
         ]) {
             Quantity::Acceleration
         } else if matches!(
@@ -187,6 +189,8 @@ mod tests {
             ("field.angular_velocity.z", Quantity::AngularRate),
             ("field.linear_acceleration.y", Quantity::Acceleration),
             ("Accelerometer-Y", Quantity::Acceleration),
+            ("omega_x", Quantity::AngularRate),
+            ("alpha_z", Quantity::Acceleration),
             ("temp", Quantity::Temperature),
             ("time", Quantity::Other),
             ("gain", Quantity::Other),

@@ -241,6 +241,17 @@ fn clean(line: &[u8]) -> &[u8] {
     if line.starts_with(b"//") { &[] } else { line }
 }
 
+/// A comment just before the data read as its header: as many fields as the data has, split
+/// the same way, none of them a number.
+fn commented_header(comment: &str, delimiter: Delimiter, width: usize) -> Option<Vec<String>> {
+    let fields: Vec<&str> = delimiter.split(comment.trim()).collect();
+    let names = fields.len() == width
+        && fields
+            .iter()
+            .all(|f| !f.is_empty() && f.parse::<f64>().is_err());
+    names.then(|| fields.iter().map(|f| f.to_string()).collect())
+}
+
 /// Keys that state a sample rate in a preamble line, lower case, spaces as `_`.
 const RATE_KEYS: [&str; 13] = [
     "fs",
@@ -291,7 +302,16 @@ fn utf8<'a>(path: &Path, number: usize, line: &'a [u8]) -> Result<&'a str, Input
 fn read_preamble(path: &Path, bytes: &[u8]) -> Result<Preamble, InputError> {
     let mut names: Option<Vec<String>> = None;
     let mut rate_hz = None;
+    // The last line before the data that was wholly a `#` comment: EuRoC and TUM-VI write
+    // their header as one (`#timestamp [ns],w_RS_S_x [rad s^-1],...`).
+    let mut commented: Option<&str> = None;
     for (number, (offset, raw)) in lines(bytes, 0).enumerate().map(|(i, l)| (i + 1, l)) {
+        let before = commented;
+        if let Some(text) = raw.trim_ascii().strip_prefix(b"#") {
+            commented = std::str::from_utf8(text).ok();
+        } else if !raw.trim_ascii().is_empty() {
+            commented = None;
+        }
         if names.is_none()
             && let Some((key, hz)) = stated_rate(utf8(path, number, raw)?)
         {
@@ -331,7 +351,10 @@ fn read_preamble(path: &Path, bytes: &[u8]) -> Result<Preamble, InputError> {
                     ));
                 }
                 Some(n) => n,
-                None => (0..width).map(|i| format!("c{i}")).collect(),
+                None => match before.and_then(|c| commented_header(c, delimiter, width)) {
+                    Some(n) => n,
+                    None => (0..width).map(|i| format!("c{i}")).collect(),
+                },
             };
             return Ok(Preamble {
                 names,
@@ -492,6 +515,27 @@ mod tests {
         assert_eq!(err, "t.csv:1: fs: the rate must be a positive number of Hz");
         // A rate named after the header is data, and refused as such.
         assert!(parse_str("gx\nrate: 5\n").is_err());
+    }
+
+    #[test]
+    fn a_commented_header_as_euroc_writes_it() {
+        let text = "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],\
+                    a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n\
+                    1403636579758555392,-0.09,0.13,0.08,8.16,-0.37,-2.44\n\
+                    1403636579763555584,-0.08,0.13,0.08,8.33,-0.40,-2.20\n\
+                    1403636579768555520,-0.08,0.12,0.08,8.33,-0.40,-2.21\n";
+        let t = parse_str(text).unwrap();
+        let timing = t.timing.unwrap();
+        assert_eq!(timing.unit, "ns, by its name");
+        // Three stamps 5.000192 and 4.999936 ms apart.
+        assert!((timing.rate_hz - 200.0).abs() < 1e-2, "{timing:?}");
+        assert_eq!(t.channels.len(), 6);
+        assert_eq!(t.channels[0].0, "w_RS_S_x [rad s^-1]");
+        // A comment that is not a header stays a comment.
+        let t = parse_str("# logged by me\n1,2\n").unwrap();
+        assert_eq!(t.channels[0].0, "c0");
+        let t = parse_str("# a, b, 3\n1,2,3\n").unwrap();
+        assert_eq!(t.channels[0].0, "c0");
     }
 
     #[test]
