@@ -15,6 +15,7 @@ use super::timing::{self, Timing, TimingError};
 use super::{InputError, RateSource, Table};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
+use std::ops::Range;
 use std::path::Path;
 
 /// A parsed chunk: its line count, and its columns or the chunk-relative line of the first
@@ -45,6 +46,7 @@ pub(super) fn parse(
     // Spreadsheet exports start with a byte-order mark; lines are counted as before.
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let mut preamble = read_preamble(path, bytes)?;
+    preamble.missing_ok = time.longest_run;
     let width = preamble.names.len();
     let columns = parse_data(path, bytes, &preamble)?;
     let rows = columns.first().map_or(0, Vec::len);
@@ -55,47 +57,25 @@ pub(super) fn parse(
         preamble.names.iter().cloned().zip(columns).collect();
     debug_assert_eq!(channels.len(), width);
     let (mut timing, mut ignored_time) = (None, None);
+    // The rows kept start at this data row (a run between gaps).
+    let mut first_row = 0;
     if let Some(at) = channels
         .iter()
         .position(|(n, _)| names::time_column(n).is_some())
     {
-        let (name, mut times) = channels.remove(at);
+        let (name, times) = channels.remove(at);
         if time.ignore_time {
             ignored_time = Some(name);
         } else {
-            let unit = names::time_column(&name).unwrap_or(names::TimeUnit::Unstated);
-            let (scale, how) = unit.resolve(times[0]);
-            if scale != 1.0 {
-                times.iter_mut().for_each(|t| *t *= scale);
-            }
-            let mut fitted = match timing::analyse(&name, &times) {
-                Err(TimingError::Gaps { gaps, .. }) if time.longest_run => {
-                    let run = timing::longest_run(&gaps, times.len());
-                    let kept = timing::analyse(&name, &times[run.clone()]);
-                    let fitted = time_base(path, bytes, &preamble, &name, kept, run.start)?;
-                    let lines = row_lines(bytes, &preamble, &[run.start, run.end - 1]);
-                    let missing: u64 = gaps.iter().map(|g| g.missing).sum();
-                    notes.push(format!(
-                        "time column '{name}': {missing} sample(s) missing in {} gap(s); \
-                         analysed the longest gap-free run (--longest-run): lines {} to {}, \
-                         {} of {} rows",
-                        gaps.len(),
-                        lines(run.start),
-                        lines(run.end - 1),
-                        run.len(),
-                        times.len()
-                    ));
-                    for (_, values) in &mut channels {
-                        values.truncate(run.end);
-                        values.drain(..run.start);
-                    }
-                    fitted
-                }
-                fitted => time_base(path, bytes, &preamble, &name, fitted, 0)?,
-            };
-            fitted.unit = how;
+            let (fitted, run) = time_column(path, bytes, &preamble, &name, times, time, notes)?;
+            keep_rows(&mut channels, run.clone());
+            first_row = run.start;
             timing = Some(fitted);
         }
+    }
+    if time.longest_run {
+        let run = complete_rows(bytes, &preamble, &channels, first_row, notes);
+        keep_rows(&mut channels, run);
     }
     // Further stamps and counters are neither the time base nor signals.
     let mut set_aside = Vec::new();
@@ -116,6 +96,108 @@ pub(super) fn parse(
         ignored_time,
         set_aside,
     })
+}
+
+/// A time column's fit, read in its unit, and the rows it keeps: all, or with
+/// `time.longest_run` the longest run between gaps (a note says which).
+fn time_column(
+    path: &Path,
+    bytes: &[u8],
+    pre: &Preamble,
+    name: &str,
+    mut times: Vec<f64>,
+    time: TimeOptions,
+    notes: &mut Vec<String>,
+) -> Result<(Timing, Range<usize>), InputError> {
+    if let Some(row) = times.iter().position(|t| t.is_nan()) {
+        let line = row_lines(bytes, pre, &[row])(row);
+        return Err(InputError::line(
+            path,
+            line,
+            format!("time column '{name}' has no value"),
+        ));
+    }
+    let unit = names::time_column(name).unwrap_or(names::TimeUnit::Unstated);
+    let (scale, how) = unit.resolve(times[0]);
+    if scale != 1.0 {
+        times.iter_mut().for_each(|t| *t *= scale);
+    }
+    let (mut fitted, run) = match timing::analyse(name, &times) {
+        Err(TimingError::Gaps { gaps, .. }) if time.longest_run => {
+            let run = timing::longest_run(&gaps, times.len());
+            let kept = timing::analyse(name, &times[run.clone()]);
+            let fitted = time_base(path, bytes, pre, name, kept, run.start)?;
+            let lines = row_lines(bytes, pre, &[run.start, run.end - 1]);
+            let missing: u64 = gaps.iter().map(|g| g.missing).sum();
+            notes.push(format!(
+                "time column '{name}': {missing} sample(s) missing in {} gap(s); analysed the \
+                 longest gap-free run (--longest-run): lines {} to {}, {} of {} rows",
+                gaps.len(),
+                lines(run.start),
+                lines(run.end - 1),
+                run.len(),
+                times.len()
+            ));
+            (fitted, run)
+        }
+        fitted => (
+            time_base(path, bytes, pre, name, fitted, 0)?,
+            0..times.len(),
+        ),
+    };
+    fitted.unit = how;
+    Ok((fitted, run))
+}
+
+/// Every channel's rows `run`.
+fn keep_rows(channels: &mut [(String, Vec<f64>)], run: Range<usize>) {
+    for (_, values) in channels {
+        values.truncate(run.end);
+        values.drain(..run.start);
+    }
+}
+
+/// The longest run of rows with a value in every channel (a missing value is a lost sample),
+/// the rows counted from data row `first_row`; a note when some rows lack one.
+fn complete_rows(
+    bytes: &[u8],
+    pre: &Preamble,
+    channels: &[(String, Vec<f64>)],
+    first_row: usize,
+    notes: &mut Vec<String>,
+) -> Range<usize> {
+    let rows = channels.first().map_or(0, |c| c.1.len());
+    let incomplete: Vec<usize> = (0..rows)
+        .filter(|&r| channels.iter().any(|(_, v)| v[r].is_nan()))
+        .collect();
+    if incomplete.is_empty() {
+        return 0..rows;
+    }
+    let mut best = 0..0;
+    let mut start = 0;
+    for end in incomplete.iter().copied().chain([rows]) {
+        if end - start > best.len() {
+            best = start..end;
+        }
+        start = end + 1;
+    }
+    let wanted = [
+        first_row + incomplete[0],
+        first_row + best.start,
+        first_row + best.end.max(1) - 1,
+    ];
+    let lines = row_lines(bytes, pre, &wanted);
+    notes.push(format!(
+        "{} row(s) with a missing value, the first at line {}; analysed the longest run of \
+         complete rows (--longest-run): lines {} to {}, {} of {} rows",
+        incomplete.len(),
+        lines(wanted[0]),
+        lines(wanted[1]),
+        lines(wanted[2]),
+        best.len(),
+        rows
+    ));
+    best
 }
 
 /// The time column's fit (of the rows from `first_row` on) with its worst step's line, or
@@ -183,6 +265,8 @@ struct Preamble {
     delimiter: Delimiter,
     /// Numbers are written with a decimal comma (`0,25;1,5`).
     decimal_comma: bool,
+    /// An empty field or `NaN` is a missing value (read as NaN) rather than an error.
+    missing_ok: bool,
     rate_hz: Option<RateSource>,
     /// Byte offset and 1-based line number of the first data line.
     data_start: usize,
@@ -334,10 +418,14 @@ fn read_preamble(path: &Path, bytes: &[u8]) -> Result<Preamble, InputError> {
         }
         let delimiter = Delimiter::detect(line);
         let fields: Vec<&str> = delimiter.split(line).collect();
+        // A data line may lack a value (read as missing), but not every one.
         let numeric = |decimal_comma| {
             fields
                 .iter()
-                .all(|f| read_number(f, decimal_comma).is_some())
+                .all(|f| missing(f) || read_number(f, decimal_comma).is_some())
+                && fields
+                    .iter()
+                    .any(|f| read_number(f, decimal_comma).is_some_and(f64::is_finite))
         };
         let decimal_comma = delimiter != Delimiter::Char(',') && !numeric(false) && numeric(true);
         if numeric(decimal_comma) {
@@ -360,6 +448,7 @@ fn read_preamble(path: &Path, bytes: &[u8]) -> Result<Preamble, InputError> {
                 names,
                 delimiter,
                 decimal_comma,
+                missing_ok: false,
                 rate_hz,
                 data_start: offset,
                 first_data_line: number,
@@ -423,6 +512,14 @@ fn parse_data(path: &Path, bytes: &[u8], pre: &Preamble) -> Result<Vec<Vec<f64>>
     Ok(columns)
 }
 
+/// Whether a field is a missing value: empty, or `NaN`, `NA`, `null`, `None` in any case.
+fn missing(field: &str) -> bool {
+    field.is_empty()
+        || ["nan", "na", "null", "none"]
+            .iter()
+            .any(|m| field.eq_ignore_ascii_case(m))
+}
+
 /// A field's number, read with a decimal comma if `decimal_comma`; None if it is none.
 fn read_number(field: &str, decimal_comma: bool) -> Option<f64> {
     if decimal_comma && field.contains(',') {
@@ -451,6 +548,19 @@ fn parse_chunk(chunk: &[u8], pre: &Preamble, width: usize) -> Chunk {
                 n += 1;
                 continue;
             };
+            if missing(field) {
+                if pre.missing_ok {
+                    column.push(f64::NAN);
+                    n += 1;
+                    continue;
+                }
+                let message = format!(
+                    "column '{}': a missing value ('{field}'); --longest-run analyses the \
+                     longest run of complete rows",
+                    names[n]
+                );
+                return (count, Err((i, message)));
+            }
             match read_number(field, pre.decimal_comma) {
                 Some(v) if v.is_finite() => column.push(v),
                 Some(v) => {
@@ -641,7 +751,13 @@ mod tests {
         let err = parse_str("gx,gy\n1,2\n3\n").unwrap_err().to_string();
         assert_eq!(err, "t.csv:3: 1 fields where the table has 2");
         let err = parse_str("gx,gy\n1,2\n3,NaN\n").unwrap_err().to_string();
-        assert_eq!(err, "t.csv:3: column 'gy' is NaN");
+        assert_eq!(
+            err,
+            "t.csv:3: column 'gy': a missing value ('NaN'); --longest-run analyses the longest \
+             run of complete rows"
+        );
+        let err = parse_str("gx,gy\n1,2\n3,inf\n").unwrap_err().to_string();
+        assert_eq!(err, "t.csv:3: column 'gy' is inf");
         let err = parse_str("gx\n").unwrap_err().to_string();
         assert_eq!(err, "t.csv: no data lines");
         let err = parse_str("gx\ngy\n1\n").unwrap_err().to_string();
@@ -709,6 +825,57 @@ mod tests {
             shown.contains(&format!("at line {}", line_of_row(1234, 0))),
             "{shown}"
         );
+    }
+
+    #[test]
+    fn missing_values_are_refused_or_cut_around() {
+        let mut text = String::from("gx,gy\n");
+        for r in 0..12 {
+            let gy = match r {
+                2 => String::new(),
+                9 => "NaN".into(),
+                _ => format!("{}", r * 10),
+            };
+            text.push_str(&format!("{r},{gy}\n"));
+        }
+        let err = parse_str(&text).unwrap_err().to_string();
+        assert!(
+            err.starts_with("t.csv:4: column 'gy': a missing value ('')"),
+            "{err}"
+        );
+        let mut notes = Vec::new();
+        let longest = TimeOptions {
+            longest_run: true,
+            ..TimeOptions::default()
+        };
+        let t = parse(Path::new("t.csv"), text.as_bytes(), longest, &mut notes).unwrap();
+        assert_eq!(t.channels[0].1, [3.0, 4.0, 5.0, 6.0, 7.0, 8.0]);
+        assert_eq!(t.channels[1].1, [30.0, 40.0, 50.0, 60.0, 70.0, 80.0]);
+        assert_eq!(
+            notes,
+            [
+                "2 row(s) with a missing value, the first at line 4; analysed the longest run of \
+              complete rows (--longest-run): lines 5 to 10, 6 of 12 rows"
+            ]
+        );
+        // A first data line with a missing value is still data.
+        let t = parse(
+            Path::new("t.csv"),
+            b"gx,gy\n1,\n2,3\n4,5\n",
+            longest,
+            &mut notes,
+        )
+        .unwrap();
+        assert_eq!(t.channels[1].1, [3.0, 5.0]);
+        let err = parse_str("t,gx\n0,1\n,2\n").unwrap_err().to_string();
+        assert!(
+            err.starts_with("t.csv:3: column 't': a missing value"),
+            "{err}"
+        );
+        let err = parse(Path::new("t.csv"), b"t,gx\n0,1\n,2\n", longest, &mut notes)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(err, "t.csv:3: time column 't' has no value");
     }
 
     #[test]
