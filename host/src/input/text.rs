@@ -596,6 +596,16 @@ mod tests {
         )
     }
 
+    /// The table with `--longest-run`, and its notes.
+    fn parse_longest(bytes: &[u8]) -> Result<(Table, Vec<String>), InputError> {
+        let mut notes = Vec::new();
+        let longest = TimeOptions {
+            longest_run: true,
+            ..TimeOptions::default()
+        };
+        parse(Path::new("t.csv"), bytes, longest, &mut notes).map(|t| (t, notes))
+    }
+
     #[test]
     fn header_metadata_and_comments() {
         let t = parse_str("Fs,100\nLogging Type,1\nax,ay,gz\n# c\n1,2,3\n\n4,5,6 # x\r\n").unwrap();
@@ -843,12 +853,7 @@ mod tests {
             err.starts_with("t.csv:4: column 'gy': a missing value ('')"),
             "{err}"
         );
-        let mut notes = Vec::new();
-        let longest = TimeOptions {
-            longest_run: true,
-            ..TimeOptions::default()
-        };
-        let t = parse(Path::new("t.csv"), text.as_bytes(), longest, &mut notes).unwrap();
+        let (t, notes) = parse_longest(text.as_bytes()).unwrap();
         assert_eq!(t.channels[0].1, [3.0, 4.0, 5.0, 6.0, 7.0, 8.0]);
         assert_eq!(t.channels[1].1, [30.0, 40.0, 50.0, 60.0, 70.0, 80.0]);
         assert_eq!(
@@ -859,22 +864,14 @@ mod tests {
             ]
         );
         // A first data line with a missing value is still data.
-        let t = parse(
-            Path::new("t.csv"),
-            b"gx,gy\n1,\n2,3\n4,5\n",
-            longest,
-            &mut notes,
-        )
-        .unwrap();
+        let t = parse_longest(b"gx,gy\n1,\n2,3\n4,5\n").unwrap().0;
         assert_eq!(t.channels[1].1, [3.0, 5.0]);
         let err = parse_str("t,gx\n0,1\n,2\n").unwrap_err().to_string();
         assert!(
             err.starts_with("t.csv:3: column 't': a missing value"),
             "{err}"
         );
-        let err = parse(Path::new("t.csv"), b"t,gx\n0,1\n,2\n", longest, &mut notes)
-            .unwrap_err()
-            .to_string();
+        let err = parse_longest(b"t,gx\n0,1\n,2\n").unwrap_err().to_string();
         assert_eq!(err, "t.csv:3: time column 't' has no value");
     }
 
@@ -899,12 +896,7 @@ mod tests {
             "{err}"
         );
         // With --longest-run, the rows between the two gaps (stamps 5.03 s to 20.99 s).
-        let mut notes = Vec::new();
-        let longest = TimeOptions {
-            longest_run: true,
-            ..TimeOptions::default()
-        };
-        let t = parse(Path::new("t.csv"), text.as_bytes(), longest, &mut notes).unwrap();
+        let (t, notes) = parse_longest(text.as_bytes()).unwrap();
         assert_eq!(t.channels[0].1.len(), 1597);
         assert_eq!(t.channels[0].1[0], (503 % 7) as f64);
         let timing = t.timing.unwrap();
