@@ -28,6 +28,7 @@ use crate::analysis::{Estimator, allan, into_phase, lines};
 use crate::sim::noise::NoiseTerms;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
+use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
 /// Which view a candidate is judged in.
@@ -455,6 +456,10 @@ pub struct Evidence {
     pub p_needed: f64,
     /// Whether it passes the naming rule ([`super::names`]).
     pub passes: bool,
+    /// The standard deviations of the effect's parameters, by the parameter's name, where
+    /// the view gives them (the regressors' coefficients: [`super::gls::Estimator::coefficient_sd`]).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub standard_errors: BTreeMap<&'static str, f64>,
 }
 
 impl Evidence {
@@ -499,6 +504,7 @@ impl Evidence {
             z,
             p_needed,
             passes: super::names(statistic, p_value, p_needed, max) && effect.is_some(),
+            standard_errors: BTreeMap::new(),
         }
     }
 }

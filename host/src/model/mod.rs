@@ -257,6 +257,24 @@ impl Effect {
     }
 }
 
+/// `effect` in words, and the standard errors of its parameters where the view gives them:
+/// `rate ramp, R = -2.8000e-8 rad/s/s (standard error: slope 4.1e-9)`.
+fn described(
+    effect: &Effect,
+    standard_errors: &std::collections::BTreeMap<&'static str, f64>,
+    unit: &str,
+) -> String {
+    let words = effect.describe(unit);
+    if standard_errors.is_empty() {
+        return words;
+    }
+    let errors: Vec<String> = standard_errors
+        .iter()
+        .map(|(name, sd)| format!("{name} {sd:.2e}"))
+        .collect();
+    format!("{words} (standard error: {})", errors.join(", "))
+}
+
 /// The model: stochastic noise terms, the deterministic effects named (as estimated from the
 /// record), and the sensor's low-pass filter where one is known or was named.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -334,6 +352,7 @@ pub struct Comparison {
 #[derive(Debug, Clone, Serialize)]
 pub struct Step {
     pub effect: Effect,
+    /// The effect in words, with its parameters' standard errors where known.
     pub description: String,
     pub view: View,
     pub gap_before: f64,
@@ -607,7 +626,7 @@ pub fn run(
         let before = (model.clone(), removal.clone());
         model = add(&data, &model, &mut removal, (probe, effect), &round.sd_ln);
         steps.push(Step {
-            description: effect.describe(channel.unit()),
+            description: described(&effect, &evidence.standard_errors, channel.unit()),
             effect,
             view: evidence.view,
             gap_before: round.comparison.gap,

@@ -17,7 +17,8 @@
 //! levels the record shows without the candidate. The p-value is the scaled chi-square
 //! matched to [`super::REGRESSION_DRAWS`] draws, as for the other simulated views
 //! ([`super::evidence::Evidence::new`]). The effect shown is the least-squares coefficient,
-//! the one the removal takes out of the record.
+//! the one the removal takes out of the record, with its standard error under the noise the
+//! record shows with the regressor in ([`super::gls::Estimator::coefficient_sd`]).
 //!
 //! Why the open model's short-tau terms: a baseline fitted to the raw record has absorbed
 //! the effects — a temperature cycle, a ramp or a slow sinusoid inflates K — and it is K and
@@ -34,6 +35,7 @@ use super::Effect;
 use super::clean::{Removal, notch};
 use super::evidence::{Context, Evidence, Probe};
 use super::gls::{Bootstrap, Design, Estimator};
+use std::collections::BTreeMap;
 
 /// What a regressor test needs besides the record.
 pub struct Setup<'a> {
@@ -114,13 +116,41 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
     let removals: Vec<Removal> = std::iter::once(more).chain(every).collect();
     let null = bootstrap(&notched, &removals, probe, s);
     let (statistic, simulated) = null.map_or((0.0, Vec::new()), |t| (t.statistic, t.null));
-    Evidence::new(
+    let mut evidence = Evidence::new(
         probe.name(),
         probe.view(),
         (statistic, Some(effect)),
         &simulated,
         s.candidates,
-    )
+    );
+    evidence.standard_errors = standard_errors(&notched, &removals[0], probe, s);
+    evidence
+}
+
+/// The standard deviations of `probe`'s least-squares coefficients beside the regressors of
+/// `removal` and a constant, by the effect's parameter names.
+fn standard_errors(
+    notched: &[f64],
+    removal: &Removal,
+    probe: Probe,
+    s: &Setup,
+) -> BTreeMap<&'static str, f64> {
+    let view = s.view;
+    let mut columns = vec![vec![1.0; notched.len()]];
+    columns.extend(removal.design(notched.len(), view.rate_hz, view.temperature));
+    let names: &[&'static str] = match probe {
+        Probe::Ramp => &["slope"],
+        _ => &["coeff", "rate_coeff"],
+    };
+    let tested: Vec<usize> = positions(probe, removal).iter().map(|i| i + 1).collect();
+    let Some(sd) = s.gls.coefficient_sd(&columns, notched) else {
+        return BTreeMap::new();
+    };
+    tested
+        .iter()
+        .zip(names)
+        .map(|(&i, &name)| (name, sd[i]))
+        .collect()
 }
 
 /// The bootstrap test ([`super::gls::Estimator::test_designs`]) of `probe`'s regressors in
