@@ -422,7 +422,7 @@ impl Estimator {
     /// level only roughly, and the slope's error is the random walk's own trend, so the
     /// variance is averaged over the flicker and random-walk levels, weighted by the
     /// restricted likelihood of the record with every column in: a flat prior on the log
-    /// levels over the whole searched range, on a grid of [`LEVEL_GRID_STEP`] (the levels
+    /// levels over the whole searched range, on a grid of `LEVEL_GRID_STEP` (the levels
     /// integrated out rather than fixed at the likeliest). Measured on a ramp beside white
     /// noise, flicker and a random walk that crosses the white noise at a fifth of the record
     /// (`a_ramps_standard_error_is_calibrated`, 100 records): the errors over their standard
