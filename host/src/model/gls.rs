@@ -428,8 +428,9 @@ impl Estimator {
     /// (`a_ramps_standard_error_is_calibrated`, 100 records): the errors over their standard
     /// errors have a mean square of 1.8 and 88 lie within 2, where the likeliest levels alone
     /// gave 2.9. Levels fitted without the regressor gave 1.2, but they carry the
-    /// regressor's power: a strong ramp then got an error near its own size, and the errors
-    /// were skewed (a noise trend running against the ramp shrank the error). For regressors
+    /// regressor's power, so the error grows with the ramp (half the slope on a record whose
+    /// ramp the test named), and the errors were skewed (a noise trend running against the
+    /// ramp shrank the error). For regressors
     /// as slow as a ramp or a warm-up, least squares on the samples and on their block means
     /// agree. None when the columns are collinear.
     pub fn coefficient_sd(&self, columns: &[Vec<f64>], y: &[f64]) -> Option<Vec<f64>> {
