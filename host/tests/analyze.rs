@@ -281,7 +281,8 @@ fn bad_inputs_get_clear_errors() {
             "nan.csv",
             "gx\n1\n2\nnan\n",
             &["--rate", "10"],
-            "nan.csv:4: column 'gx' is NaN",
+            "nan.csv:4: column 'gx': a missing value ('nan'); --longest-run analyses the longest \
+             run of complete rows",
         ),
         (
             "const.csv",
