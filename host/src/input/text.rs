@@ -548,21 +548,18 @@ fn parse_chunk(chunk: &[u8], pre: &Preamble, width: usize) -> Chunk {
                 n += 1;
                 continue;
             };
-            if missing(field) {
-                if pre.missing_ok {
-                    column.push(f64::NAN);
-                    n += 1;
-                    continue;
-                }
-                let message = format!(
-                    "column '{}': a missing value ('{field}'); --longest-run analyses the \
-                     longest run of complete rows",
-                    names[n]
-                );
-                return (count, Err((i, message)));
-            }
+            // A number first: the missing-value spellings are checked only where none parses.
             match read_number(field, pre.decimal_comma) {
                 Some(v) if v.is_finite() => column.push(v),
+                _ if missing(field) && pre.missing_ok => column.push(f64::NAN),
+                _ if missing(field) => {
+                    let message = format!(
+                        "column '{}': a missing value ('{field}'); --longest-run analyses the \
+                         longest run of complete rows",
+                        names[n]
+                    );
+                    return (count, Err((i, message)));
+                }
                 Some(v) => {
                     return (count, Err((i, format!("column '{}' is {v}", names[n]))));
                 }
