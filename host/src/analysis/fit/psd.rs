@@ -258,7 +258,15 @@ fn pyramid(
         let spec = match level0 {
             // The caller's Welch estimate of the record with these options.
             Some(p) if level == 0 && p.density.len() == len / 2 + 1 => Cow::Borrowed(p),
-            _ => Cow::Owned(psd::welch_of(series, fs, &opts, Some(&transform))?),
+            _ if level == 0 => Cow::Owned(psd::welch_of(series, fs, &opts, Some(&transform))?),
+            // A deeper level is read at its lowest octave's bins only.
+            _ => Cow::Owned(psd::welch_bins_of(
+                series,
+                fs,
+                &opts,
+                w,
+                FIRST_ORDINATE..2 * FIRST_ORDINATE,
+            )?),
         };
         let k_eff = effective_segments(w, len - (len as f64 * 0.5).floor() as usize, spec.segments);
         // Level 0: up to Nyquist (excluded: one degree of freedom); deeper levels: the

@@ -23,9 +23,7 @@ impl Background {
     /// The level at bin k (one-sided PSD), interpolated linearly in ln-ln between block
     /// centres; constant beyond the first and last.
     pub(super) fn level(&self, k: usize) -> f64 {
-        self.at(k).map_or(f64::MIN_POSITIVE, |(ln_level, _)| {
-            ln_level.exp().max(f64::MIN_POSITIVE)
-        })
+        level_of(self.at(k))
     }
 
     /// The lowest [`Background::level`] over bins `lo..=hi` (`1 <= lo <= hi`): the level is
@@ -41,36 +39,45 @@ impl Background {
         inside.fold(self.level(lo).min(self.level(hi)), f64::min)
     }
 
-    /// The relative variance of [`Background::level`] at bin k.
-    pub(super) fn rel_var(&self, k: usize) -> f64 {
-        self.at(k).map_or(1.0, |(_, var)| var)
-    }
-
     /// The least relative variance at any bin (interpolation stays between blocks' values).
     pub(super) fn least_rel_var(&self) -> f64 {
         self.blocks.iter().map(|b| b.2).fold(1.0, f64::min)
     }
 
-    /// The degrees of freedom at bin k on the grid `2 DOF_GRID^bucket`.
-    pub(super) fn bucket(&self, k: usize) -> i32 {
-        ((1.0 / self.rel_var(k)).max(1.0).ln() / DOF_GRID.ln()).floor() as i32
+    /// A reader of this background with its own hint, for one thread reading bins mostly in
+    /// order: the shared hint of [`Background::level`], written by every read, would travel
+    /// between the cores of threads reading different ranges at every bin.
+    pub(super) fn cursor(&self) -> Cursor<'_> {
+        Cursor {
+            background: self,
+            hint: 0,
+        }
     }
 
     /// (ln level, relative variance) at bin k >= 1; None at bin 0 or without blocks.
     fn at(&self, k: usize) -> Option<(f64, f64)> {
+        let mut hint = self.hint.load(Ordering::Relaxed);
+        let found = self.at_from(k, &mut hint);
+        self.hint.store(hint, Ordering::Relaxed);
+        found
+    }
+
+    /// [`Background::at`], looking first at the block `hint` (and leaving there the block
+    /// found).
+    fn at_from(&self, k: usize, hint: &mut usize) -> Option<(f64, f64)> {
         let smoothed = &self.blocks;
         if k == 0 || smoothed.is_empty() {
             return None;
         }
         let x = (k as f64).ln();
         // The last block whose centre is at or below x (the first when none is).
-        let hint = self.hint.load(Ordering::Relaxed);
-        let i = if hint + 1 < smoothed.len() && smoothed[hint].0 <= x && x < smoothed[hint + 1].0 {
-            hint
+        let h = *hint;
+        let i = if h + 1 < smoothed.len() && smoothed[h].0 <= x && x < smoothed[h + 1].0 {
+            h
         } else {
             smoothed.partition_point(|b| b.0 <= x).saturating_sub(1)
         };
-        self.hint.store(i, Ordering::Relaxed);
+        *hint = i;
         Some(if x <= smoothed[0].0 {
             (smoothed[0].1, smoothed[0].2)
         } else if i + 1 >= smoothed.len() {
@@ -81,6 +88,44 @@ impl Background {
             (a.1 + w * (b.1 - a.1), a.2 + w * (b.2 - a.2))
         })
     }
+}
+
+/// One thread's reader of a [`Background`] ([`Background::cursor`]): the same values as the
+/// background's own methods.
+pub(super) struct Cursor<'a> {
+    background: &'a Background,
+    hint: usize,
+}
+
+impl Cursor<'_> {
+    /// [`Background::level`].
+    pub(super) fn level(&mut self, k: usize) -> f64 {
+        level_of(self.background.at_from(k, &mut self.hint))
+    }
+
+    /// The relative variance of [`Background::level`] at bin k.
+    pub(super) fn rel_var(&mut self, k: usize) -> f64 {
+        self.background
+            .at_from(k, &mut self.hint)
+            .map_or(1.0, |(_, var)| var)
+    }
+
+    /// The degrees of freedom at bin k on the grid `2 DOF_GRID^bucket`.
+    pub(super) fn bucket(&mut self, k: usize) -> i32 {
+        bucket_of(self.rel_var(k))
+    }
+}
+
+/// The level (one-sided PSD) of what [`Background::at`] found.
+fn level_of(at: Option<(f64, f64)>) -> f64 {
+    at.map_or(f64::MIN_POSITIVE, |(ln_level, _)| {
+        ln_level.exp().max(f64::MIN_POSITIVE)
+    })
+}
+
+/// The bucket of degrees of freedom `2 / rel_var` on the grid `2 DOF_GRID^bucket`.
+fn bucket_of(rel_var: f64) -> i32 {
+    ((1.0 / rel_var).max(1.0).ln() / DOF_GRID.ln()).floor() as i32
 }
 
 /// The running-median background of `power` over bins 3..=k_hi, leaving out masked bins

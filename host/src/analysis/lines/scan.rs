@@ -351,11 +351,12 @@ impl Search<'_> {
         let tested = |from: usize| -> Vec<Passed> {
             let to = (from + chunk).min(k_hi + 1);
             let end = (to + widest).min(k_hi + 1);
+            let (mut rect, mut hann) = (bg.rect.cursor(), bg.hann.cursor());
             let mut cum = Vec::with_capacity(end - from + 1);
             cum.push(0.0);
             let mut sum = 0.0;
             for k in from..end {
-                sum += spectra.rect(k) / bg.rect.level(k);
+                sum += spectra.rect(k) / rect.level(k);
                 cum.push(sum);
             }
             let mut thresholds = Thresholds::default();
@@ -379,9 +380,9 @@ impl Search<'_> {
                         if power <= floor.1 {
                             continue;
                         }
-                        (power / bg.hann.level(j), &bg.hann)
+                        (power / hann.level(j), &mut hann)
                     } else {
-                        ((cum[j + l - from] - cum[j - from]) / l as f64, &bg.rect)
+                        ((cum[j + l - from] - cum[j - from]) / l as f64, &mut rect)
                     };
                     if mean <= settled {
                         continue;

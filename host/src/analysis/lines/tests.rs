@@ -756,7 +756,7 @@ fn background_calibration() {
                 for k in a..b {
                     let e = (bg.level(k) / truth).ln();
                     acc[r][3 * which] += e * e;
-                    acc[r][3 * which + 1] += bg.rel_var(k) - SHAPE_ERROR * SHAPE_ERROR;
+                    acc[r][3 * which + 1] += bg.cursor().rel_var(k) - SHAPE_ERROR * SHAPE_ERROR;
                     acc[r][3 * which + 2] += 1.0;
                     acc[r][6 + which] += e;
                 }
