@@ -56,6 +56,7 @@ use crate::sim::dlpf::{DlpfDesign, Sensor};
 use protocol::mpu6050::SensorSettings;
 use rand::Rng;
 use rand_distr::StandardNormal;
+use rayon::prelude::*;
 use serde::Serialize;
 use shape::{Cascade, Phasor};
 use statrs::distribution::{ContinuousCDF, Normal};
@@ -620,25 +621,31 @@ pub fn detect_outside(
         .map(|i| lo * (hi / lo).powf(i as f64 / steps as f64))
         .collect();
     // The best cutoff of each shape, and the shape whose best fits best.
-    let fitted = Shape::ALL.map(|shape| {
-        let chi2 = |f: f64| spectrum.chi2(Some((shape, f)));
-        let profile: Vec<f64> = grid.iter().map(|&f| chi2(f)).collect();
-        let best = (0..grid.len())
-            .min_by(|&a, &b| profile[a].total_cmp(&profile[b]))
-            .unwrap_or(0);
-        let (a, b) = (
-            grid[best.saturating_sub(1)],
-            grid[(best + 1).min(grid.len() - 1)],
-        );
-        let golden = golden_min(chi2, a, b, CUTOFF_GOLDEN_STEPS);
-        let (cutoff, chi2_best) = match chi2(golden) {
-            c if c <= profile[best] => (golden, c),
-            _ => (grid[best], profile[best]),
-        };
-        (shape, cutoff, chi2_best)
-    });
+    // Shapes and cutoffs are fitted in parallel: each misfit is a few weighted fits over
+    // the spectrum's bins, and the search is most of the detection's time.
+    let fitted: Vec<(Shape, f64, f64)> = Shape::ALL
+        .par_iter()
+        .map(|&shape| {
+            let chi2 = |f: f64| spectrum.chi2(Some((shape, f)));
+            let profile: Vec<f64> = grid.par_iter().map(|&f| chi2(f)).collect();
+            let best = (0..grid.len())
+                .min_by(|&a, &b| profile[a].total_cmp(&profile[b]))
+                .unwrap_or(0);
+            let (a, b) = (
+                grid[best.saturating_sub(1)],
+                grid[(best + 1).min(grid.len() - 1)],
+            );
+            let golden = golden_min(chi2, a, b, CUTOFF_GOLDEN_STEPS);
+            let (cutoff, chi2_best) = match chi2(golden) {
+                c if c <= profile[best] => (golden, c),
+                _ => (grid[best], profile[best]),
+            };
+            (shape, cutoff, chi2_best)
+        })
+        .collect();
     let least = fitted
-        .into_iter()
+        .iter()
+        .copied()
         .fold(fitted[0], |best, f| if f.2 < best.2 { f } else { best });
     // The shape is one more parameter, chosen among a few.
     let dof = spectrum.bins().saturating_sub(6).max(1) as f64;
