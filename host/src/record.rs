@@ -18,10 +18,22 @@ pub enum Quantity {
     Other,
 }
 
+/// Words of a column name (split at anything but letters and digits, lower case) that make
+/// it a temperature, a unit run into the word included (`tempC`).
+const TEMPERATURE_WORDS: [&str; 6] = [
+    "temp",
+    "temperature",
+    "tempc",
+    "temperaturec",
+    "tempdegc",
+    "temperaturedegc",
+];
+
 impl Quantity {
     /// Recognise the usual IMU column names: `gx`, `gyro_x`, `wx`, `Gyroscope x` are rates;
-    /// `ax`, `acc_x`, `accel_x`, `field.linear_acceleration.x` are accelerations; `temp`,
-    /// `temperature` is the die temperature.
+    /// `ax`, `acc_x`, `accel_x`, `field.linear_acceleration.x` are accelerations; a name
+    /// with the word `temp` or `temperature` in it (`imu_temp`, `tempC`, `field.temperature`)
+    /// is the die temperature.
     pub fn from_name(name: &str) -> Quantity {
         let n = name.trim().to_ascii_lowercase();
         let axis = |prefixes: &[&str]| {
@@ -60,10 +72,10 @@ impl Quantity {
             "alpha",
         ]) {
             Quantity::Acceleration
-        } else if matches!(
-            n.as_str(),
-            "temp" | "temperature" | "temp_c" | "temperature_c"
-        ) {
+        } else if n
+            .split(|c: char| !c.is_ascii_alphanumeric())
+            .any(|word| TEMPERATURE_WORDS.contains(&word))
+        {
             Quantity::Temperature
         } else {
             Quantity::Other
@@ -192,7 +204,17 @@ mod tests {
             ("omega_x", Quantity::AngularRate),
             ("alpha_z", Quantity::Acceleration),
             ("temp", Quantity::Temperature),
+            ("temperature", Quantity::Temperature),
+            ("imu_temp", Quantity::Temperature),
+            ("die temp", Quantity::Temperature),
+            ("tempC", Quantity::Temperature),
+            ("Temperature_degC", Quantity::Temperature),
+            ("field.temperature", Quantity::Temperature),
+            ("gyro-temp", Quantity::Temperature),
             ("time", Quantity::Other),
+            ("timestamp", Quantity::Other),
+            ("attempts", Quantity::Other),
+            ("tempo", Quantity::Other),
             ("gain", Quantity::Other),
             ("c0", Quantity::Other),
         ] {

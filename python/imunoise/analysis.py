@@ -236,7 +236,8 @@ def model(data, rate=None, names=None, *, column=None, temp_column=None, seed=1,
     candidate effect tested against the simulated spread, the one the model misses named
     and added, repeated. Returns the document ``imunoise model --json`` writes.
 
-    ``column`` is the channel to model (default: the first gyro channel), ``temp_column``
+    ``column`` is the channel to model (default: the first gyro channel, else the first
+    accelerometer channel, else the only other channel), ``temp_column``
     its temperature (default: a channel named temp, if any); ``bandwidth`` as in
     :func:`analyze`. Data as in :func:`analyze`. It simulates the record many times over:
     expect seconds to minutes.

@@ -8,7 +8,8 @@ use imunoise::model::{Settings, report, run};
 use numpy::PyReadonlyArray1;
 use pyo3::prelude::*;
 
-/// The model document (JSON text) for channel `column` (default: the first gyro channel) of
+/// The model document (JSON text) for channel `column` (default: the first gyro channel, else
+/// the first accelerometer channel, else the only other channel) of
 /// the record `names`/`columns` at `rate` Hz, with `temp_column` as its temperature.
 #[pyfunction]
 #[pyo3(signature = (

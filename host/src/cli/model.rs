@@ -14,7 +14,8 @@ pub struct ModelArgs {
     pub input: PathBuf,
     #[command(flatten)]
     pub read: ReadArgs,
-    /// The channel to model (default: the first gyro channel)
+    /// The channel to model (default: the first gyro channel, else the first accelerometer
+    /// channel, else the record's only other channel)
     #[arg(long)]
     pub column: Option<String>,
     /// The temperature channel (default: the record's temperature channel, if it has one):

@@ -228,6 +228,7 @@ pub(super) fn add(
         rate_hz: data.rate_hz,
         m: &data.measured.m,
         temperature: data.temperature.as_ref(),
+        known: &data.losses,
     };
     let tau0 = 1.0 / data.rate_hz;
     let target = RefitTarget::of(data.rate, removal, &out.lines, &shape);
@@ -271,7 +272,7 @@ fn is_wide(line: &Line, removal: &Removal) -> bool {
 struct RefitTarget<'a> {
     /// The Allan variance of the record with `removal` applied, on `shape.m`.
     total: Vec<f64>,
-    /// What that removal takes from K and B ([`restore::loss`]).
+    /// What that removal takes from K and B ([`restore::Losses::of`]).
     loss: Option<refit::Loss>,
     shape: &'a restore::Record<'a>,
 }
@@ -305,7 +306,7 @@ impl<'a> RefitTarget<'a> {
         let (clean, _) = kept.apply(rate, shape.rate_hz, shape.temperature);
         RefitTarget {
             total: evidence::allan_avar(clean, shape.rate_hz, shape.m),
-            loss: restore::loss(&kept, shape),
+            loss: shape.known.of(&kept, shape),
             shape,
         }
     }
@@ -392,6 +393,7 @@ pub(super) fn open_noise(
         rate_hz: data.rate_hz,
         m: ctx.m,
         temperature: data.temperature.as_ref(),
+        known: &data.losses,
     };
     let target = RefitTarget::of(data.rate, &open, ctx.named_lines, &shape);
     let tau0 = 1.0 / data.rate_hz;

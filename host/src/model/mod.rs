@@ -438,8 +438,11 @@ impl Outcome {
 pub enum ModelError {
     #[error("no channel '{0}' in the record")]
     NoChannel(String),
-    #[error("the record has no gyro channel (gx, gy, gz...): choose one with --column")]
-    NoGyro,
+    #[error(
+        "the record has no gyro or accelerometer channel (gx, ax, ...) and more than one other: \
+         choose one of {0} with --column"
+    )]
+    NoGyro(String),
     #[error("temperature channel '{0}': not in the record")]
     NoTemperature(String),
     #[error(transparent)]
@@ -458,20 +461,32 @@ struct Data<'a> {
     measured: Deviation,
     settings: Settings,
     lines: &'a (dyn Fn(&[f64], f64) -> Vec<Line> + Sync),
+    /// What the removals tried so far take from K and B.
+    losses: restore::Losses,
 }
 
-/// The channel to model: `column`, or the first gyro channel.
+/// The channel to model: `column`; else the first gyro channel, else the first
+/// accelerometer channel, else the record's only channel of no known quantity (a
+/// one-column `.npy` or a table whose one signal has a name of its own).
 fn pick<'r>(record: &'r Record, column: Option<&str>) -> Result<&'r Channel, ModelError> {
-    match column {
-        Some(name) => record
+    if let Some(name) = column {
+        return record
             .channel(name)
-            .ok_or_else(|| ModelError::NoChannel(name.to_string())),
-        None => record
-            .channels
-            .iter()
-            .find(|c| c.quantity == Quantity::AngularRate)
-            .ok_or(ModelError::NoGyro),
+            .ok_or_else(|| ModelError::NoChannel(name.to_string()));
     }
+    let first = |q: Quantity| record.channels.iter().find(|c| c.quantity == q);
+    let unknown: Vec<&Channel> = record
+        .channels
+        .iter()
+        .filter(|c| c.quantity == Quantity::Other)
+        .collect();
+    first(Quantity::AngularRate)
+        .or_else(|| first(Quantity::Acceleration))
+        .or(match unknown[..] {
+            [only] => Some(only),
+            _ => None,
+        })
+        .ok_or_else(|| ModelError::NoGyro(record.names().join(", ")))
 }
 
 /// The temperature channel: `temp_column`, or the record's temperature channel if it has one.
@@ -491,7 +506,8 @@ fn pick_temperature<'r>(
     }
 }
 
-/// Run the workflow on `column` (default: the first gyro channel) of `record`, with the
+/// Run the workflow on `column` (default: the first gyro channel, else the first
+/// accelerometer channel, else the record's only channel of no known quantity) of `record`, with the
 /// temperature channel `temp_column` (default: the record's temperature channel, if any).
 pub fn run(
     record: &Record,
@@ -544,6 +560,7 @@ pub fn run(
         measured,
         settings: settings.clone(),
         lines: &detect_lines,
+        losses: restore::Losses::default(),
     };
     // A filter known from the sensor's settings is part of the baseline; one the record's
     // roll-off shows is a candidate like any other effect (`Probe::RollOff`), judged after

@@ -36,6 +36,7 @@ use crate::sim::noise::{AxisNoise, NoiseTerms};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use std::sync::Mutex;
 
 /// Paired simulations of flicker's loss: a mean difference whose relative scatter is about
 /// `1 / sqrt(LOSS_REALISATIONS)` of the (already minor) correction.
@@ -52,6 +53,33 @@ pub struct Record<'a> {
     pub rate_hz: f64,
     pub m: &'a [usize],
     pub temperature: Option<&'a Temperature>,
+    /// The losses already measured on this record.
+    pub known: &'a Losses,
+}
+
+/// The losses measured on one record, by removal and averaging factors: the open noise
+/// model and the candidates' refits ask for the same removal's loss round after round, and
+/// each costs [`LOSS_REALISATIONS`] simulated flicker series as long as the record.
+#[derive(Default)]
+pub struct Losses(Mutex<Vec<(String, Option<Loss>)>>);
+
+impl Losses {
+    /// [`loss`] of `removal` on `record`, measured once.
+    pub fn of(&self, removal: &Removal, record: &Record) -> Option<Loss> {
+        let key = format!("{removal:?} {:?}", record.m);
+        // A thread that panicked while holding the list left it whole: entries are pushed
+        // complete.
+        if let Some((_, found)) = self.held().iter().find(|(k, _)| *k == key) {
+            return found.clone();
+        }
+        let measured = loss(removal, record);
+        self.held().push((key, measured.clone()));
+        measured
+    }
+
+    fn held(&self) -> std::sync::MutexGuard<'_, Vec<(String, Option<Loss>)>> {
+        self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
 }
 
 /// The removal's loss on unit noise of `record`'s shape; `None` when it removes no regressor
@@ -269,6 +297,7 @@ mod tests {
             rate_hz,
             m: &m,
             temperature: None,
+            known: &Losses::default(),
         };
         let loss = loss(&removal, &record).expect("a ramp is a regressor");
         for (&mi, lk) in m.iter().zip(&loss.k) {

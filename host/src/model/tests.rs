@@ -219,3 +219,25 @@ fn null_p_values_are_calibrated() {
         );
     }
 }
+
+#[test]
+fn the_channel_modelled_by_default_is_a_gyro_else_an_accelerometer_else_the_only_one() {
+    let record = |names: &[&str]| Record {
+        source: "t".into(),
+        rate_hz: 10.0,
+        channels: names
+            .iter()
+            .map(|n| Channel::named(*n, vec![0.0; 4]))
+            .collect(),
+    };
+    let picked = |names: &[&str]| pick(&record(names), None).map(|c| c.name.clone());
+    assert_eq!(picked(&["temp", "ax", "gy"]).unwrap(), "gy");
+    assert_eq!(picked(&["temp", "az", "ax"]).unwrap(), "az");
+    assert_eq!(picked(&["temp", "rate"]).unwrap(), "rate");
+    let err = picked(&["temp", "rate", "y"]).unwrap_err().to_string();
+    assert!(
+        err.contains("temp, rate, y") && err.contains("--column"),
+        "{err}"
+    );
+    assert_eq!(pick(&record(&["gx", "ax"]), Some("ax")).unwrap().name, "ax");
+}
