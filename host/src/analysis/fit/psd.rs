@@ -17,7 +17,9 @@
 //! averaged), down to the deepest level that still holds one segment. Level r contributes
 //! the octave its own ordinates `j = 3, 4, 5` cover (level 0: every ordinate from 3 up to,
 //! but not including, Nyquist), so every frequency comes from the level with the most
-//! averages that resolves it, the lowest at `3 / T .. 6 / T`. Averaging pairs keeps the
+//! averages that resolves it, the lowest at `3 / T .. 6 / T`. A deeper level's three
+//! ordinates are summed directly from each segment (`psd::welch_bins_of`), not by a
+//! transform of the whole segment. Averaging pairs keeps the
 //! density of white noise exactly (variance halves, rate halves) and passes the octave a
 //! level uses with gain `prod cos^2(pi f 2^k / fs)`, above 0.99 for segments of 256 samples
 //! or more. The two ordinates next to DC
