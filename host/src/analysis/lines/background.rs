@@ -13,9 +13,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 pub(super) struct Background {
     /// (ln centre bin, ln level, relative variance) per block, in increasing frequency.
     blocks: Vec<(f64, f64, f64)>,
-    /// The block found last: bins are mostly read in order, so the next one is usually
-    /// found there without a search (shared by threads reading different ranges, where it
-    /// only saves less).
+    /// The block found last by [`Background::level`]: bins are mostly read in order, so
+    /// the next one is usually found there without a search. A thread reading many bins
+    /// beside others takes a [`Cursor`] with a hint of its own.
     hint: AtomicUsize,
 }
 
