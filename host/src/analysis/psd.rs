@@ -327,13 +327,14 @@ const DIRECT_CHUNK: usize = 1024;
 /// The phasors `exp(-2 pi i j k / L)` of bin `j` of a segment of `len` samples, for `k` in
 /// `from..from + count`, each from its phase reduced exactly to one turn.
 fn phasors(j: usize, len: usize, from: usize, count: usize) -> Vec<(f64, f64)> {
-    (from..from + count)
-        .map(|k| {
-            let turns = (j as u128 * k as u128 % len as u128) as f64 / len as f64;
-            let (s, c) = (-2.0 * PI * turns).sin_cos();
-            (c, s)
-        })
-        .collect()
+    (from..from + count).map(|k| phasor(j, len, k)).collect()
+}
+
+/// `exp(-2 pi i j k / L)` as (cos, sin), its phase reduced exactly to one turn.
+fn phasor(j: usize, len: usize, k: usize) -> (f64, f64) {
+    let turns = (j as u128 * k as u128 % len as u128) as f64 / len as f64;
+    let (s, c) = (-2.0 * PI * turns).sin_cos();
+    (c, s)
 }
 
 /// Bins of a segment length summed directly, with each bin's [`phasors`] over one chunk.
@@ -397,7 +398,7 @@ impl DirectBins {
                     }
                 }
                 let (r, i) = (r.iter().sum::<f64>(), i.iter().sum::<f64>());
-                let (c, s) = phasors(j, len, from, 1)[0];
+                let (c, s) = phasor(j, len, from);
                 *re += r * c - i * s;
                 *im += r * s + i * c;
             }
