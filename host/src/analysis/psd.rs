@@ -287,32 +287,18 @@ pub fn welch_bins_of(
     };
     let direct = DirectBins::new(bins.filter(|&j| j <= plan.len / 2).collect(), plan.len);
     let bins = &direct.bins;
-    // Contiguous groups of segments in parallel, their sums added in order (deterministic).
-    let groups = (rayon::current_num_threads() * 2).clamp(1, plan.count);
-    let per_group = plan.count.div_ceil(groups);
-    let partial: Vec<Vec<f64>> = (0..groups)
-        .into_par_iter()
-        .map(|g| {
-            let mut acc = vec![0.0; bins.len()];
-            let mut chunk = vec![0.0; direct.width()];
-            for s in g * per_group..((g + 1) * per_group).min(plan.count) {
-                let powers = direct.powers(
-                    &samples,
-                    s * plan.step,
-                    &window,
-                    opts.detrend_mean,
-                    &mut chunk,
-                );
-                acc.iter_mut().zip(powers).for_each(|(a, p)| *a += p);
-            }
-            acc
-        })
-        .collect();
+    let partial = plan.in_ordered_groups(
+        || (vec![0.0; bins.len()], vec![0.0; direct.width()]),
+        |(acc, chunk), start| {
+            let powers = direct.powers(&samples, start, &window, opts.detrend_mean, chunk);
+            acc.iter_mut().zip(powers).for_each(|(a, p)| *a += p);
+        },
+    );
     let mut sums = vec![f64::NAN; plan.len / 2 + 1];
     for &j in bins {
         sums[j] = 0.0;
     }
-    for acc in partial {
+    for (acc, _) in partial {
         for (&j, p) in bins.iter().zip(acc) {
             sums[j] += p;
         }
@@ -734,6 +720,29 @@ struct SegmentPlan {
 }
 
 impl SegmentPlan {
+    /// The segments in contiguous groups, a few per thread, each group folded in parallel
+    /// into its own accumulator (`start` of `add` is the segment's first sample); the
+    /// accumulators come back in the segments' order, so sums taken over them in that order
+    /// do not depend on the threads.
+    fn in_ordered_groups<A: Send>(
+        &self,
+        init: impl Fn() -> A + Sync,
+        add: impl Fn(&mut A, usize) + Sync,
+    ) -> Vec<A> {
+        let groups = (rayon::current_num_threads() * 2).clamp(1, self.count);
+        let per_group = self.count.div_ceil(groups);
+        (0..groups)
+            .into_par_iter()
+            .map(|g| {
+                let mut acc = init();
+                for s in g * per_group..((g + 1) * per_group).min(self.count) {
+                    add(&mut acc, s * self.step);
+                }
+                acc
+            })
+            .collect()
+    }
+
     fn new(y: &Samples, rate_hz: f64, opts: &WelchOptions) -> Result<Self, PsdError> {
         if y.is_empty() {
             return Err(PsdError::Empty);
@@ -799,22 +808,11 @@ impl SegmentPlan {
                 return powers.natural(&sums);
             }
         };
-        let groups = (rayon::current_num_threads() * 2).clamp(1, self.count);
-        let per_group = self.count.div_ceil(groups);
-        let partial: Vec<Vec<f64>> = (0..groups)
-            .into_par_iter()
-            .map(|g| {
-                let first = g * per_group;
-                let last = ((g + 1) * per_group).min(self.count);
-                let acc = vec![0.0; self.len / 2 + 1];
-                let mut periodogram = Periodogram::new(fft.clone(), acc);
-                for s in first..last {
-                    periodogram.add_read(y, s * self.step, &transform.window, detrend);
-                }
-                periodogram.acc
-            })
-            .collect();
-        let mut parts = partial.into_iter();
+        let partial = self.in_ordered_groups(
+            || Periodogram::new(fft.clone(), vec![0.0; self.len / 2 + 1]),
+            |periodogram, start| periodogram.add_read(y, start, &transform.window, detrend),
+        );
+        let mut parts = partial.into_iter().map(|p| p.acc);
         let mut total = parts.next().unwrap_or_else(|| vec![0.0; self.len / 2 + 1]);
         for acc in parts {
             for (t, a) in total.iter_mut().zip(acc) {

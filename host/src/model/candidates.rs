@@ -194,6 +194,7 @@ pub(super) fn add(
                 removal,
                 (&model.lines, &detect_lines(&clean, data.rate_hz)),
                 &background,
+                true,
             )
             .ok()
             .and_then(|d| d.low_pass)

@@ -895,12 +895,14 @@ mod tests {
             "{} of 80 below 0.5",
             below(&null, 0.5)
         );
-        // Measured: 19 of 20 below 1e-3 at a raise of 6; 5 at a raise of 3, where the random
-        // walk's own trend, whose level the record gives only roughly, can make the ramp.
-        let ramps = p_values(6.0, 100..120);
+        // Measured 81 (88 on another stream of the same noise) of 100 below 1e-3 at a raise
+        // of 6, and a quarter at a raise of 3, where the random walk's own trend, whose level
+        // the record gives only roughly, can make the ramp. At a rate of 0.8 the count of 100
+        // has a standard deviation of 4: the bound is 2.5 of those below.
+        let ramps = p_values(6.0, 100..200);
         assert!(
-            below(&ramps, 1e-3) >= 16,
-            "{} of 20 ramps below 1e-3",
+            below(&ramps, 1e-3) >= 70,
+            "{} of 100 ramps below 1e-3",
             below(&ramps, 1e-3)
         );
     }

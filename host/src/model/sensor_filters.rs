@@ -149,9 +149,19 @@ fn record(filter: SensorFilter, shape: RecordShape, seed: u64) -> (Record, f64) 
     (record, n_in * filter.dc_folding(cutoff, fi).sqrt())
 }
 
-/// For each filter, the seeds named exactly `low_pass` (B and K aside, as in the families'
-/// study) and the largest relative error of the final N against the output's.
-fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<(SensorFilter, usize, f64)> {
+/// What the workflow made of one filter over a range of seeds.
+struct FilterOutcome {
+    filter: SensorFilter,
+    /// Seeds named exactly `low_pass` (B and K aside, as in the families' study).
+    exactly: usize,
+    /// Seeds that named `low_pass` and neither of the terms a mis-modelled filter turns
+    /// into (a short Gauss-Markov process, quantization), whatever else they named.
+    filter_named: usize,
+    /// The largest relative error of the final N against the output's.
+    worst_n: f64,
+}
+
+fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<FilterOutcome> {
     let settings = Settings {
         seed: 1000,
         ..Settings::default()
@@ -159,8 +169,12 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<(SensorFilter, 
     FILTERS
         .iter()
         .map(|&filter| {
-            let mut right = 0;
-            let mut worst_n: f64 = 0.0;
+            let mut outcome = FilterOutcome {
+                filter,
+                exactly: 0,
+                filter_named: 0,
+                worst_n: 0.0,
+            };
             for seed in seeds.clone() {
                 let (record, n_out) = record(filter, shape, seed);
                 let o = run(&record, Some("gx"), None, &settings).unwrap();
@@ -171,9 +185,16 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<(SensorFilter, 
                     .filter(|k| !matches!(*k, "bias_instability" | "rate_random_walk"))
                     .collect();
                 let n_error = o.final_model().terms.n / n_out - 1.0;
-                worst_n = worst_n.max(n_error.abs());
+                outcome.worst_n = outcome.worst_n.max(n_error.abs());
+                if named.contains(&"low_pass")
+                    && !named
+                        .iter()
+                        .any(|k| matches!(*k, "gauss_markov" | "quantization"))
+                {
+                    outcome.filter_named += 1;
+                }
                 if named == ["low_pass"] {
-                    right += 1;
+                    outcome.exactly += 1;
                 } else {
                     eprintln!(
                         "{filter:?} seed {seed}: named {named:?}\n{}",
@@ -182,20 +203,27 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<(SensorFilter, 
                 }
                 eprintln!("{filter:?} seed {seed}: N {:+.2} %", 100.0 * n_error);
             }
-            eprintln!("{filter:?}: {right}/{} right", seeds.end - seeds.start);
-            (filter, right, worst_n)
+            eprintln!(
+                "{filter:?}: {}/{} exactly right",
+                outcome.exactly,
+                seeds.end - seeds.start
+            );
+            outcome
         })
         .collect()
 }
 
-/// One seed of each filter at CI size (1 h at 20 Hz): every record named exactly
-/// `low_pass`, and N within 3 % of the output's (measured: at most 1.5 %; on a second seed
-/// each, at most 2.2 %).
+/// One seed of each filter at CI size (1 h at 20 Hz): every record names the filter as
+/// `low_pass`, with neither a short Gauss-Markov process nor quantization, and N within 3 %
+/// of the output's (measured: at most 1.5 %; on a second seed each, at most 2.2 %). An
+/// unrelated effect named beside it is not asserted against here: each round may name one
+/// by chance at the workflow's family-wise level (`FAMILY_ALPHA`, 0.05 per round), and the
+/// study and the families measure that rate on more records.
 #[test]
 fn sensor_filters_at_ci_size() {
-    for (filter, right, worst_n) in study(families::CI_SHAPE, 1..2) {
-        assert_eq!(right, 1, "{filter:?}");
-        assert!(worst_n < 0.03, "{filter:?}: N off by {worst_n}");
+    for o in study(families::CI_SHAPE, 1..2) {
+        assert_eq!(o.filter_named, 1, "{:?}", o.filter);
+        assert!(o.worst_n < 0.03, "{:?}: N off by {}", o.filter, o.worst_n);
     }
 }
 
@@ -204,8 +232,8 @@ fn sensor_filters_at_ci_size() {
 #[test]
 #[ignore]
 fn sensor_filters_study() {
-    for (filter, right, worst_n) in study(families::STUDY_SHAPE, 100..110) {
-        assert!(right >= 9, "{filter:?}: {right}/10");
-        assert!(worst_n < 0.02, "{filter:?}: N off by {worst_n}");
+    for o in study(families::STUDY_SHAPE, 100..110) {
+        assert!(o.exactly >= 9, "{:?}: {}/10", o.filter, o.exactly);
+        assert!(o.worst_n < 0.02, "{:?}: N off by {}", o.filter, o.worst_n);
     }
 }

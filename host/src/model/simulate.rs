@@ -17,6 +17,12 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+/// The most samples a round keeps of its realisations between its two passes over them
+/// (the Allan band, then the candidates' statistics): 256 MiB, enough for 24 realisations
+/// of 3 h at 100 Hz (198 MiB). Longer records synthesise each realisation again, at the
+/// cost of a third of the round's synthesis, rather than hold many times their own size.
+const KEPT_REALISATION_SAMPLES: usize = 1 << 25;
+
 /// One round: the current model simulated, compared with the record, and every candidate's
 /// evidence.
 #[derive(Clone)]
@@ -72,7 +78,7 @@ pub(super) fn realise(
 /// Simulate the model twice over the same seeds: first its Allan band (each realisation
 /// carrying the named deterministic effects as estimated from the record), whose spread
 /// weights the refits; then every candidate's statistic, on the record and on each
-/// realisation. Regenerating a realisation costs less than keeping them all in memory.
+/// realisation (kept from the first pass up to [`KEPT_REALISATION_SAMPLES`]).
 pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
     let probes = probes(data, model, removal);
     let tau0 = 1.0 / data.rate_hz;
@@ -96,17 +102,19 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
     let realise = |terms: &NoiseTerms, i: usize| {
         realise(data, terms, model.low_pass.as_ref(), &simulated_lines, i)
     };
-    let logs: Vec<Vec<f64>> = (0..r)
+    let keep = r.saturating_mul(data.rate.len()) <= KEPT_REALISATION_SAMPLES;
+    let (logs, kept): (Vec<Vec<f64>>, Vec<Option<Vec<f64>>>) = (0..r)
         .into_par_iter()
         .map(|i| {
             let s = realise(&model.terms, i);
             let with: Vec<f64> = s.iter().zip(&deterministic).map(|(a, b)| a + b).collect();
-            evidence::allan_avar(with, data.rate_hz, m)
+            let log = evidence::allan_avar(with, data.rate_hz, m)
                 .iter()
                 .map(|v| 0.5 * v.max(f64::MIN_POSITIVE).ln())
-                .collect()
+                .collect();
+            (log, keep.then_some(s))
         })
-        .collect();
+        .unzip();
     let comparison = compare(&data.measured, &logs);
     let sd_ln: Vec<f64> = comparison.band.std_log.iter().map(|s| 2.0 * s).collect();
     let sd_ln = refit::beyond_fitted_filter(&sd_ln, &data.measured.tau, model.low_pass.as_ref());
@@ -136,12 +144,17 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
         .filter(|p| !matches!(p, Probe::Ramp | Probe::Temperature | Probe::SlowLine))
         .collect();
     let measured = evidence::statistics(data.rate, &on_sims, &ctx, true);
-    // The statistics of `of` on realisations `seeds` of the model.
+    // The statistics of `of` on realisations `seeds` of the model: the first pass's when
+    // kept, else synthesised again from their seeds.
     let on_realisations = |seeds: std::ops::Range<usize>, of: &[Probe]| -> Vec<Vec<f64>> {
         seeds
             .into_par_iter()
             .map(|i| {
-                evidence::statistics(&realise(&model.terms, i), of, &ctx, false)
+                let series = match kept.get(i) {
+                    Some(Some(s)) => std::borrow::Cow::Borrowed(s),
+                    _ => std::borrow::Cow::Owned(realise(&model.terms, i)),
+                };
+                evidence::statistics(&series, of, &ctx, false)
                     .into_iter()
                     .map(|(v, _)| v)
                     .collect()
