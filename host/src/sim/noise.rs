@@ -14,8 +14,8 @@
 //! Bias instability is flicker noise, two-sided PSD B^2 / (2 pi f) (IEEE 952 Table C.1),
 //! synthesised as a sum of first-order Gauss-Markov processes with correlation times spaced
 //! geometrically, [`FLICKER_POLES_PER_DECADE`] per decade, from tau0 to ten times the
-//! record length. Each process of variance s^2 and correlation time T has two-sided PSD 2
-//! s^2 T / (1 + (2 pi f T)^2); with d = 1 / ln(r) processes per unit of ln T (r the spacing
+//! record length. Each process of variance s^2 and correlation time T has two-sided PSD
+//! 2 s^2 T / (1 + (2 pi f T)^2); with d = 1 / ln(r) processes per unit of ln T (r the spacing
 //! ratio) the sum's density is s^2 d / (2 f), so s^2 = B^2 ln(r) / pi gives B^2 / (2 pi f)
 //! over the band. The processes start in their stationary state (the fastest ones within
 //! `e^-40` of it in variance, see `Ar1Sum`), so there is no warm-up transient. The band
