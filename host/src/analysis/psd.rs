@@ -317,6 +317,8 @@ fn phasors(j: usize, len: usize, from: usize, count: usize) -> Vec<(f64, f64)> {
 }
 
 /// `exp(-2 pi i j k / L)` as (cos, sin), its phase reduced exactly to one turn.
+/// `exp(-2 pi i j k / len)` as `(cos, sin)`, its phase reduced exactly to one turn first so
+/// that large `j k` keep full precision.
 fn phasor(j: usize, len: usize, k: usize) -> (f64, f64) {
     let turns = (j as u128 * k as u128 % len as u128) as f64 / len as f64;
     let (s, c) = (-2.0 * PI * turns).sin_cos();
