@@ -63,6 +63,18 @@ fn the_real_mpu6050_record_in_raw_counts() {
         .map(|c| c["name"].as_str().unwrap())
         .collect();
     assert_eq!(names, ["ax", "ay", "az", "gx", "gy", "gz"]);
+    // gz's 31.003 Hz tone (the record's strongest gyro line), its frequency known to better
+    // than 0.05 Hz.
+    let tone = channels[5]["lines"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|l| (l["freq_hz"].as_f64().unwrap() - 31.003).abs() < 0.01)
+        .expect("gz's 31 Hz tone");
+    assert!(
+        tone["standard_errors"]["freq_hz"].as_f64().unwrap() < 0.05,
+        "{tone}"
+    );
     for c in channels {
         let name = c["name"].as_str().unwrap();
         let gyro = name.starts_with('g');
@@ -101,6 +113,22 @@ fn the_real_mpu6050_record_in_raw_counts() {
             (n_psd / n["value"].as_f64().unwrap() - 1.0).abs() < 0.05,
             "{name}"
         );
+        // Every spectral line carries its standard errors; a pure tone's width has none.
+        for line in c["lines"].as_array().unwrap() {
+            let e = &line["standard_errors"];
+            for key in ["freq_hz", "amplitude"] {
+                let se = e[key].as_f64().unwrap();
+                assert!(
+                    se > 0.0 && se < line[key].as_f64().unwrap(),
+                    "{name}: {line}"
+                );
+            }
+            assert_eq!(
+                e["width_hz"].is_null(),
+                line["width_hz"] == 0.0,
+                "{name}: {line}"
+            );
+        }
         // Conventional units carry their labels.
         let conventional = &c["noise_conventional"]["N"]["unit"];
         assert_eq!(
@@ -246,6 +274,12 @@ fn output_files_plot_kalibr_and_report() {
     }
     let html_text = std::fs::read_to_string(&html).unwrap();
     assert!(html_text.contains("<svg") && !html_text.contains("src=\"http"));
+    // gz's 31 Hz tone, with its standard errors, in the report and in the table.
+    assert!(
+        html_text.contains("Spectral lines") && html_text.contains("<td>31.0032 &plusmn; "),
+        "{html_text}"
+    );
+    assert!(table.contains("freq Hz       +-"), "{table}");
     let doc: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(doc["channels"].as_array().unwrap().len(), 6);
 }

@@ -21,6 +21,7 @@ pub const LINE_MIN_CYCLES: f64 = 4.0;
 pub(super) fn detect_lines(series: &[f64], rate_hz: f64) -> Vec<Line> {
     let options = LineOptions {
         min_cycles: LINE_MIN_CYCLES,
+        standard_errors: false,
         ..LineOptions::default()
     };
     lines::detect(series, rate_hz, &options)

@@ -168,6 +168,7 @@ impl Line {
             power: self.power(),
             statistic: self.statistic,
             p_value: self.p_value,
+            standard_errors: lines::LineErrors::UNKNOWN,
         }
     }
 }

@@ -35,6 +35,7 @@ pub fn page(
     for r in results {
         terms_table(&mut h, r);
     }
+    lines_table(&mut h, results);
     if let Ok(k) = kalibr::numbers(results) {
         let _ = writeln!(
             h,
@@ -152,6 +153,47 @@ fn terms_table(h: &mut String, r: &ChannelResult) {
     if let Some(warning) = table::poor_fit_warning(&r.name, fit) {
         let _ = writeln!(h, "<p><strong>Warning:</strong> {}</p>", escape(&warning));
     }
+}
+
+/// The spectral lines of every channel, removed before the fit, each value with its standard
+/// error.
+fn lines_table(h: &mut String, results: &[ChannelResult]) {
+    if results.iter().all(|r| r.lines.is_empty()) {
+        return;
+    }
+    h.push_str(
+        "<h2>Spectral lines (removed from the record before the fit)</h2>\n\
+         <table><tr><th>channel</th><th>frequency (Hz)</th><th>amplitude</th>\
+         <th>width (Hz)</th><th>power</th><th>z</th><th>p (family-wise)</th></tr>\n",
+    );
+    let with_error = |value: f64, se: Option<f64>, digits: usize| match se {
+        Some(se) => format!("{} &plusmn; {}", sig(value, digits), sig(se, 2)),
+        None => sig(value, digits),
+    };
+    for r in results {
+        for l in &r.lines {
+            let e = &l.standard_errors;
+            let _ = writeln!(
+                h,
+                "<tr><td>{}</td><td>{}</td><td>{} {}</td><td>{}</td><td>{} {}^2</td>\
+                 <td>{}</td><td>{}</td></tr>",
+                escape(&r.name),
+                with_error(l.freq_hz, Some(e.freq_hz), 6),
+                with_error(l.amplitude, Some(e.amplitude), 3),
+                r.unit,
+                with_error(l.width_hz, e.width_hz, 3),
+                sig(l.power, 3),
+                r.unit,
+                sig(l.statistic, 3),
+                sig(l.p_value, 2)
+            );
+        }
+    }
+    h.push_str(
+        "</table>\n<p>&plusmn;: one standard error (a pure tone: the Cramer-Rao bounds at the \
+         background there; its width, 0, is below the resolution). Amplitude: the peak of the \
+         equivalent sinusoid, sqrt(2 power).</p>\n",
+    );
 }
 
 /// Text made safe to put inside HTML elements and attribute values.

@@ -132,29 +132,37 @@ fn low_pass_note(fit: &NoiseFit) -> Option<String> {
     })
 }
 
-/// The channel's spectral lines, removed from the record before the fit.
+/// The channel's spectral lines, removed from the record before the fit, each value with its
+/// standard error (`+-`; none for a pure tone's width).
 fn line_rows(out: &mut String, r: &ChannelResult) {
     if r.lines.is_empty() {
         return;
     }
     let _ = writeln!(
         out,
-        "  spectral lines (removed before the fit): {:>10} {:>12} {:>10} {:>12} {:>8} {:>9}",
+        "  spectral lines (removed before the fit): {:>10} {:>8} {:>12} {:>8} {:>10} {:>8} {:>12} {:>8} {:>9}",
         "freq Hz",
+        "+-",
         format!("amp {}", r.unit),
+        "+-",
         "width Hz",
+        "+-",
         format!("power {}^2", r.unit),
         "z",
         "p"
     );
     for l in &r.lines {
+        let e = &l.standard_errors;
         let _ = writeln!(
             out,
-            "  {:>40} {:>10} {:>12} {:>10} {:>12} {:>8} {:>9}",
+            "  {:>40} {:>10} {:>8} {:>12} {:>8} {:>10} {:>8} {:>12} {:>8} {:>9}",
             "",
             sig(l.freq_hz, 6),
+            sig(e.freq_hz, 2),
             sig(l.amplitude, 3),
+            sig(e.amplitude, 2),
             sig(l.width_hz, 3),
+            e.width_hz.map_or("-".to_string(), |w| sig(w, 2)),
             sig(l.power, 3),
             sig(l.statistic, 3),
             p_text(l.p_value)

@@ -148,33 +148,8 @@ pub struct AxisNoise {
     /// Standard deviation per sample of the white noise: N's and the flicker band's part
     /// faster than a sample ([`flicker_white_density`]).
     white_sd: f64,
-    /// (phi, innovation scale, state) of the Gauss-Markov process.
-    gauss_markov: Option<Ar1>,
-}
-
-/// One first-order process: `state = phi * state + scale * w`.
-#[derive(Debug, Clone, Copy)]
-struct Ar1 {
-    phi: f64,
-    scale: f64,
-    state: f64,
-}
-
-impl Ar1 {
-    /// Variance `sigma^2` and correlation time `tau_c` stepped every `dt`, stationary start.
-    fn new(sigma: f64, tau_c: f64, dt: f64, rng: &mut impl Rng) -> Self {
-        let phi = (-dt / tau_c).exp();
-        Ar1 {
-            phi,
-            scale: sigma * (1.0 - phi * phi).sqrt(),
-            state: sigma * normal(rng),
-        }
-    }
-
-    fn step(&mut self, rng: &mut impl Rng) -> f64 {
-        self.state = self.phi * self.state + self.scale * normal(rng);
-        self.state
-    }
+    /// The Gauss-Markov process: a single first-order process, started stationary.
+    gauss_markov: Option<Ar1Sum>,
 }
 
 /// Level l of the flicker bank (see the module documentation): the sum of its processes,
@@ -338,7 +313,7 @@ impl AxisNoise {
         let gauss_markov = terms
             .gauss_markov
             .filter(|g| g.sigma > 0.0 && g.tau_c > 0.0)
-            .map(|g| Ar1::new(g.sigma, g.tau_c, tau0, rng));
+            .map(|g| Ar1Sum::new(&[(g.sigma, g.tau_c)], tau0, rng));
         let white_density_sq = terms.n * terms.n + flicker_white_density(terms.b, tau0).powi(2);
         AxisNoise {
             terms,

@@ -83,6 +83,20 @@
 //!    statistic is the excess over the band's bins in standard deviations of the background
 //!    there, `sum (P - S) / sqrt(1.944 sum S^2 + (0.03 sum S)^2)` (1.944 for the Hann bins'
 //!    correlation).
+//! 6. **Standard errors** ([`Line::standard_errors`], `uncertainty`). A pure tone's are the
+//!    Cramer-Rao bounds of a sinusoid in white noise at the rectangular periodogram's
+//!    background S there (the noise the whole-record least-squares fit sees): `sd(A) =
+//!    sqrt(S / T)`, `sd(f) = sqrt(12 S / T^3) / (2 pi A)`, T the record's length; its width
+//!    has none. A band's come from a parametric bootstrap: 100 periodograms drawn around it
+//!    from what was measured (complex normal DFT bins of mean square background plus the
+//!    line's Lorentzian, combined into Hann bins so that neighbours are correlated as in the
+//!    record), each measured as the record was; the spread of the draws, and for the power the
+//!    background's own relative variance over the window besides. A tone with a measured
+//!    excess around it combines both, propagated through the power-weighted frequency. On
+//!    120 tones and 40 lines 0.02-1 Hz wide (test `the_stated_errors_match_the_measurement_errors`)
+//!    the errors over the stated standard errors have mean squares 0.98 (frequency) and 1.20
+//!    (amplitude) for the tones, and 1.03, 0.90 and 0.83 (frequency, amplitude, width) for
+//!    the lines.
 //!
 //! Limits: a line wider than about 1/8 of its frequency is a feature of the background
 //! (a Gauss-Markov knee is a line at zero frequency); lines below [`LineOptions::min_cycles`]
@@ -126,6 +140,27 @@ pub struct Line {
     /// is below [`LineOptions::false_alarm`] for every line reported (0 where it underflows
     /// double precision).
     pub p_value: f64,
+    /// Standard errors of `freq_hz`, `amplitude` and `width_hz` (module documentation, step
+    /// 6).
+    pub standard_errors: LineErrors,
+}
+
+/// Standard errors (one standard deviation) of a [`Line`]'s reported values, in their units.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LineErrors {
+    pub freq_hz: f64,
+    pub amplitude: f64,
+    /// `None` for a pure tone, whose width (0) is below the resolution `1 / T`.
+    pub width_hz: Option<f64>,
+}
+
+impl LineErrors {
+    /// Errors not known (a line stated rather than measured).
+    pub const UNKNOWN: LineErrors = LineErrors {
+        freq_hz: f64::NAN,
+        amplitude: f64::NAN,
+        width_hz: None,
+    };
 }
 
 /// Settings of [`detect`].
@@ -141,6 +176,10 @@ pub struct LineOptions {
     /// Widest line searched as a fraction of its frequency. Default 1/8 (the background's
     /// running median spans about +-30 % of the frequency and must stay mostly off the line).
     pub max_relative_width: f64,
+    /// Whether to compute each line's [`Line::standard_errors`] (step 6; otherwise
+    /// [`LineErrors::UNKNOWN`]). Default true; the model workflow, which searches every
+    /// simulated realisation and reads no error, leaves them out.
+    pub standard_errors: bool,
 }
 
 impl Default for LineOptions {
@@ -150,6 +189,7 @@ impl Default for LineOptions {
             min_cycles: 5.0,
             max_width_hz: 1.0,
             max_relative_width: 0.125,
+            standard_errors: true,
         }
     }
 }
@@ -504,6 +544,8 @@ pub(crate) fn detrend(y: &[f64]) -> (Trend, Vec<f64>) {
 /// One band's excess over the background.
 #[derive(Debug, Clone, Copy)]
 struct Measured {
+    /// The band that passed the tests (inclusive bins).
+    band: (usize, usize),
     /// The bins measured (inclusive).
     lo: usize,
     hi: usize,
@@ -672,7 +714,7 @@ fn search<'a>(rate: &'a [f64], rate_hz: f64, opts: &LineOptions) -> Result<Found
         round += 1;
         if new.is_empty() || round == MAX_ROUNDS {
             let (backgrounds, measured) = s.remeasure_wide(&spectra, &bands, backgrounds, measured);
-            let lines = s.assemble(&tones, &measured);
+            let lines = s.assemble(&tones, &measured, &backgrounds, &bands.ranges);
             return Ok(Found {
                 lines,
                 bands: measured.iter().map(|m| (m.lo, m.hi)).collect(),
@@ -709,3 +751,4 @@ mod scan;
 mod tests;
 mod tone;
 mod transform;
+mod uncertainty;

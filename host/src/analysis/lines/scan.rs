@@ -2,9 +2,10 @@
 //! measurement of the bands that pass (module documentation of [`super`], steps 1, 3 and 5).
 
 use super::background::{Background, background};
+use super::uncertainty::{Spread, tone_spread};
 use super::{
-    HANN_MEDIAN_VARIANCE, Line, Measured, RECT_MEDIAN_VARIANCE, SHAPE_ERROR, Search, TONE_LOBE,
-    Tone, lorentzian,
+    HANN_MEDIAN_VARIANCE, Line, LineErrors, Measured, RECT_MEDIAN_VARIANCE, SHAPE_ERROR, Search,
+    TONE_LOBE, Tone, lorentzian,
 };
 use rayon::prelude::*;
 use realfft::num_complex::Complex;
@@ -93,7 +94,7 @@ impl Search<'_> {
     }
 
     /// The folded images alone ([`Search::folded_density`] less the line's own Lorentzian).
-    fn image_density(&self, m: &Measured, f: f64) -> f64 {
+    pub(super) fn image_density(&self, m: &Measured, f: f64) -> f64 {
         lorentzian(self.rate_hz - m.freq_hz, m.width_hz, m.power, f)
             + lorentzian(-m.freq_hz, m.width_hz, m.power, f)
     }
@@ -105,7 +106,7 @@ impl Search<'_> {
 const HANN_SUM_VARIANCE: f64 = 1.0 + 2.0 * (4.0 / 9.0 + 1.0 / 36.0);
 
 impl Search<'_> {
-    fn df(&self) -> f64 {
+    pub(super) fn df(&self) -> f64 {
         self.rate_hz / self.n as f64
     }
 
@@ -478,6 +479,7 @@ impl Search<'_> {
         let sum_p: f64 = (band_lo..=band_hi).map(&power).sum();
         let spread = (HANN_SUM_VARIANCE * sum_s2 + (SHAPE_ERROR * sum_s).powi(2)).sqrt();
         Measured {
+            band,
             lo,
             hi,
             peak,
@@ -490,8 +492,27 @@ impl Search<'_> {
         }
     }
 
-    /// Lines from the fitted tones and the last round's bands.
-    pub(super) fn assemble(&self, tones: &[Tone], measured: &[Measured]) -> Vec<Line> {
+    /// Lines from the fitted tones and the last round's bands, with their standard errors
+    /// (`bands`: every band of the round). A band's errors are drawn against the Hann
+    /// periodogram's background, which it was measured against; a tone's are taken at the
+    /// rectangular one's, the noise a least-squares fit over the whole record sees (leakage
+    /// included).
+    pub(super) fn assemble(
+        &self,
+        tones: &[Tone],
+        measured: &[Measured],
+        backgrounds: &Backgrounds,
+        bands: &[(usize, usize)],
+    ) -> Vec<Line> {
+        let duration_s = self.n as f64 / self.rate_hz;
+        let wanted = self.opts.standard_errors;
+        let spreads: Vec<Spread> = measured
+            .iter()
+            .map(|m| match wanted {
+                true => self.spread(m, &backgrounds.hann, bands),
+                false => Spread::UNKNOWN,
+            })
+            .collect();
         // Each band left after the tones belongs to the strongest tone at its core (its
         // residual: the line's width), or else is a line of its own. The core is the band's
         // half-power extent (plus the tone's lobe), not its measurement window: on a steep
@@ -514,7 +535,11 @@ impl Search<'_> {
                 .zip(&used)
                 .position(|(m, u)| !*u && at_core(m, t));
             let tone_hz = t.freq_hz(self.rate_hz);
-            let (extra, width, rest_hz, statistic, p_value) = match rest {
+            let own = match wanted {
+                true => tone_spread(t, backgrounds.rect.level(t.bin), duration_s),
+                false => Spread::UNKNOWN,
+            };
+            let (extra, width, rest_hz, statistic, p_value, rest_spread) = match rest {
                 Some(i) => {
                     used[i] = true;
                     let m = &measured[i];
@@ -524,38 +549,79 @@ impl Search<'_> {
                         m.freq_hz,
                         m.statistic.max(t.statistic),
                         m.p_value.min(t.p_value),
+                        Some(spreads[i]),
                     )
                 }
-                None => (0.0, 0.0, tone_hz, t.statistic, t.p_value),
+                None => (0.0, 0.0, tone_hz, t.statistic, t.p_value, None),
             };
             let power = t.power() + extra;
-            lines.push(Line {
-                // Power-weighted: the tone's frequency when it holds the line's power, the
-                // rest's centre when the tone was only a peak of a wider line.
-                freq_hz: (t.power() * tone_hz + extra * rest_hz) / power,
-                amplitude: (2.0 * power).sqrt(),
-                width_hz: width,
-                power,
-                statistic,
-                p_value,
-            });
+            // Power-weighted: the tone's frequency when it holds the line's power, the rest's
+            // centre when the tone was only a peak of a wider line.
+            let freq_hz = (t.power() * tone_hz + extra * rest_hz) / power;
+            let spread = match rest_spread {
+                None => own,
+                // Independent errors of the two parts, propagated through the weighted mean
+                // (its weights move with the powers) and the sum.
+                Some(r) => {
+                    let (w_tone, w_rest) = (t.power() / power, extra / power);
+                    let freq_var = (w_tone * own.freq_hz).powi(2)
+                        + (w_rest * r.freq_hz).powi(2)
+                        + ((tone_hz - freq_hz) / power * own.power).powi(2)
+                        + ((rest_hz - freq_hz) / power * r.power).powi(2);
+                    Spread {
+                        freq_hz: freq_var.sqrt(),
+                        width_hz: r.width_hz,
+                        power: own.power.hypot(r.power),
+                    }
+                }
+            };
+            lines.push(line(freq_hz, width, power, statistic, p_value, spread));
         }
         lines.extend(
             measured
                 .iter()
                 .zip(&used)
-                .filter(|(_, u)| !**u)
-                .map(|(m, _)| Line {
-                    freq_hz: m.freq_hz,
-                    amplitude: (2.0 * m.power).sqrt(),
-                    width_hz: m.width_hz,
-                    power: m.power,
-                    statistic: m.statistic,
-                    p_value: m.p_value,
+                .zip(&spreads)
+                .filter(|((_, u), _)| !**u)
+                .map(|((m, _), spread)| {
+                    line(
+                        m.freq_hz,
+                        m.width_hz,
+                        m.power,
+                        m.statistic,
+                        m.p_value,
+                        *spread,
+                    )
                 }),
         );
         lines.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
         lines
+    }
+}
+
+/// A line of `power` (u^2), its amplitude `sqrt(2 power)` and that amplitude's error
+/// `sd(power) / amplitude`.
+fn line(
+    freq_hz: f64,
+    width_hz: f64,
+    power: f64,
+    statistic: f64,
+    p_value: f64,
+    spread: Spread,
+) -> Line {
+    let amplitude = (2.0 * power).sqrt();
+    Line {
+        freq_hz,
+        amplitude,
+        width_hz,
+        power,
+        statistic,
+        p_value,
+        standard_errors: LineErrors {
+            freq_hz: spread.freq_hz,
+            amplitude: spread.power / amplitude,
+            width_hz: (width_hz > 0.0).then_some(spread.width_hz),
+        },
     }
 }
 
