@@ -79,6 +79,24 @@ fn the_real_record_names_its_gyro_tones_and_nothing_on_quiet_axes() {
         // amplitude to a tenth (the lines stand 18 and 34 sd over their background).
         assert!((f - freq_hz).abs() < 0.01, "{column}: {f} Hz");
         assert!((a / amplitude - 1.0).abs() < 0.1, "{column}: {a} rad/s");
+        // The named line's standard errors, as `analyze` states them for the same line.
+        let evidence = got[0]["evidence"].as_array().unwrap();
+        let errors = &evidence
+            .iter()
+            .find(|e| e["candidate"] == "sinusoid" && e.get("standard_errors").is_some())
+            .unwrap_or_else(|| panic!("{column}: no errors in {evidence:#?}"))["standard_errors"];
+        let sd_f = errors["freq_hz"].as_f64().unwrap_or(f64::NAN);
+        let sd_a = errors["amplitude"].as_f64().unwrap_or(f64::NAN);
+        assert!(sd_f > 0.0 && sd_f < 0.01, "{column}: {errors}");
+        assert!(sd_a > 0.0 && sd_a < 0.5 * a, "{column}: {errors}");
+        assert!(
+            got[0]["description"]
+                .as_str()
+                .unwrap()
+                .contains("standard error: amplitude"),
+            "{column}: {}",
+            got[0]["description"]
+        );
     }
     for column in ["ax", "ay"] {
         let got = steps(column);

@@ -11,20 +11,27 @@ use crate::analysis::lines::{self, LineOptions};
 use crate::analysis::low_pass::LowPass;
 use crate::analysis::pipeline::LowPassChoice;
 use crate::sim::noise::{NoiseTerms, Sinusoid};
+use std::collections::BTreeMap;
 
 /// Lines as slow as [`LINE_MIN_CYCLES`] per record are searched: a period of a fifth of the
 /// record is five cycles, and such a slow sinusoid is one of the effects to name.
 pub const LINE_MIN_CYCLES: f64 = 4.0;
 
-/// The spectral lines of a cleaned series, as the workflow's line view sees them
-/// ([`lines::detect`] with its default family-wise false-alarm probability).
-pub(super) fn detect_lines(series: &[f64], rate_hz: f64) -> Vec<Line> {
-    let options = LineOptions {
+/// The line search as the workflow's line view runs it: [`lines::detect`] with its default
+/// family-wise false-alarm probability from [`LINE_MIN_CYCLES`] cycles per record;
+/// `standard_errors` only where they are shown (the record's named line), not on every
+/// realisation.
+fn line_options(standard_errors: bool) -> LineOptions {
+    LineOptions {
         min_cycles: LINE_MIN_CYCLES,
-        standard_errors: false,
+        standard_errors,
         ..LineOptions::default()
-    };
-    lines::detect(series, rate_hz, &options)
+    }
+}
+
+/// The spectral lines of a cleaned series, as the workflow's line view sees them.
+pub(super) fn detect_lines(series: &[f64], rate_hz: f64) -> Vec<Line> {
+    lines::detect(series, rate_hz, &line_options(false))
         .map(|found| {
             found
                 .into_iter()
@@ -38,6 +45,38 @@ pub(super) fn detect_lines(series: &[f64], rate_hz: f64) -> Vec<Line> {
                 .collect()
         })
         .unwrap_or_default()
+}
+
+/// The standard errors ([`lines::Line::standard_errors`]) of the line the view found at
+/// `freq_hz` in `series` (the record cleaned as the round saw it), by parameter name: the
+/// same search, with its errors. Empty when the search finds no line within a bin of it.
+pub(super) fn line_standard_errors(
+    series: &[f64],
+    rate_hz: f64,
+    freq_hz: f64,
+) -> BTreeMap<&'static str, f64> {
+    let found = lines::detect(series, rate_hz, &line_options(true)).unwrap_or_default();
+    let bin = rate_hz / series.len().max(1) as f64;
+    let same = found
+        .iter()
+        .filter(|l| (l.freq_hz - freq_hz).abs() <= bin)
+        .min_by(|a, b| {
+            (a.freq_hz - freq_hz)
+                .abs()
+                .total_cmp(&(b.freq_hz - freq_hz).abs())
+        });
+    let Some(line) = same else {
+        return BTreeMap::new();
+    };
+    let e = line.standard_errors;
+    [
+        ("freq_hz", Some(e.freq_hz)),
+        ("amplitude", Some(e.amplitude)),
+        ("width_hz", e.width_hz),
+    ]
+    .into_iter()
+    .filter_map(|(name, sd)| sd.filter(|v| v.is_finite()).map(|v| (name, v)))
+    .collect()
 }
 
 /// The candidate to name, leaving out those `taken_back` in this round: a passing

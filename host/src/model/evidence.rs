@@ -466,7 +466,8 @@ pub struct Evidence {
     /// Whether it passes the naming rule ([`super::names`]).
     pub passes: bool,
     /// The standard deviations of the effect's parameters, by the parameter's name, where
-    /// the view gives them (the regressors' coefficients: [`super::gls::Estimator::coefficient_sd`]).
+    /// the view gives them (the regressors' coefficients: [`super::gls::Estimator::coefficient_sd`];
+    /// a named line's frequency, amplitude and width: [`crate::analysis::lines::Line::standard_errors`]).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub standard_errors: BTreeMap<&'static str, f64>,
 }

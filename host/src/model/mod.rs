@@ -637,19 +637,27 @@ pub fn run(
         if steps.len() == MAX_STEPS {
             break (round.evidence, Stop::MaxSteps);
         }
-        let (probe, evidence) = (round.probes[chosen], &round.evidence[chosen]);
-        let Some(effect) = evidence.effect else {
+        let probe = round.probes[chosen];
+        let mut evidence = round.evidence.clone();
+        let Some(effect) = evidence[chosen].effect else {
             unreachable!("a passing candidate has an effect")
         };
+        // A named line's errors: the line search once more on the record as the round
+        // cleaned it, with the errors its realisations' searches leave out.
+        if let (Probe::Line, Effect::Sinusoid { freq_hz, .. }) = (probe, effect) {
+            let (clean, _) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
+            evidence[chosen].standard_errors =
+                candidates::line_standard_errors(&clean, data.rate_hz, freq_hz);
+        }
         let before = (model.clone(), removal.clone());
         model = add(&data, &model, &mut removal, (probe, effect), &round.sd_ln);
         steps.push(Step {
-            description: described(&effect, &evidence.standard_errors, channel.unit()),
+            description: described(&effect, &evidence[chosen].standard_errors, channel.unit()),
             effect,
-            view: evidence.view,
+            view: evidence[chosen].view,
             gap_before: round.comparison.gap,
             gap_after: f64::NAN,
-            evidence: round.evidence.clone(),
+            evidence,
             model: model.clone(),
             comparison: round.comparison.clone(),
         });
