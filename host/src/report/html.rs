@@ -185,7 +185,7 @@ fn lines_table(h: &mut String, results: &[ChannelResult]) {
                 sig(l.power, 3),
                 r.unit,
                 sig(l.statistic, 3),
-                sig(l.p_value, 2)
+                table::p_text(l.p_value)
             );
         }
     }

@@ -172,7 +172,7 @@ fn line_rows(out: &mut String, r: &ChannelResult) {
 
 /// A family-wise p-value as printed: two significant digits, and `<1e-300` where the detector's
 /// tail underflowed.
-fn p_text(p: f64) -> String {
+pub(super) fn p_text(p: f64) -> String {
     if p <= 0.0 {
         "<1e-300".to_string()
     } else {

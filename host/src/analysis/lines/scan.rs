@@ -508,9 +508,12 @@ impl Search<'_> {
         let wanted = self.opts.standard_errors;
         let spreads: Vec<Spread> = measured
             .iter()
-            .map(|m| match wanted {
-                true => self.spread(m, &backgrounds.hann, bands),
-                false => Spread::UNKNOWN,
+            .map(|m| {
+                if wanted {
+                    self.spread(m, &backgrounds.hann, bands)
+                } else {
+                    Spread::UNKNOWN
+                }
             })
             .collect();
         // Each band left after the tones belongs to the strongest tone at its core (its
@@ -535,9 +538,10 @@ impl Search<'_> {
                 .zip(&used)
                 .position(|(m, u)| !*u && at_core(m, t));
             let tone_hz = t.freq_hz(self.rate_hz);
-            let own = match wanted {
-                true => tone_spread(t, backgrounds.rect.level(t.bin), duration_s),
-                false => Spread::UNKNOWN,
+            let own = if wanted {
+                tone_spread(t, backgrounds.rect.level(t.bin), duration_s)
+            } else {
+                Spread::UNKNOWN
             };
             let (extra, width, rest_hz, statistic, p_value, rest_spread) = match rest {
                 Some(i) => {

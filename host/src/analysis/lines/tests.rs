@@ -53,6 +53,19 @@ fn add_tone(y: &mut [f64], rate: f64, amplitude: f64, freq: f64, phase: f64) {
     }
 }
 
+/// A record of `n` samples on a drawn background with a tone of detectability 60 to 10^4
+/// (module documentation) at a frequency from `f_lo` to 0.45 of the rate, random phase:
+/// `(record, frequency, detectability, amplitude)`.
+fn tone_record(rng: &mut ChaCha8Rng, rate: f64, n: usize, f_lo: f64) -> (Vec<f64>, f64, f64, f64) {
+    let terms = draw_terms(rng);
+    let f = log_uniform(rng, f_lo, 0.45 * rate);
+    let d = log_uniform(rng, 60.0, 1e4);
+    let a = (2.0 * d * one_sided(&terms, f) * rate / n as f64).sqrt();
+    let mut y = noise(terms, rate, n, rng);
+    add_tone(&mut y, rate, a, f, rng.random::<f64>() * 2.0 * PI);
+    (y, f, d, a)
+}
+
 fn nearest(lines: &[Line], f: f64) -> Option<&Line> {
     lines
         .iter()
@@ -66,12 +79,7 @@ fn tones_above_the_detectability_are_found_and_measured() {
     let (mut found, mut extra) = (0, 0);
     for seed in 0..10 {
         let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
-        let terms = draw_terms(&mut rng);
-        let f = log_uniform(&mut rng, 0.05, 0.45 * rate);
-        let d = log_uniform(&mut rng, 60.0, 1e4);
-        let a = (2.0 * d * one_sided(&terms, f) * df).sqrt();
-        let mut y = noise(terms, rate, n, &mut rng);
-        add_tone(&mut y, rate, a, f, rng.random::<f64>() * 2.0 * PI);
+        let (y, f, d, a) = tone_record(&mut rng, rate, n, 0.05);
         let lines = detect(&y, rate, &LineOptions::default()).unwrap();
         let Some(line) = nearest(&lines, f) else {
             continue;
@@ -1139,12 +1147,7 @@ fn the_stated_errors_match_the_measurement_errors() {
     let mut tones = Vec::new();
     for seed in 0..120u64 {
         let mut rng = ChaCha8Rng::seed_from_u64(4000 + seed);
-        let terms = draw_terms(&mut rng);
-        let f = log_uniform(&mut rng, 0.5, 0.45 * rate);
-        let d = log_uniform(&mut rng, 60.0, 1e4);
-        let a = (2.0 * d * one_sided(&terms, f) * df).sqrt();
-        let mut y = noise(terms, rate, n, &mut rng);
-        add_tone(&mut y, rate, a, f, rng.random::<f64>() * 2.0 * PI);
+        let (y, f, _, a) = tone_record(&mut rng, rate, n, 0.5);
         let lines = detect(&y, rate, &LineOptions::default()).unwrap();
         let got = nearest(&lines, f).unwrap();
         let e = got.standard_errors;
