@@ -47,6 +47,27 @@ fn model_names_a_sinusoid_in_json_and_html() {
     assert_eq!(steps[0]["effect"]["kind"], "sinusoid");
     let f = steps[0]["effect"]["freq_hz"].as_f64().unwrap();
     assert!((f / 0.02 - 1.0).abs() < 0.05, "{f}");
+    // Its standard errors: on white noise, the Cramer-Rao bounds sd(A) = sqrt(S / T) and
+    // sd(f) = sqrt(12 S / T^3) / (2 pi A), S = 2 N^2 the one-sided PSD (the model's N is
+    // fitted, hence 10 %); the estimates lie within 5 of them of the truth.
+    let errors = steps[0]["evidence"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find_map(|e| e.get("standard_errors"))
+        .expect("the named sinusoid's standard errors");
+    let (t, s): (f64, f64) = (1800.0, 2.0 * 1e-4 * 1e-4);
+    let sd_a = (s / t).sqrt();
+    let sd_f = (12.0 * s / (t * t * t)).sqrt() / (2.0 * std::f64::consts::PI * 1e-4);
+    let (e_a, e_f) = (
+        errors["amplitude"].as_f64().unwrap(),
+        errors["freq_hz"].as_f64().unwrap(),
+    );
+    assert!((e_a / sd_a - 1.0).abs() < 0.1, "{errors} vs {sd_a}");
+    assert!((e_f / sd_f - 1.0).abs() < 0.1, "{errors} vs {sd_f}");
+    let a = steps[0]["effect"]["amplitude"].as_f64().unwrap();
+    assert!((a - 1e-4).abs() < 5.0 * e_a, "{a}");
+    assert!((f - 0.02).abs() < 5.0 * e_f, "{f}");
     assert!(doc["gap_final"].as_f64() < doc["gap_initial"].as_f64());
     assert!(doc["model"]["sinusoid"]["amplitude"].as_f64().is_some());
     let page = std::fs::read_to_string(&html).unwrap();

@@ -140,13 +140,20 @@ pub struct CosineLikelihood {
     band_count: Vec<f64>,
     /// Per single coefficient then per band: the fixed variance (white, quantization), and
     /// per unit B^2, K^2.
-    fixed: Vec<f64>,
-    flicker: Vec<f64>,
-    walk: Vec<f64>,
+    pub(super) fixed: Vec<f64>,
+    pub(super) flicker: Vec<f64>,
+    pub(super) walk: Vec<f64>,
     /// Correlation times, s, each with its unit-variance Gauss-Markov column.
-    grid: Vec<(f64, Vec<f64>)>,
+    pub(super) grid: Vec<(f64, Vec<f64>)>,
     /// The regressors' single coefficients, one vector per regressor.
     regressors: Vec<Vec<f64>>,
+    /// `cos(pi k / n)` of coefficients 1..=kmax, the bands' index ranges and the sample
+    /// interval, s: what a Gauss-Markov column of any correlation time needs.
+    cosines: Vec<f64>,
+    ranges: Vec<(usize, usize)>,
+    pub(super) tau0: f64,
+    /// The record's length, s.
+    pub(super) duration: f64,
 }
 
 /// Index ranges `[lo, hi)` of coefficients 1..=kmax (index k - 1): single ones, then bands.
@@ -164,6 +171,22 @@ fn bands(kmax: usize) -> Vec<(usize, usize)> {
         lo = hi;
     }
     out
+}
+
+/// The unit-variance first-order process of correlation time `tau_c` (s) per single
+/// coefficient then per band, from the coefficients' `cosines` (`cos(pi k / n)`).
+fn gauss_markov_column(
+    cosines: &[f64],
+    ranges: &[(usize, usize)],
+    tau0: f64,
+    tau_c: f64,
+) -> Vec<f64> {
+    let phi = (-tau0 / tau_c).exp();
+    let v: Vec<f64> = cosines
+        .iter()
+        .map(|c| (1.0 - phi * phi) / (1.0 - 2.0 * phi * c + phi * phi))
+        .collect();
+    band_means(&v, ranges)
 }
 
 fn band_means(v: &[f64], ranges: &[(usize, usize)]) -> Vec<f64> {
@@ -230,18 +253,14 @@ impl CosineLikelihood {
         if !fixed.iter().all(|v| *v > 0.0) {
             return None;
         }
+        let cosines: Vec<f64> = (1..=kmax)
+            .map(|k| (PI * k as f64 / n as f64).cos())
+            .collect();
         let (lo, hi) = GRID_FRACTIONS;
         let grid = (0..GRID_POINTS)
             .map(|i| {
                 let tau_c = duration * lo * (hi / lo).powf(i as f64 / (GRID_POINTS - 1) as f64);
-                let phi = (-tau0 / tau_c).exp();
-                let v: Vec<f64> = (1..=kmax)
-                    .map(|k| {
-                        let w = PI * k as f64 / n as f64;
-                        (1.0 - phi * phi) / (1.0 - 2.0 * phi * w.cos() + phi * phi)
-                    })
-                    .collect();
-                (tau_c, band_means(&v, &ranges))
+                (tau_c, gauss_markov_column(&cosines, &ranges, tau0, tau_c))
             })
             .collect();
         let band_power = ranges[singles..]
@@ -261,12 +280,16 @@ impl CosineLikelihood {
             walk: band_means(&walk, &ranges),
             grid,
             regressors: regressors.iter().map(|r| dct2(r, singles)).collect(),
+            cosines,
+            ranges,
+            tau0,
+            duration,
         })
     }
 
     /// Twice the negative log-likelihood with `levels` of the unit `columns`, the regressors
     /// profiled out.
-    fn nll(&self, columns: &[&[f64]], levels: &[f64]) -> f64 {
+    pub(super) fn nll(&self, columns: &[&[f64]], levels: &[f64]) -> f64 {
         let variance = |j: usize| {
             self.fixed[j]
                 + columns
@@ -331,7 +354,12 @@ impl CosineLikelihood {
     /// first coefficient (a level of 0 in `start`, a term the model lacks, is searched from
     /// there: at a negligible level the likelihood is flat and a simplex would stay), with
     /// the levels that reach it; and from the log-levels `more`.
-    fn likeliest(&self, columns: &[&[f64]], start: &[f64], more: &[Vec<f64>]) -> (f64, Vec<f64>) {
+    pub(super) fn likeliest(
+        &self,
+        columns: &[&[f64]],
+        start: &[f64],
+        more: &[Vec<f64>],
+    ) -> (f64, Vec<f64>) {
         // A unit log-level is the white variance at the first coefficient.
         let scale: Vec<f64> = columns.iter().map(|col| self.fixed[0] / col[0]).collect();
         let levels =
@@ -375,12 +403,17 @@ impl CosineLikelihood {
     /// to a thousand times the white variance of the first coefficient: a ratio is only as
     /// good as the minimum without the term, and a search stuck at a flat stretch there (a
     /// level far too low) would make noise look like the term.
-    fn without(&self, start: [f64; 2]) -> (f64, Vec<f64>) {
+    pub(super) fn without(&self, start: [f64; 2]) -> (f64, Vec<f64>) {
         let grid: Vec<Vec<f64>> = [-7.0, 0.0, 7.0]
             .iter()
             .flat_map(|&b| [-7.0, 0.0, 7.0].map(|k| vec![b, k]))
             .collect();
         self.likeliest(&[&self.flicker, &self.walk], &start, &grid)
+    }
+
+    /// The unit-variance Gauss-Markov column of correlation time `tau_c`, s.
+    pub(super) fn gauss_markov_column(&self, tau_c: f64) -> Vec<f64> {
+        gauss_markov_column(&self.cosines, &self.ranges, self.tau0, tau_c)
     }
 
     /// With the term: the least nll over the grid, its correlation time and variance.

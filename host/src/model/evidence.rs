@@ -470,6 +470,11 @@ pub struct Evidence {
     /// a named line's frequency, amplitude and width: [`crate::analysis::lines::Line::standard_errors`]).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub standard_errors: BTreeMap<&'static str, f64>,
+    /// 68.3 % intervals of the effect's parameters, `[low, high]` (null: the data bound
+    /// that side no further), where the view gives them (a Gauss-Markov term's correlation
+    /// time and standard deviation: [`super::gauss_markov_fit`]).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub intervals: BTreeMap<&'static str, (Option<f64>, Option<f64>)>,
 }
 
 impl Evidence {
@@ -515,6 +520,7 @@ impl Evidence {
             p_needed,
             passes: super::names(statistic, p_value, p_needed, max) && effect.is_some(),
             standard_errors: BTreeMap::new(),
+            intervals: BTreeMap::new(),
         }
     }
 }

@@ -60,12 +60,14 @@ use candidates::{add, choose, detect_lines};
 pub mod clean;
 pub mod cosine;
 pub mod evidence;
+pub mod gauss_markov_fit;
 pub mod gls;
 pub mod refit;
 pub mod regression;
 pub mod report;
 pub mod restore;
 mod simulate;
+pub mod sinusoid_errors;
 use simulate::{Round, simulate_round};
 pub mod spectrum;
 
@@ -258,22 +260,29 @@ impl Effect {
     }
 }
 
-/// `effect` in words, and the standard errors of its parameters where the view gives them:
-/// `rate ramp, R = -2.8000e-8 rad/s/s (standard error: slope 4.1e-9)`.
-fn described(
-    effect: &Effect,
-    standard_errors: &std::collections::BTreeMap<&'static str, f64>,
-    unit: &str,
-) -> String {
-    let words = effect.describe(unit);
-    if standard_errors.is_empty() {
-        return words;
+/// `effect` in words, with the standard errors and intervals of its parameters where its
+/// `evidence` gives them: `rate ramp, R = -2.8000e-8 rad/s/s (standard error: slope 4.1e-9)`,
+/// `Gauss-Markov ... (68.3 % interval: sigma [2.63e-5, 3.63e-5], tau_c [30.0, 57.7])`.
+fn described(effect: &Effect, evidence: &Evidence, unit: &str) -> String {
+    let mut words = effect.describe(unit);
+    if !evidence.standard_errors.is_empty() {
+        let errors: Vec<String> = evidence
+            .standard_errors
+            .iter()
+            .map(|(name, sd)| format!("{name} {sd:.2e}"))
+            .collect();
+        words = format!("{words} (standard error: {})", errors.join(", "));
     }
-    let errors: Vec<String> = standard_errors
-        .iter()
-        .map(|(name, sd)| format!("{name} {sd:.2e}"))
-        .collect();
-    format!("{words} (standard error: {})", errors.join(", "))
+    if !evidence.intervals.is_empty() {
+        let end = |v: Option<f64>| v.map_or("open".to_string(), |v| crate::report::sig(v, 3));
+        let intervals: Vec<String> = evidence
+            .intervals
+            .iter()
+            .map(|(name, (lo, hi))| format!("{name} [{}, {}]", end(*lo), end(*hi)))
+            .collect();
+        words = format!("{words} (68.3 % interval: {})", intervals.join(", "));
+    }
+    words
 }
 
 /// The model: stochastic noise terms, the deterministic effects named (as estimated from the
@@ -639,20 +648,54 @@ pub fn run(
         }
         let probe = round.probes[chosen];
         let mut evidence = round.evidence.clone();
-        let Some(effect) = evidence[chosen].effect else {
+        let Some(mut effect) = evidence[chosen].effect else {
             unreachable!("a passing candidate has an effect")
         };
         // A named line's errors: the line search once more on the record as the round
         // cleaned it, with the errors its realisations' searches leave out.
-        if let (Probe::Line, Effect::Sinusoid { freq_hz, .. }) = (probe, effect) {
-            let (clean, _) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
-            evidence[chosen].standard_errors =
-                candidates::line_standard_errors(&clean, data.rate_hz, freq_hz);
+        // A slow line's: the least-squares sandwich under the open noise model it was judged
+        // against, on the record its view read.
+        match (probe, effect) {
+            (Probe::Line, Effect::Sinusoid { freq_hz, .. }) => {
+                let (clean, _) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
+                evidence[chosen].standard_errors =
+                    candidates::line_standard_errors(&clean, data.rate_hz, freq_hz);
+            }
+            (Probe::SlowLine, Effect::Sinusoid { freq_hz, .. }) => {
+                let (clean, _) = simulate::regressors_out(&data, &removal).apply(
+                    data.rate,
+                    data.rate_hz,
+                    data.temperature.as_ref(),
+                );
+                evidence[chosen].standard_errors = sinusoid_errors::sinusoid_standard_errors(
+                    &clean,
+                    data.rate_hz,
+                    freq_hz,
+                    &round.open,
+                    model.low_pass.as_ref(),
+                );
+            }
+            // A Gauss-Markov term's: its maximum-likelihood parameters in the cosine view,
+            // whichever view named it, with their profile intervals.
+            (Probe::GaussMarkov, Effect::GaussMarkov { .. }) => {
+                if let Some(fit) = simulate::gauss_markov_fit(&data, &model, &removal) {
+                    effect = Effect::GaussMarkov {
+                        tau_c: fit.tau_c,
+                        sigma: fit.sigma,
+                    };
+                    let e = &mut evidence[chosen];
+                    e.effect = Some(effect);
+                    e.intervals = [("tau_c", fit.tau_c_interval), ("sigma", fit.sigma_interval)]
+                        .into_iter()
+                        .collect();
+                }
+            }
+            _ => {}
         }
         let before = (model.clone(), removal.clone());
         model = add(&data, &model, &mut removal, (probe, effect), &round.sd_ln);
         steps.push(Step {
-            description: described(&effect, &evidence[chosen].standard_errors, channel.unit()),
+            description: described(&effect, &evidence[chosen], channel.unit()),
             effect,
             view: evidence[chosen].view,
             gap_before: round.comparison.gap,

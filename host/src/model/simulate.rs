@@ -32,6 +32,18 @@ pub(super) struct Round {
     pub(super) sd_ln: Vec<f64>,
     pub(super) probes: Vec<Probe>,
     pub(super) evidence: Vec<Evidence>,
+    /// The open noise model the regressors and the slow line are judged against.
+    pub(super) open: NoiseTerms,
+}
+
+/// The removal the slow line and the regressor candidates are judged under: the ramp and
+/// the temperature (when the record has a channel) taken out with what is named.
+pub(super) fn regressors_out(data: &Data, removal: &Removal) -> Removal {
+    Removal {
+        ramp: true,
+        temperature: data.temperature.is_some(),
+        ..removal.clone()
+    }
 }
 
 /// `n` samples of the stochastic `terms`, realisation `i`; the white noise through
@@ -168,11 +180,7 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
     // The slow line is looked for with the regressor candidates out, against realisations of
     // the open noise model: a temperature cycle is not a slow line, and neither effect's
     // power, absorbed into the baseline's K, widens the spread the other is judged against.
-    let regressors_out = Removal {
-        ramp: true,
-        temperature: data.temperature.is_some(),
-        ..removal.clone()
-    };
+    let regressors_out = regressors_out(data, removal);
     let open_ctx = Context {
         removal: &regressors_out,
         ..ctx
@@ -279,6 +287,7 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
         sd_ln,
         probes,
         evidence,
+        open,
     }
 }
 
@@ -292,21 +301,7 @@ fn cosine_evidence(
     removal: &Removal,
     candidates: usize,
 ) -> Option<Evidence> {
-    let notched = if removal.notches.is_empty() {
-        std::borrow::Cow::Borrowed(data.rate)
-    } else {
-        std::borrow::Cow::Owned(clean::notch(data.rate, data.rate_hz, &removal.notches))
-    };
-    let regressors = removal.design(data.rate.len(), data.rate_hz, data.temperature.as_ref());
-    let terms = model.stochastic();
-    let view = cosine::CosineLikelihood::new(
-        &notched,
-        data.rate_hz,
-        &terms,
-        model.low_pass.as_ref(),
-        &regressors,
-    )?;
-    let start = [terms.b * terms.b, terms.k * terms.k];
+    let (view, start) = cosine_view(data, model, removal)?;
     let judged = |draws: usize| {
         let verdict = view.test(start, draws, data.settings.seed);
         let effect = (verdict.sigma > 0.0).then_some(Effect::GaussMarkov {
@@ -327,6 +322,42 @@ fn cosine_evidence(
     } else {
         first
     })
+}
+
+/// The cosine-transform view of the record (the named lines notched, the named regressors
+/// as fixed effects, under the model's white noise, quantization and filter), and the
+/// model's flicker and random-walk levels (B^2, K^2) its searches start from.
+fn cosine_view(
+    data: &Data,
+    model: &Model,
+    removal: &Removal,
+) -> Option<(cosine::CosineLikelihood, [f64; 2])> {
+    let notched = if removal.notches.is_empty() {
+        std::borrow::Cow::Borrowed(data.rate)
+    } else {
+        std::borrow::Cow::Owned(clean::notch(data.rate, data.rate_hz, &removal.notches))
+    };
+    let regressors = removal.design(data.rate.len(), data.rate_hz, data.temperature.as_ref());
+    let terms = model.stochastic();
+    let view = cosine::CosineLikelihood::new(
+        &notched,
+        data.rate_hz,
+        &terms,
+        model.low_pass.as_ref(),
+        &regressors,
+    )?;
+    Some((view, [terms.b * terms.b, terms.k * terms.k]))
+}
+
+/// A Gauss-Markov term's maximum-likelihood fit and profile intervals in the cosine view of
+/// the record under `model` and `removal` ([`super::gauss_markov_fit`]).
+pub(super) fn gauss_markov_fit(
+    data: &Data,
+    model: &Model,
+    removal: &Removal,
+) -> Option<super::gauss_markov_fit::GaussMarkovFit> {
+    let (view, start) = cosine_view(data, model, removal)?;
+    view.gauss_markov_fit(start)
 }
 
 /// Whether a candidate's verdict rests on the tail of too few simulations (see

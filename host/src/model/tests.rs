@@ -4,7 +4,7 @@
 //! 50 Hz, 10 seeds per kind, and the pairs of effects that hide each other), run with
 //! `cargo test --release -p imunoise --lib model::tests::study -- --ignored --nocapture`.
 
-use super::families::{self, CI_SHAPE, Kind, Shape};
+use super::families::{self, CI_SHAPE, Hidden, Kind, Shape};
 use super::*;
 
 const KINDS: [Kind; 11] = [
@@ -38,7 +38,7 @@ fn settings() -> Settings {
 }
 
 /// The kinds named, sorted, the outcome and what was hidden.
-fn named(kind: Kind, shape: Shape, seed: u64) -> (Vec<&'static str>, Outcome, String) {
+fn named(kind: Kind, shape: Shape, seed: u64) -> (Vec<&'static str>, Outcome, Hidden) {
     let hidden = families::generate(kind, shape, seed);
     let o = run(&hidden.record, Some("gx"), None, &settings()).unwrap();
     // Every family record has flicker (B) and a random walk (K): naming them is right, not
@@ -50,7 +50,66 @@ fn named(kind: Kind, shape: Shape, seed: u64) -> (Vec<&'static str>, Outcome, St
         .filter(|k| !matches!(*k, "bias_instability" | "rate_random_walk"))
         .collect();
     kinds.sort_unstable();
-    (kinds, o, hidden.describe())
+    (kinds, o, hidden)
+}
+
+/// The errors of the named slow sinusoid's and ramp's parameters over their stated standard
+/// errors: `(parameter, z)`.
+fn parameter_z(o: &Outcome, hidden: &Hidden) -> Vec<(&'static str, f64)> {
+    let mut out = Vec::new();
+    for step in &o.steps {
+        let e = step
+            .evidence
+            .iter()
+            .find(|e| e.view == step.view && e.effect == Some(step.effect));
+        let Some(errors) = e.map(|e| &e.standard_errors) else {
+            continue;
+        };
+        let mut z = |name: &'static str, got: f64, truth: f64| {
+            if let Some(sd) = errors.get(name) {
+                out.push((name, (got - truth) / sd));
+            }
+        };
+        match (step.effect, hidden.sinusoid, hidden.slope) {
+            (
+                Effect::Sinusoid {
+                    freq_hz, amplitude, ..
+                },
+                Some(s),
+                _,
+            ) if (freq_hz - s.freq_hz).abs() * o.n as f64 / o.rate_hz < 2.0 => {
+                z("freq_hz", freq_hz, s.freq_hz);
+                z("amplitude", amplitude, s.amplitude);
+            }
+            (Effect::RateRamp { slope }, _, Some(truth)) => z("slope", slope, truth),
+            _ => {}
+        }
+    }
+    out
+}
+
+/// Whether the named Gauss-Markov term's 68.3 % intervals hold the hidden one's parameters:
+/// `(parameter, held)`.
+fn interval_hits(o: &Outcome, hidden: &Hidden) -> Vec<(&'static str, bool)> {
+    let Some(truth) = hidden.terms.gauss_markov else {
+        return Vec::new();
+    };
+    let holds = |(lo, hi): (Option<f64>, Option<f64>), v: f64| {
+        lo.is_none_or(|lo| lo <= v) && hi.is_none_or(|hi| v <= hi)
+    };
+    o.steps
+        .iter()
+        .filter_map(|step| {
+            step.evidence
+                .iter()
+                .find(|e| e.effect == Some(step.effect) && !e.intervals.is_empty())
+        })
+        .flat_map(|e| {
+            [("tau_c", truth.tau_c), ("sigma", truth.sigma)]
+                .into_iter()
+                .filter_map(|(name, v)| e.intervals.get(name).map(|i| (name, holds(*i, v))))
+        })
+        .collect()
 }
 
 /// Seeds per kind whose named effects are exactly the hidden ones (`only`: just those seeds,
@@ -65,22 +124,42 @@ fn study(
         .iter()
         .map(|&kind| {
             let mut right = 0;
+            let mut z2: std::collections::BTreeMap<&str, (f64, usize)> = Default::default();
+            let mut held_in: std::collections::BTreeMap<&str, (usize, usize)> = Default::default();
             let chosen: Vec<u64> = seeds
                 .clone()
                 .filter(|s| only.is_empty() || only.contains(s))
                 .collect();
             for &seed in &chosen {
                 let (got, o, hidden) = named(kind, shape, seed);
+                for (name, z) in parameter_z(&o, &hidden) {
+                    let e = z2.entry(name).or_default();
+                    (e.0, e.1) = (e.0 + z * z, e.1 + 1);
+                }
+                for (name, held) in interval_hits(&o, &hidden) {
+                    let e = held_in.entry(name).or_default();
+                    (e.0, e.1) = (e.0 + usize::from(held), e.1 + 1);
+                }
                 if got == kind.expected() {
                     right += 1;
                 } else {
                     eprintln!(
-                        "{kind:?} seed {seed}: named {got:?}; hidden: {hidden}\n{}",
+                        "{kind:?} seed {seed}: named {got:?}; hidden: {}\n{}",
+                        hidden.describe(),
                         report::table(&o)
                     );
                 }
             }
             eprintln!("{kind:?}: {right}/{} right", chosen.len());
+            for (name, (sum, count)) in z2 {
+                eprintln!(
+                    "{kind:?}: {name}: mean z^2 {:.2} over {count}",
+                    sum / count as f64
+                );
+            }
+            for (name, (held, count)) in held_in {
+                eprintln!("{kind:?}: {name}: 68.3 % interval held the truth {held} of {count}");
+            }
             (kind, right, chosen.len())
         })
         .collect()
