@@ -3,6 +3,13 @@
 
 use super::scan::DOF_GRID;
 use super::{BLOCKS_PER_DECADE, MEDIAN_HALF_WIDTH, MIN_BLOCK, SHAPE_ERROR};
+
+/// Rounds of halving the blocks on a null's fall (each at most doubles a block's count;
+/// eight take a 2048-bin block to the least).
+const MAX_SPLIT_ROUNDS: usize = 8;
+
+/// A block's bins `[start, end)` and its (ln centre bin, ln level, bins used).
+type Block = ((usize, usize), (f64, f64, usize));
 use std::f64::consts::LN_2;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -138,32 +145,100 @@ pub(super) fn background(
     widest: usize,
     median_variance: f64,
 ) -> Background {
-    // Blocks 1/40 decade wide, at least MIN_BLOCK bins and at most half the widest line:
-    // (ln centre bin, ln level, bins used).
+    // Blocks 1/40 decade wide, at least MIN_BLOCK bins and at most half the widest line.
     let growth = 10f64.powf(1.0 / BLOCKS_PER_DECADE) - 1.0;
     let most = (widest / 2).max(MIN_BLOCK);
-    let mut blocks: Vec<(f64, f64, usize)> = Vec::new();
+    let mut spans: Vec<(usize, usize)> = Vec::new();
     // Bins 1 and 2 share power with the mean and slope the search removes first.
     let mut start = 3;
-    let mut values = Vec::new();
     while start <= k_hi {
         let width = ((start as f64 * growth) as usize).clamp(MIN_BLOCK, most);
         let end = (start + width).min(k_hi + 1);
-        values.clear();
-        values.extend((start..end).filter(|&k| !mask[k]).map(&power));
-        if values.len() * 2 >= end - start && values.len() >= 3 {
-            // An odd count, so that the median is one order statistic.
-            let m = values.len() - (1 - values.len() % 2);
-            let (_, median, _) = values[..m].select_nth_unstable_by(m / 2, f64::total_cmp);
-            let level = *median / LN_2;
-            if level > 0.0 {
-                let centre = 0.5 * (start + end - 1) as f64;
-                blocks.push((centre.ln(), level.ln(), m));
-            }
-        }
+        spans.push((start, end));
         start = end;
     }
-    let smoothed: Vec<(f64, f64, f64)> = (0..blocks.len())
+    let mut values = Vec::new();
+    let mut level_of_span = |(start, end): (usize, usize)| -> Option<(f64, f64, usize)> {
+        values.clear();
+        values.extend((start..end).filter(|&k| !mask[k]).map(&power));
+        if values.len() * 2 < end - start || values.len() < 3 {
+            return None;
+        }
+        // An odd count, so that the median is one order statistic.
+        let m = values.len() - (1 - values.len() % 2);
+        let (_, median, _) = values[..m].select_nth_unstable_by(m / 2, f64::total_cmp);
+        let level = *median / LN_2;
+        let centre = 0.5 * (start + end - 1) as f64;
+        (level > 0.0).then(|| (centre.ln(), level.ln(), m))
+    };
+    let mut measured: Vec<Block> = spans
+        .iter()
+        .filter_map(|&span| level_of_span(span).map(|b| (span, b)))
+        .collect();
+    let mut smoothed = smooth(&measured, median_variance);
+    // A digital filter run at the output rate has a zero at Nyquist (a bilinear filter's PSD
+    // falls as cos^4 there), and its ln PSD bends down so fast that the chord between block
+    // centres lies up to a factor 4 below it, which the bins would stand out against. Blocks
+    // on such a fall are halved, while they have the bins, until the chord (an eighth of the
+    // levels' second difference) stays within SHAPE_ERROR or within the levels' own noise.
+    // Only a fall that steepens all the way to the last block is taken for a null: a line's
+    // flank levels out again beyond it, and splitting there would let the line into the
+    // running median.
+    for _ in 0..MAX_SPLIT_ROUNDS {
+        let last = smoothed.len().saturating_sub(1);
+        let falls_to_end = |i: usize| (i..last).all(|j| smoothed[j + 1].1 < smoothed[j].1);
+        let bent: Vec<bool> = (0..smoothed.len())
+            .map(|i| {
+                if i == 0 || i >= last || !falls_to_end(i - 1) {
+                    return false;
+                }
+                let (a, b, c) = (smoothed[i - 1], smoothed[i], smoothed[i + 1]);
+                // The levels' second derivative in ln frequency (spacings unequal), the
+                // chord's largest departure from the curve over the wider spacing, and that
+                // departure's own noise (a second difference of the smoothed levels).
+                let (h0, h1) = (b.0 - a.0, c.0 - b.0);
+                let bend = 2.0 * ((c.1 - b.1) / h1 - (b.1 - a.1) / h0) / (h0 + h1);
+                let chord = -bend * h0.max(h1).powi(2) / 8.0;
+                let noise = (a.2 + 4.0 * b.2 + c.2).sqrt() / 8.0;
+                chord > SHAPE_ERROR && chord > 4.0 * noise
+            })
+            .collect();
+        let mut next = Vec::with_capacity(measured.len() + 8);
+        for (i, &(span, block)) in measured.iter().enumerate() {
+            let (lo, hi) = span;
+            if bent[i] && hi - lo >= 2 * MIN_BLOCK {
+                let mid = lo + (hi - lo) / 2;
+                for half in [(lo, mid), (mid, hi)] {
+                    if let Some(b) = level_of_span(half) {
+                        next.push((half, b));
+                    }
+                }
+            } else {
+                next.push((span, block));
+            }
+        }
+        if next.len() == measured.len() {
+            break;
+        }
+        measured = next;
+        smoothed = smooth(&measured, median_variance);
+    }
+    let smoothed: Vec<(f64, f64, f64)> = smoothed
+        .into_iter()
+        .map(|(centre, level, rel_var)| (centre, level, rel_var + SHAPE_ERROR * SHAPE_ERROR))
+        .collect();
+    Background {
+        blocks: smoothed,
+        hint: AtomicUsize::new(0),
+    }
+}
+
+/// The running median over blocks (`(span, (ln centre, ln level, bins))`): per block its ln
+/// centre, smoothed ln level, and that level's relative variance from the medians alone
+/// (`median_variance / bins` times the window's leverage).
+fn smooth(blocks: &[Block], median_variance: f64) -> Vec<(f64, f64, f64)> {
+    let blocks: Vec<(f64, f64, usize)> = blocks.iter().map(|b| b.1).collect();
+    (0..blocks.len())
         .map(|i| {
             // Near the lowest frequencies the window is pushed up (few bins there; see
             // window_level); near Nyquist it shrinks, staying centred (many bins there, and
@@ -175,14 +250,9 @@ pub(super) fn background(
             let window = &blocks[first..first + span];
             let bins: usize = window.iter().map(|b| b.2).sum();
             let (level, leverage) = window_level(window, i - first);
-            let rel_var = median_variance / bins as f64 * leverage + SHAPE_ERROR * SHAPE_ERROR;
-            (blocks[i].0, level, rel_var)
+            (blocks[i].0, level, median_variance / bins as f64 * leverage)
         })
-        .collect();
-    Background {
-        blocks: smoothed,
-        hint: AtomicUsize::new(0),
-    }
+        .collect()
 }
 
 /// The background's ln level at block `at` of a window of blocks (ln centre, ln level), and

@@ -28,7 +28,13 @@
 //!    low-pass roll-off, quantization's f^2); near the lowest frequencies, where the window
 //!    cannot be centred, the levels are first moved along the window's Theil-Sen line in
 //!    ln-ln (see `window_level`). The result is interpolated linearly in ln-ln between block
-//!    centres. Bins that a first search flagged are left out and the background estimated
+//!    centres. Where the levels fall ever more steeply to the last block (the zero at Nyquist
+//!    of a digital filter run at the output rate: a bilinear filter's PSD falls as
+//!    `cos^4(pi f / f_s)`), the chord between centres would lie up to a factor 4 below the
+//!    curve, so blocks there are halved (down to the least block, at most eight times) until
+//!    the chord, an eighth of the levels' second difference, stays within the shape error
+//!    below or within four standard deviations of its own noise; a line's flank, which levels
+//!    out again beyond it, is not split. Bins that a first search flagged are left out and the background estimated
 //!    again. Its relative variance is taken as `c / n_w` (times the off-centre leverage) plus
 //!    `0.03^2` for the background's shape within a block, n_w the bins under the window:
 //!    the median of m exponentials has relative variance `1 / (m ln^2 2)`, a median of 11
