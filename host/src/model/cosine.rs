@@ -129,6 +129,40 @@ pub fn coefficient_variances(
     [fixed, flicker, walk]
 }
 
+/// The model's variance of DCT-II coefficients 1..=kmax of `n` samples at `rate_hz`: white
+/// noise (through `low_pass`), quantization, flicker, random walk and a Gauss-Markov term.
+pub fn model_variances(
+    terms: &NoiseTerms,
+    low_pass: Option<&LowPass>,
+    rate_hz: f64,
+    n: usize,
+    kmax: usize,
+) -> Vec<f64> {
+    let tau0 = 1.0 / rate_hz;
+    let unit = NoiseTerms {
+        n: 1.0,
+        ..NoiseTerms::default()
+    };
+    let [white, flicker, walk] = coefficient_variances(&unit, rate_hz, n, kmax);
+    (1..=kmax)
+        .map(|k| {
+            let w = PI * k as f64 / n as f64;
+            let gain = low_pass.map_or(1.0, |lp| {
+                lp.power_gain(k as f64 * rate_hz / (2.0 * n as f64))
+            });
+            let gm = terms.gauss_markov.map_or(0.0, |g| {
+                let phi = (-tau0 / g.tau_c).exp();
+                g.sigma * g.sigma * (1.0 - phi * phi) / (1.0 - 2.0 * phi * w.cos() + phi * phi)
+            });
+            terms.n * terms.n * white[k - 1] * gain
+                + (terms.q / tau0).powi(2) * (2.0 - 2.0 * w.cos())
+                + terms.b * terms.b * flicker[k - 1]
+                + terms.k * terms.k * walk[k - 1]
+                + gm
+        })
+        .collect()
+}
+
 /// A record's cosine coefficients and the model's variance per unit level of each term, the
 /// single coefficients first and then the bands.
 #[derive(Debug, Clone)]
@@ -229,7 +263,7 @@ impl CosineLikelihood {
         let ranges = bands(kmax);
         let singles = SINGLE_COEFFICIENTS.min(kmax);
         let c = dct2(x, kmax);
-        let [white, flicker, walk] = coefficient_variances(
+        let [_, flicker, walk] = coefficient_variances(
             &NoiseTerms {
                 n: 1.0,
                 ..NoiseTerms::default()
@@ -238,18 +272,18 @@ impl CosineLikelihood {
             n,
             kmax,
         );
-        let gain = |k: usize| {
-            low_pass.map_or(1.0, |lp| {
-                lp.power_gain(k as f64 * rate_hz / (2.0 * n as f64))
-            })
-        };
-        let fixed: Vec<f64> = (1..=kmax)
-            .map(|k| {
-                let w = PI * k as f64 / n as f64;
-                terms.n * terms.n * white[k - 1] * gain(k)
-                    + (terms.q / tau0).powi(2) * (2.0 - 2.0 * w.cos())
-            })
-            .collect();
+        // White noise (through the filter) and quantization are the model's own.
+        let fixed = model_variances(
+            &NoiseTerms {
+                n: terms.n,
+                q: terms.q,
+                ..NoiseTerms::default()
+            },
+            low_pass,
+            rate_hz,
+            n,
+            kmax,
+        );
         if !fixed.iter().all(|v| *v > 0.0) {
             return None;
         }

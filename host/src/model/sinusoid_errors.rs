@@ -24,46 +24,12 @@
 //! what leaks from lower frequencies through the estimator's window, which at a few cycles
 //! per record is most of the error.
 
-use super::cosine::{coefficient_variances, dct2};
+use super::cosine::{dct2, model_variances};
 use crate::analysis::low_pass::LowPass;
 use crate::analysis::numerics::invert_spd;
 use crate::sim::noise::NoiseTerms;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
-
-/// The model's variance of DCT-II coefficients 1..=kmax of `n` samples at `rate_hz`: white
-/// noise (through `low_pass`), quantization, flicker, random walk and a Gauss-Markov term.
-pub fn model_variances(
-    terms: &NoiseTerms,
-    low_pass: Option<&LowPass>,
-    rate_hz: f64,
-    n: usize,
-    kmax: usize,
-) -> Vec<f64> {
-    let tau0 = 1.0 / rate_hz;
-    let unit = NoiseTerms {
-        n: 1.0,
-        ..NoiseTerms::default()
-    };
-    let [white, flicker, walk] = coefficient_variances(&unit, rate_hz, n, kmax);
-    (1..=kmax)
-        .map(|k| {
-            let w = PI * k as f64 / n as f64;
-            let gain = low_pass.map_or(1.0, |lp| {
-                lp.power_gain(k as f64 * rate_hz / (2.0 * n as f64))
-            });
-            let gm = terms.gauss_markov.map_or(0.0, |g| {
-                let phi = (-tau0 / g.tau_c).exp();
-                g.sigma * g.sigma * (1.0 - phi * phi) / (1.0 - 2.0 * phi * w.cos() + phi * phi)
-            });
-            terms.n * terms.n * white[k - 1] * gain
-                + (terms.q / tau0).powi(2) * (2.0 - 2.0 * w.cos())
-                + terms.b * terms.b * flicker[k - 1]
-                + terms.k * terms.k * walk[k - 1]
-                + gm
-        })
-        .collect()
-}
 
 /// `r^T Sigma r` for a row `r` orthogonal to the constant, Sigma diagonal in the DCT-II
 /// basis with `variances` of coefficients 1..=kmax, the last one standing for all above.
