@@ -3,13 +3,16 @@
 //! one-pole exponential average, a fourth-order Butterworth from the RBJ cookbook's
 //! biquads (R. Bristow-Johnson, "Cookbook formulae for audio EQ biquad filter
 //! coefficients"), a boxcar FIR and a Bartlett (triangular) FIR — at four times the output
-//! rate, then every fourth sample kept. White noise goes through the filter; flicker and
-//! random walk from the families' baseline ([`families::baseline`]) are added after it.
+//! rate, then every fourth sample kept; and three run on the output samples themselves, as
+//! a record's author or a sensor without an oversampled stage would run them: the
+//! exponential average and the RBJ Butterworths of second and fourth order. White noise
+//! goes through the filter; flicker and random walk from the families' baseline
+//! ([`families::baseline`]) are added after it.
 //!
 //! The workflow should name one effect, `low_pass`, and its N should be the output's
 //! long-tau N: the input's times `sqrt(sum_j |H(j f_s)|^2)`, j = 0..3 (the internal rate's
 //! aliases of DC, folded in by the decimation; 1.12 for an exponential average at a
-//! cutoff of 0.3 f_s).
+//! cutoff of 0.3 f_s), and the input's own for a filter run at the output rate.
 
 use super::families::{self, Shape as RecordShape};
 use super::*;
@@ -20,8 +23,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use std::f64::consts::PI;
 
-/// Internal rate of the filters, in multiples of the output rate.
-const INTERNAL: usize = 4;
+/// Internal rate of the oversampled filters, in multiples of the output rate.
+const OVERSAMPLED: usize = 4;
 
 /// A filter written independently of [`crate::analysis::low_pass`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,20 +37,42 @@ enum SensorFilter {
     Boxcar,
     /// A boxcar of m/2 samples applied twice.
     Bartlett,
+    /// The exponential average on the output samples.
+    ExponentialAverageAtOutputRate,
+    /// One RBJ low-pass biquad, Q = 0.7071, on the output samples.
+    Butterworth2AtOutputRate,
+    /// Two RBJ low-pass biquads on the output samples.
+    Butterworth4AtOutputRate,
 }
 
-const FILTERS: [SensorFilter; 4] = [
+const FILTERS: [SensorFilter; 7] = [
     SensorFilter::ExponentialAverage,
     SensorFilter::Butterworth4,
     SensorFilter::Boxcar,
     SensorFilter::Bartlett,
+    SensorFilter::ExponentialAverageAtOutputRate,
+    SensorFilter::Butterworth2AtOutputRate,
+    SensorFilter::Butterworth4AtOutputRate,
 ];
 
+/// The quality factors of the fourth-order Butterworth's two sections.
+const BUTTERWORTH4_Q: [f64; 2] = [0.5412, 1.3066];
+
 impl SensorFilter {
+    /// The filter's rate in multiples of the output rate.
+    fn internal(self) -> usize {
+        match self {
+            SensorFilter::ExponentialAverageAtOutputRate
+            | SensorFilter::Butterworth2AtOutputRate
+            | SensorFilter::Butterworth4AtOutputRate => 1,
+            _ => OVERSAMPLED,
+        }
+    }
+
     /// `x` (at the internal rate `fi`) through the filter with nominal cutoff `cutoff`.
     fn apply(self, x: &[f64], cutoff: f64, fi: f64) -> Vec<f64> {
         match self {
-            SensorFilter::ExponentialAverage => {
+            SensorFilter::ExponentialAverage | SensorFilter::ExponentialAverageAtOutputRate => {
                 let a = (-2.0 * PI * cutoff / fi).exp();
                 let mut y = 0.0;
                 x.iter()
@@ -57,21 +82,12 @@ impl SensorFilter {
                     })
                     .collect()
             }
-            SensorFilter::Butterworth4 => [0.5412, 1.3066].iter().fold(x.to_vec(), |v, &q| {
-                let w0 = 2.0 * PI * cutoff / fi;
-                let alpha = w0.sin() / (2.0 * q);
-                let c = w0.cos();
-                let b = [(1.0 - c) / 2.0, 1.0 - c, (1.0 - c) / 2.0];
-                let a = [1.0 + alpha, -2.0 * c, 1.0 - alpha];
-                let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
-                v.iter()
-                    .map(|&x0| {
-                        let y0 = (b[0] * x0 + b[1] * x1 + b[2] * x2 - a[1] * y1 - a[2] * y2) / a[0];
-                        (x2, x1, y2, y1) = (x1, x0, y1, y0);
-                        y0
-                    })
-                    .collect()
-            }),
+            SensorFilter::Butterworth4 | SensorFilter::Butterworth4AtOutputRate => {
+                rbj_low_passes(x, &BUTTERWORTH4_Q, cutoff, fi)
+            }
+            SensorFilter::Butterworth2AtOutputRate => {
+                rbj_low_passes(x, &[std::f64::consts::FRAC_1_SQRT_2], cutoff, fi)
+            }
             SensorFilter::Boxcar | SensorFilter::Bartlett => {
                 let m = ((0.443 * fi / cutoff).round() as usize).max(2);
                 let taps = if self == SensorFilter::Boxcar {
@@ -104,9 +120,10 @@ impl SensorFilter {
         let mut impulse = vec![0.0; 1 << 16];
         impulse[0] = 1.0;
         let h = self.apply(&impulse, cutoff, fi);
-        (0..INTERNAL)
+        let internal = self.internal();
+        (0..internal)
             .map(|j| {
-                let w = 2.0 * PI * j as f64 / INTERNAL as f64;
+                let w = 2.0 * PI * j as f64 / internal as f64;
                 let (re, im) = h.iter().enumerate().fold((0.0, 0.0), |(re, im), (k, v)| {
                     (re + v * (w * k as f64).cos(), im - v * (w * k as f64).sin())
                 });
@@ -116,9 +133,29 @@ impl SensorFilter {
     }
 }
 
+/// `x` at `fi` through RBJ low-pass biquads of quality factors `qs` in series, each with its
+/// -3 dB point (for Q = 0.7071) at `cutoff` (RBJ cookbook, LPF).
+fn rbj_low_passes(x: &[f64], qs: &[f64], cutoff: f64, fi: f64) -> Vec<f64> {
+    qs.iter().fold(x.to_vec(), |v, &q| {
+        let w0 = 2.0 * PI * cutoff / fi;
+        let alpha = w0.sin() / (2.0 * q);
+        let c = w0.cos();
+        let b = [(1.0 - c) / 2.0, 1.0 - c, (1.0 - c) / 2.0];
+        let a = [1.0 + alpha, -2.0 * c, 1.0 - alpha];
+        let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
+        v.iter()
+            .map(|&x0| {
+                let y0 = (b[0] * x0 + b[1] * x1 + b[2] * x2 - a[1] * y1 - a[2] * y2) / a[0];
+                (x2, x1, y2, y1) = (x1, x0, y1, y0);
+                y0
+            })
+            .collect()
+    })
+}
+
 /// A record of `shape` with white noise through `filter` (cutoff 10-30 % of the rate, drawn
-/// from `seed`), and the output's long-tau N.
-fn record(filter: SensorFilter, shape: RecordShape, seed: u64) -> (Record, f64) {
+/// from `seed`), the output's long-tau N and the cutoff.
+fn record(filter: SensorFilter, shape: RecordShape, seed: u64) -> (Record, f64, f64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut terms = families::baseline(&mut rng, shape.duration_s);
     let n_in = terms.n;
@@ -127,17 +164,18 @@ fn record(filter: SensorFilter, shape: RecordShape, seed: u64) -> (Record, f64) 
     let samples = (shape.rate_hz * shape.duration_s) as usize;
     let mut values =
         AxisNoise::new(terms, shape.rate_hz, shape.duration_s, &mut rng).take(samples, &mut rng);
-    let fi = shape.rate_hz * INTERNAL as f64;
+    let internal = filter.internal();
+    let fi = shape.rate_hz * internal as f64;
     // White rate noise of density N has per-sample sd N sqrt(f) at rate f.
     let sigma = n_in * fi.sqrt();
     let settle = 4096;
-    let white: Vec<f64> = (0..samples * INTERNAL + settle)
+    let white: Vec<f64> = (0..samples * internal + settle)
         .map(|_| sigma * rng.sample::<f64, _>(StandardNormal))
         .collect();
     let filtered = filter.apply(&white, cutoff, fi);
     for (v, w) in values
         .iter_mut()
-        .zip(filtered[settle..].iter().step_by(INTERNAL))
+        .zip(filtered[settle..].iter().step_by(internal))
     {
         *v += w;
     }
@@ -146,7 +184,7 @@ fn record(filter: SensorFilter, shape: RecordShape, seed: u64) -> (Record, f64) 
         rate_hz: shape.rate_hz,
         channels: vec![Channel::named("gx", values)],
     };
-    (record, n_in * filter.dc_folding(cutoff, fi).sqrt())
+    (record, n_in * filter.dc_folding(cutoff, fi).sqrt(), cutoff)
 }
 
 /// What the workflow made of one filter over a range of seeds.
@@ -166,8 +204,12 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<FilterOutcome> 
         seed: 1000,
         ..Settings::default()
     };
+    // STUDY_FILTERS=Butterworth2AtOutputRate,Boxcar runs only those filters (names as in
+    // `SensorFilter`'s Debug).
+    let only = std::env::var("STUDY_FILTERS").unwrap_or_default();
     FILTERS
         .iter()
+        .filter(|f| only.is_empty() || only.split(',').any(|o| o == format!("{f:?}")))
         .map(|&filter| {
             let mut outcome = FilterOutcome {
                 filter,
@@ -176,7 +218,7 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<FilterOutcome> 
                 worst_n: 0.0,
             };
             for seed in seeds.clone() {
-                let (record, n_out) = record(filter, shape, seed);
+                let (record, n_out, cutoff) = record(filter, shape, seed);
                 let o = run(&record, Some("gx"), None, &settings).unwrap();
                 let named: Vec<&str> = o
                     .steps
@@ -201,7 +243,14 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<FilterOutcome> 
                         report::table(&o)
                     );
                 }
-                eprintln!("{filter:?} seed {seed}: N {:+.2} %", 100.0 * n_error);
+                let found = o.final_model().low_pass.as_ref();
+                eprintln!(
+                    "{filter:?} seed {seed}: N {:+.2} %, {:?} at {:.3} Hz against {cutoff:.3} Hz, Allan gap {:.2}",
+                    100.0 * n_error,
+                    found.and_then(|lp| lp.shape),
+                    found.map_or(f64::NAN, |lp| lp.cutoff_hz),
+                    o.steps.last().map_or(f64::NAN, |s| s.gap_after),
+                );
             }
             eprintln!(
                 "{filter:?}: {}/{} exactly right",

@@ -3,24 +3,43 @@
 //!
 //! | shape | response | found in |
 //! | --- | --- | --- |
-//! | `one_pole` | `1 / (1 + s T)` | RC anti-alias filters, first-order digital low-passes |
+//! | `one_pole` | `1 / (1 + s T)`, sampled exactly: the exponential average `(1 - a) / (1 - a z^-1)` at the output rate, `a = exp(-2 pi f_c / f_s)` | RC filters; exponential moving averages at any rate (one decimated is again one) |
 //! | `two_pole` | `1 / (1 + s T)^2`, critically damped | the MPU-6050 DLPF's prototype without its lead zero |
 //! | `butterworth2` | second-order Butterworth, Q = 1/sqrt(2) | analog anti-alias stages, configurable digital low-passes |
 //! | `butterworth4` | fourth-order Butterworth (Q = 0.5412 and 1.3066) | sharp anti-alias filters |
 //! | `moving_average` | mean over a window T: `sin(pi f T) / (pi f T)` | averaging or decimating sensors, a boxcar FIR |
 //! | `bartlett` | two moving averages in series (triangular window): `sinc^2` | the ADIS1640x's Bartlett-window FIR |
+//! | `butterworth2_at_output_rate` | the second-order Butterworth through the bilinear transform at the output rate | a biquad low-pass run on the samples themselves (RBJ cookbook, `scipy.signal.butter(2, ...)`) |
+//! | `butterworth4_at_output_rate` | the fourth-order Butterworth, likewise | two such biquads |
 //!
-//! Every shape runs at an internal rate of [`super::OVERSAMPLE`] times the output rate and
-//! is sampled from there without an anti-alias filter, so that it folds like a continuous
-//! filter sampled at the output rate. The recursive ones are the analog prototypes through the
-//! bilinear transform, prewarped so the digital cutoff is the analog one (Oppenheim &
-//! Schafer, *Discrete-Time Signal Processing*, 3rd ed., 2010, sec. 7.2.2); the fourth-order
-//! Butterworth is two second-order sections with `Q_k = 1 / (2 cos((2k - 1) pi / 8))`
-//! (Williams & Taylor, *Electronic Filter Design Handbook*, 4th ed., 2006, table 11-1). A
-//! moving average over T has its -3 dB point where `sinc^2(f T) = 1/2`, `f T = 0.4430`;
-//! the Bartlett's where `sinc^4(f T) = 1/2`, `f T = 0.3188` (each average over T). A moving
-//! average over a whole number of output samples, sampled at the output rate, is the
-//! digital moving average at that rate: the folded `sinc^2` sums to the Dirichlet kernel.
+//! **Sampled continuous filters.** The first six stand for continuous filters sampled at the
+//! output rate without an anti-alias filter: every alias of their stopband folds onto the
+//! output band. The one-pole does so exactly: a continuous one-pole's output sampled every
+//! `1 / f_s` is the first-order autoregression of coefficient `a = exp(-2 pi f_c / f_s)` (its
+//! autocovariance `exp(-|t| / T)` at `t = l / f_s`, `T = 1 / (2 pi f_c)`), whose spectrum is
+//! the exponential average's. The others run at an internal rate of [`super::OVERSAMPLE`]
+//! times the output rate and are sampled from there; their stopband beyond the internal
+//! Nyquist frequency, which this leaves out, falls as `f^-4` or faster. The recursive ones
+//! are the analog prototypes through the bilinear transform, prewarped so the digital
+//! cutoff is the analog one (Oppenheim & Schafer, *Discrete-Time Signal Processing*, 3rd
+//! ed., 2010, sec. 7.2.2); the fourth-order Butterworth is two second-order sections with
+//! `Q_k = 1 / (2 cos((2k - 1) pi / 8))` (Williams & Taylor, *Electronic Filter Design
+//! Handbook*, 4th ed., 2006, table 11-1). A moving average over T has its -3 dB point where
+//! `sinc^2(f T) = 1/2`, `f T = 0.4430`; the Bartlett's where `sinc^4(f T) = 1/2`,
+//! `f T = 0.3188` (each average over T). A moving average over a whole number of output
+//! samples, sampled at the output rate, is the digital moving average at that rate: the
+//! folded `sinc^2` sums to the Dirichlet kernel.
+//!
+//! **Filters run at the output rate.** The last two run on the output samples: their
+//! response is periodic in the output rate with a double zero at its Nyquist frequency,
+//! where a sampled continuous filter keeps its folded stopband. (A one-pole through the
+//! bilinear transform at the output rate is left out: its zero at Nyquist, with the
+//! quantization term the fits add, passes for the sampled one-pole.) Such filters, and the
+//! sampled one-pole, are built into the same cascade at the internal rate with every delay
+//! `z^-1` of the output rate written `z^-OVERSAMPLE` (`Section::AtOutputRate`): kept every
+//! [`super::OVERSAMPLE`]-th sample, the cascade's output on white noise is then exactly the
+//! output-rate filter on white noise, since only the inputs on the kept phase reach a kept
+//! output.
 
 use crate::sim::dlpf::DlpfDesign;
 use realfft::num_complex::Complex;
@@ -37,52 +56,80 @@ pub enum Shape {
     Butterworth4,
     MovingAverage,
     Bartlett,
+    Butterworth2AtOutputRate,
+    Butterworth4AtOutputRate,
 }
 
 impl Shape {
     /// Every shape, in the order [`super::detect`] tries them: the first, the two-pole, is
     /// kept unless another fits the spectrum better by [`super::SHAPE_EVIDENCE`].
-    pub const ALL: [Shape; 6] = [
+    pub const ALL: [Shape; 8] = [
         Shape::TwoPole,
         Shape::OnePole,
         Shape::Butterworth2,
         Shape::Butterworth4,
         Shape::MovingAverage,
         Shape::Bartlett,
+        Shape::Butterworth2AtOutputRate,
+        Shape::Butterworth4AtOutputRate,
     ];
+
+    /// The highest cutoff of the shape, in multiples of the output rate: for the filters run
+    /// at the output rate just below its Nyquist frequency, where the bilinear transform's
+    /// prewarping diverges; for the others [`super::MAX_CUTOFF_PER_RATE`].
+    pub fn max_cutoff_per_rate(self) -> f64 {
+        match self {
+            Shape::Butterworth2AtOutputRate | Shape::Butterworth4AtOutputRate => {
+                MAX_CUTOFF_AT_OUTPUT_RATE
+            }
+            _ => super::MAX_CUTOFF_PER_RATE,
+        }
+    }
 
     /// The shape in words.
     pub fn describe(self) -> &'static str {
         match self {
-            Shape::OnePole => "one-pole low-pass 1/(1 + sT)",
+            Shape::OnePole => "one-pole low-pass 1/(1 + sT) (an exponential average)",
             Shape::TwoPole => "two-pole low-pass 1/(1 + sT)^2",
             Shape::Butterworth2 => "second-order Butterworth low-pass",
             Shape::Butterworth4 => "fourth-order Butterworth low-pass",
             Shape::MovingAverage => "moving average (boxcar)",
             Shape::Bartlett => "Bartlett (triangular) moving average",
+            Shape::Butterworth2AtOutputRate => {
+                "second-order Butterworth low-pass run at the output rate"
+            }
+            Shape::Butterworth4AtOutputRate => {
+                "fourth-order Butterworth low-pass run at the output rate"
+            }
         }
     }
 
     /// The sections at `internal_hz` whose cascade has its -3 dB point at `cutoff_hz`.
     pub(super) fn sections(self, cutoff_hz: f64, internal_hz: f64) -> Vec<Section> {
-        // Bilinear transform with prewarping: s = K (1 - z^-1) / (1 + z^-1), K = 2 f_i, and
-        // the analog cutoff moved to 2 f_i tan(pi f_c / f_i); `u` is K over that cutoff.
-        let u = 1.0 / (PI * cutoff_hz / internal_hz).tan();
-        let second_order = |q: f64| {
-            let a0 = 1.0 + u / q + u * u;
-            Section::Biquad {
-                b: [1.0 / a0, 2.0 / a0, 1.0 / a0],
-                a: [2.0 * (1.0 - u * u) / a0, (1.0 - u / q + u * u) / a0],
-            }
+        let output_hz = internal_hz / super::OVERSAMPLE as f64;
+        let internal = |order| {
+            bilinear_butterworth(order, cutoff_hz, internal_hz)
+                .into_iter()
+                .map(|(b, a)| Section::Biquad { b, a })
+                .collect()
+        };
+        let at_output_rate = |order| {
+            bilinear_butterworth(order, cutoff_hz, output_hz)
+                .into_iter()
+                .map(|(b, a)| Section::AtOutputRate { b, a })
+                .collect()
         };
         let boxcar = |power: i32| Section::Boxcar {
             len: sinc_half_power(power) * internal_hz / cutoff_hz,
         };
         match self {
-            Shape::OnePole => vec![Section::Biquad {
-                b: [1.0 / (1.0 + u), 1.0 / (1.0 + u), 0.0],
-                a: [(1.0 - u) / (1.0 + u), 0.0],
-            }],
+            Shape::OnePole => {
+                let a = (-2.0 * PI * cutoff_hz / output_hz).exp();
+                vec![Section::AtOutputRate {
+                    b: [1.0 - a, 0.0, 0.0],
+                    a: [-a, 0.0],
+                }]
+            }
             Shape::TwoPole => {
                 let d = two_pole_design(cutoff_hz, internal_hz);
                 vec![Section::Biquad {
@@ -90,14 +137,38 @@ impl Shape {
                     a: [d.a[1], d.a[2]],
                 }]
             }
-            Shape::Butterworth2 => vec![second_order(std::f64::consts::FRAC_1_SQRT_2)],
-            Shape::Butterworth4 => [PI / 8.0, 3.0 * PI / 8.0]
-                .iter()
-                .map(|angle| second_order(1.0 / (2.0 * angle.cos())))
-                .collect(),
+            Shape::Butterworth2 => internal(2),
+            Shape::Butterworth4 => internal(4),
             Shape::MovingAverage => vec![boxcar(2)],
             Shape::Bartlett => vec![boxcar(4), boxcar(4)],
+            Shape::Butterworth2AtOutputRate => at_output_rate(2),
+            Shape::Butterworth4AtOutputRate => at_output_rate(4),
         }
+    }
+}
+
+/// The highest cutoff of the filters run at the output rate, in multiples of that rate.
+const MAX_CUTOFF_AT_OUTPUT_RATE: f64 = 0.49;
+
+/// The Butterworth low-pass of `order` 2 or 4 at `rate_hz` with -3 dB at `cutoff_hz`, as
+/// (numerator, denominator without its leading 1) pairs of its second-order sections:
+/// the bilinear transform with prewarping, `s = K (1 - z^-1) / (1 + z^-1)`, `K = 2 f`, the
+/// analog cutoff moved to `2 f tan(pi f_c / f)`; `u` is K over that cutoff.
+fn bilinear_butterworth(order: usize, cutoff_hz: f64, rate_hz: f64) -> Vec<([f64; 3], [f64; 2])> {
+    let u = 1.0 / (PI * cutoff_hz / rate_hz).tan();
+    let second_order = |q: f64| {
+        let a0 = 1.0 + u / q + u * u;
+        (
+            [1.0 / a0, 2.0 / a0, 1.0 / a0],
+            [2.0 * (1.0 - u * u) / a0, (1.0 - u / q + u * u) / a0],
+        )
+    };
+    match order {
+        2 => vec![second_order(std::f64::consts::FRAC_1_SQRT_2)],
+        _ => [PI / 8.0, 3.0 * PI / 8.0]
+            .iter()
+            .map(|angle| second_order(1.0 / (2.0 * angle.cos())))
+            .collect(),
     }
 }
 
@@ -127,13 +198,14 @@ fn sinc_half_power(power: i32) -> f64 {
     0.5 * (lo + hi)
 }
 
-/// A frequency at a cascade's rate as `w` radians per sample and `z^-1 = e^{-jw}`: the
-/// trigonometry every section's response shares, computed once where a fit evaluates many
-/// cascades at the same frequencies.
+/// A frequency at a cascade's rate as `w` radians per sample, `z^-1 = e^{-jw}` and the delay
+/// of one output sample `z^-OVERSAMPLE`: the trigonometry every section's response shares,
+/// computed once where a fit evaluates many cascades at the same frequencies.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Phasor {
     w: f64,
     z1: Complex<f64>,
+    z_output: Complex<f64>,
 }
 
 impl Phasor {
@@ -142,8 +214,15 @@ impl Phasor {
         Phasor {
             w,
             z1: Complex::from_polar(1.0, -w),
+            z_output: Complex::from_polar(1.0, -w * super::OVERSAMPLE as f64),
         }
     }
+}
+
+/// `(b0 + b1 z + b2 z^2) / (1 + a1 z + a2 z^2)`'s numerator and denominator at `z` (a delay).
+fn biquad_parts(b: [f64; 3], a: [f64; 2], z: Complex<f64>) -> (Complex<f64>, Complex<f64>) {
+    let z2 = z * z;
+    (b[0] + z * b[1] + z2 * b[2], 1.0 + z * a[0] + z2 * a[1])
 }
 
 /// One stage of a cascade, at the cascade's rate.
@@ -151,6 +230,9 @@ impl Phasor {
 pub(super) enum Section {
     /// `(b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2)`.
     Biquad { b: [f64; 3], a: [f64; 2] },
+    /// A biquad of the output rate: [`Section::Biquad`] with each `z^-1` a delay of
+    /// [`super::OVERSAMPLE`] samples.
+    AtOutputRate { b: [f64; 3], a: [f64; 2] },
     /// The mean over a window of `len` samples (at least 1): `floor(len)` taps of weight
     /// `1 / len` and one more weighing the fraction left, so the cutoff varies continuously.
     Boxcar { len: f64 },
@@ -163,8 +245,12 @@ impl Section {
         let z1 = at.z1;
         match *self {
             Section::Biquad { b, a } => {
-                let z2 = z1 * z1;
-                (b[0] + z1 * b[1] + z2 * b[2]) / (1.0 + z1 * a[0] + z2 * a[1])
+                let (num, den) = biquad_parts(b, a, z1);
+                num / den
+            }
+            Section::AtOutputRate { b, a } => {
+                let (num, den) = biquad_parts(b, a, at.z_output);
+                num / den
             }
             Section::Boxcar { len } => {
                 let m = len.floor();
@@ -186,11 +272,13 @@ impl Section {
     /// no complex division.
     fn power(&self, at: &Phasor) -> f64 {
         let z1 = at.z1;
+        let biquad = |b, a, z| {
+            let (num, den) = biquad_parts(b, a, z);
+            num.norm_sqr() / den.norm_sqr()
+        };
         match *self {
-            Section::Biquad { b, a } => {
-                let z2 = z1 * z1;
-                (b[0] + z1 * b[1] + z2 * b[2]).norm_sqr() / (1.0 + z1 * a[0] + z2 * a[1]).norm_sqr()
-            }
+            Section::Biquad { b, a } => biquad(b, a, z1),
+            Section::AtOutputRate { b, a } => biquad(b, a, at.z_output),
             Section::Boxcar { len } => {
                 let one = Complex::new(1.0, 0.0);
                 let below = (one - z1).norm_sqr();
@@ -208,6 +296,12 @@ impl Section {
     fn running(&self) -> RunningSection {
         match *self {
             Section::Biquad { b, a } => RunningSection::Biquad { b, a, s: [0.0; 2] },
+            Section::AtOutputRate { b, a } => RunningSection::AtOutputRate {
+                b,
+                a,
+                s: Box::new([[0.0; 2]; super::OVERSAMPLE]),
+                phase: 0,
+            },
             Section::Boxcar { len } => {
                 let m = len.floor() as usize;
                 RunningSection::Boxcar {
@@ -247,6 +341,28 @@ impl Cascade {
         self.sections.iter().map(|s| s.power(at)).product()
     }
 
+    /// `sum_j |H|^2` over `aliases`, the phasors of `f + j f_s`, j = 0..OVERSAMPLE-1, at
+    /// this cascade's rate `OVERSAMPLE f_s`: the power folded onto `f`. A cascade run wholly
+    /// at the output rate has the same response at every alias (its delays turn by whole
+    /// turns from one to the next), so it is evaluated once.
+    pub(super) fn folded_power_at(&self, aliases: &[Phasor]) -> f64 {
+        let all_at_output_rate = self
+            .sections
+            .iter()
+            .all(|s| matches!(s, Section::AtOutputRate { .. }));
+        match aliases.first() {
+            Some(first) if all_at_output_rate => aliases.len() as f64 * self.power_at(first),
+            _ => aliases.iter().map(|p| self.power_at(p)).sum(),
+        }
+    }
+
+    /// Whether a section runs at the output rate ([`Section::AtOutputRate`]).
+    pub(super) fn at_output_rate(&self) -> bool {
+        self.sections
+            .iter()
+            .any(|s| matches!(s, Section::AtOutputRate { .. }))
+    }
+
     /// A running filter of the cascade, at rest.
     pub(super) fn running(&self) -> RunningCascade {
         RunningCascade(self.sections.iter().map(Section::running).collect())
@@ -273,6 +389,14 @@ enum RunningSection {
         a: [f64; 2],
         s: [f64; 2],
     },
+    /// A transposed direct form II per phase of the output rate: the internal samples
+    /// `OVERSAMPLE` apart are one output-rate filter's, and the phases never mix.
+    AtOutputRate {
+        b: [f64; 3],
+        a: [f64; 2],
+        s: Box<[[f64; 2]; super::OVERSAMPLE]>,
+        phase: usize,
+    },
     /// The last `taps + 1` inputs, newest at `head`, and the sum of the newest `taps`.
     Boxcar {
         taps: usize,
@@ -288,10 +412,10 @@ enum RunningSection {
 impl RunningSection {
     fn process(&mut self, x: f64) -> f64 {
         match self {
-            RunningSection::Biquad { b, a, s } => {
-                let y = b[0] * x + s[0];
-                s[0] = b[1] * x - a[0] * y + s[1];
-                s[1] = b[2] * x - a[1] * y;
+            RunningSection::Biquad { b, a, s } => transposed_biquad(*b, *a, s, x),
+            RunningSection::AtOutputRate { b, a, s, phase } => {
+                let y = transposed_biquad(*b, *a, &mut s[*phase], x);
+                *phase = (*phase + 1) % s.len();
                 y
             }
             RunningSection::Boxcar {
@@ -322,6 +446,14 @@ impl RunningSection {
     }
 }
 
+/// One step of a transposed direct form II biquad with state `s`.
+fn transposed_biquad(b: [f64; 3], a: [f64; 2], s: &mut [f64; 2], x: f64) -> f64 {
+    let y = b[0] * x + s[0];
+    s[0] = b[1] * x - a[0] * y + s[1];
+    s[1] = b[2] * x - a[1] * y;
+    y
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -330,10 +462,13 @@ mod tests {
     const INTERNAL_HZ: f64 = 1600.0;
 
     /// Every shape's cascade at [`INTERNAL_HZ`], for cutoffs from the lowest searched to the
-    /// output Nyquist frequency.
+    /// output Nyquist frequency (to the highest of a shape run at the output rate).
     fn cascades() -> impl Iterator<Item = (Shape, f64, Cascade)> {
         Shape::ALL.into_iter().flat_map(|shape| {
-            [1.6, 12.0, 50.0].map(|cutoff| {
+            [1.6, 12.0, 50.0].map(|cutoff: f64| {
+                let cutoff = cutoff.min(
+                    shape.max_cutoff_per_rate() * INTERNAL_HZ / super::super::OVERSAMPLE as f64,
+                );
                 let c = Cascade {
                     rate_hz: INTERNAL_HZ,
                     sections: shape.sections(cutoff, INTERNAL_HZ),
@@ -345,11 +480,16 @@ mod tests {
 
     /// Every shape has |H|^2 = 1/2 at its cutoff (folding aside: at the internal rate) and
     /// unit gain at DC, for cutoffs from the lowest searched to the output Nyquist frequency
-    /// (an output rate of 100 Hz).
+    /// (an output rate of 100 Hz). The one-pole, sampled exactly, has unit gain at DC and
+    /// its folded -3 dB point is tested in `the_one_pole_is_the_sampled_continuous_one_pole`.
     #[test]
     fn every_shape_is_minus_3_db_at_its_cutoff() {
         for (shape, cutoff, c) in cascades() {
             let dc = c.response(0.0).norm_sqr();
+            if shape == Shape::OnePole {
+                assert!((dc - 1.0).abs() < 1e-9, "{shape:?} {cutoff}: DC {dc}");
+                continue;
+            }
             let at = c.response(cutoff).norm_sqr();
             assert!((dc - 1.0).abs() < 1e-9, "{shape:?} {cutoff}: DC {dc}");
             // The moving averages are the continuous prototype's cutoff, met by the
@@ -366,6 +506,49 @@ mod tests {
         }
     }
 
+    /// The one-pole's folded power is the continuous one-pole's `1 / (1 + (f / f_c)^2)`
+    /// summed over every alias `f + k f_s`, relative to DC: against the closed form of that
+    /// sum, `sum_k 1 / (a^2 + (x + k)^2) = (pi / a) sinh(2 pi a) / (cosh(2 pi a) - cos(2 pi
+    /// x))` with `a = f_c / f_s`, `x = f / f_s` (the partial fractions of the cotangent,
+    /// Abramowitz & Stegun 4.3.91, summed in pairs), and against the sum itself truncated
+    /// at |k| <= 20 000 (the tail left, `2 a^2 / 20 000`, below 1e-4 of it); for cutoffs
+    /// from 1/64 of the rate to twice it.
+    #[test]
+    fn the_one_pole_is_the_sampled_continuous_one_pole() {
+        let fs = 100.0;
+        for cutoff in [1.6, 12.0, 31.0, 50.0, 150.0] {
+            let c = Cascade {
+                rate_hz: INTERNAL_HZ,
+                sections: Shape::OnePole.sections(cutoff, INTERNAL_HZ),
+            };
+            let a = cutoff / fs;
+            let closed = |x: f64| {
+                PI / a * (2.0 * PI * a).sinh() / ((2.0 * PI * a).cosh() - (2.0 * PI * x).cos())
+            };
+            let truncated = |x: f64| -> f64 {
+                (-20_000..=20_000)
+                    .map(|k| 1.0 / (a * a + (x + k as f64).powi(2)))
+                    .sum()
+            };
+            for i in 0..=20 {
+                let f = fs / 2.0 * i as f64 / 20.0;
+                let x = f / fs;
+                let got = c.power_at(&Phasor::new(f, INTERNAL_HZ))
+                    / c.power_at(&Phasor::new(0.0, INTERNAL_HZ));
+                let want = closed(x) / closed(0.0);
+                assert!(
+                    (got / want - 1.0).abs() < 1e-9,
+                    "{cutoff} Hz at {f} Hz: {got} against {want}"
+                );
+                let summed = truncated(x) / truncated(0.0);
+                assert!(
+                    (got / summed - 1.0).abs() < 1e-4,
+                    "{cutoff} Hz at {f} Hz: {got} against the sum {summed}"
+                );
+            }
+        }
+    }
+
     /// The power the fits sum ([`Cascade::power_at`], no complex division) is the squared
     /// magnitude of the response, over the whole band of the internal rate, DC and the
     /// stopband's nulls included.
@@ -378,6 +561,31 @@ mod tests {
                 let got = c.power_at(&Phasor::new(f, INTERNAL_HZ));
                 assert!(
                     (got - want).abs() <= 1e-12 * want.max(1e-6),
+                    "{shape:?} {cutoff} Hz at {f} Hz: {got} against {want}"
+                );
+            }
+        }
+    }
+
+    /// The folded power a fit sums ([`Cascade::folded_power_at`], once for a cascade run at
+    /// the output rate) is the sum of the responses' squared magnitudes over the aliases.
+    #[test]
+    fn the_folded_power_sums_the_aliases_responses() {
+        let output = INTERNAL_HZ / super::super::OVERSAMPLE as f64;
+        for (shape, cutoff, c) in cascades() {
+            for i in 0..=50 {
+                let f = output / 2.0 * i as f64 / 50.0;
+                let aliases: Vec<f64> = (0..super::super::OVERSAMPLE)
+                    .map(|j| f + j as f64 * output)
+                    .collect();
+                let want: f64 = aliases.iter().map(|&a| c.response(a).norm_sqr()).sum();
+                let phasors: Vec<Phasor> = aliases
+                    .iter()
+                    .map(|&a| Phasor::new(a, INTERNAL_HZ))
+                    .collect();
+                let got = c.folded_power_at(&phasors);
+                assert!(
+                    (got - want).abs() <= 1e-10 * want.max(1e-6),
                     "{shape:?} {cutoff} Hz at {f} Hz: {got} against {want}"
                 );
             }
