@@ -207,6 +207,15 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<FilterOutcome> 
     // STUDY_FILTERS=Butterworth2AtOutputRate,Boxcar runs only those filters (names as in
     // `SensorFilter`'s Debug).
     let only = std::env::var("STUDY_FILTERS").unwrap_or_default();
+    // STUDY_SEEDS=104,108 runs only those seeds of the range.
+    let chosen: Vec<u64> = std::env::var("STUDY_SEEDS")
+        .unwrap_or_default()
+        .split(',')
+        .filter_map(|s| s.trim().parse().ok())
+        .collect();
+    let seeds: Vec<u64> = seeds
+        .filter(|s| chosen.is_empty() || chosen.contains(s))
+        .collect();
     FILTERS
         .iter()
         .filter(|f| only.is_empty() || only.split(',').any(|o| o == format!("{f:?}")))
@@ -217,7 +226,7 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<FilterOutcome> 
                 filter_named: 0,
                 worst_n: 0.0,
             };
-            for seed in seeds.clone() {
+            for &seed in &seeds {
                 let (record, n_out, cutoff) = record(filter, shape, seed);
                 let o = run(&record, Some("gx"), None, &settings).unwrap();
                 let named: Vec<&str> = o
@@ -255,7 +264,7 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<FilterOutcome> 
             eprintln!(
                 "{filter:?}: {}/{} exactly right",
                 outcome.exactly,
-                seeds.end - seeds.start
+                seeds.len()
             );
             outcome
         })

@@ -563,10 +563,10 @@ pub struct Detection {
 /// refined by golden section, for every shape of [`Shape::ALL`]; the two-pole is taken
 /// unless another shape lowers the misfit by [`SHAPE_EVIDENCE`] in the units of `Delta`
 /// below (a shape that does not match the filter leaves a residual roll-off that
-/// quantization or a short Gauss-Markov process would otherwise take), and in that comparison
-/// a shape whose fit needs the quantization term pays [`SHAPE_EVIDENCE`] for it (a sampled
-/// one-pole's stopband floor is otherwise fitted as well by a two-pole plus quantization);
-/// no filter is G = 1.
+/// quantization or a short Gauss-Markov process would otherwise take). The shapes whose fit
+/// without q is within [`SHAPE_EVIDENCE`] of the best fit with it are chosen from first, by
+/// that fit (a sampled one-pole's stopband floor is otherwise fitted as well by a two-pole
+/// plus quantization); every shape only when none is. No filter is G = 1.
 ///
 /// **Decision.** `Delta = (chi2(none) - chi2(f_c)) / (c B^2)`, c = `HANN_BIN_CORRELATION`
 /// for the correlated bins and `B^2 = max(1, chi2 / dof)` the Birge ratio, which widens
@@ -662,7 +662,18 @@ pub fn detect_outside(
                 c if c <= profile[best] => (golden, c),
                 _ => (grid[best], profile[best]),
             };
-            let without_q = spectrum.fit(Some((shape, cutoff)), false).0;
+            // The fit without quantization at its own cutoff, searched a grid step either
+            // side of the one with it.
+            let step = (hi / lo).powf(1.0 / steps as f64);
+            let alone = |f: f64| spectrum.fit(Some((shape, f)), false).0;
+            let max_cutoff = rate_hz * shape.max_cutoff_per_rate();
+            let near = golden_min(
+                alone,
+                cutoff / step,
+                (cutoff * step).min(max_cutoff),
+                CUTOFF_GOLDEN_STEPS,
+            );
+            let without_q = alone(near).min(alone(cutoff));
             (shape, cutoff, chi2_best, without_q)
         })
         .collect();
@@ -674,29 +685,40 @@ pub fn detect_outside(
     let dof = spectrum.bins().saturating_sub(6).max(1) as f64;
     let reduced = least.2 / dof;
     let scale = HANN_BIN_CORRELATION * reduced.max(1.0);
-    // A shape's misfit for the choice: its fit may take the quantization term at the price
-    // of SHAPE_EVIDENCE. A filter whose stopband floor is higher than a shape's (a sampled
-    // one-pole's against a two-pole's) is otherwise fitted as that shape plus quantization,
-    // as well as by its own, and the model then lacks the floor the Allan curve's shortest
-    // taus measure.
-    let charged = |f: &(Shape, f64, f64, f64)| (f.2 / scale + SHAPE_EVIDENCE).min(f.3 / scale);
-    let cheapest = fitted.iter().copied().fold(fitted[0], |best, f| {
-        if charged(&f) < charged(&best) {
-            f
-        } else {
-            best
-        }
-    });
+    // A filter whose stopband floor is higher than a shape's (a sampled one-pole's against a
+    // two-pole's) is fitted by that shape plus the quantization term about as well as by its
+    // own shape, and a model of the shape alone then lacks the floor the Allan curve's
+    // shortest taus measure. So the shapes that describe the spectrum without quantization
+    // (their fit without it within SHAPE_EVIDENCE of the best fit with it) are chosen from
+    // first, by that fit; only when none does, every shape by its fit with quantization.
+    let explain_alone: Vec<(Shape, f64, f64)> = fitted
+        .iter()
+        .filter(|f| (f.3 - least.2) / scale < SHAPE_EVIDENCE)
+        .map(|f| (f.0, f.1, f.3))
+        .collect();
+    let candidates: Vec<(Shape, f64, f64)> = if explain_alone.is_empty() {
+        fitted.iter().map(|f| (f.0, f.1, f.2)).collect()
+    } else {
+        explain_alone
+    };
+    let best = candidates
+        .iter()
+        .copied()
+        .fold(candidates[0], |best, f| if f.2 < best.2 { f } else { best });
     // The two-pole stays unless another shape fits better by SHAPE_EVIDENCE: shapes the
     // spectrum cannot tell apart still differ in the stopband, where the Allan curve's short
     // taus see them (a moving average chosen by chance over a two-pole left a misfit that
     // quantization took).
-    let (shape, cutoff, chi2_best, _) = if charged(&fitted[0]) - charged(&cheapest) < SHAPE_EVIDENCE
-    {
-        fitted[0]
-    } else {
-        cheapest
+    let (shape, cutoff, _) = match candidates.iter().find(|f| f.0 == Shape::TwoPole) {
+        Some(&two_pole) if (two_pole.2 - best.2) / scale < SHAPE_EVIDENCE => two_pole,
+        _ => best,
     };
+    // The statistic and the interval are the chosen shape's with quantization free, as the
+    // fits downstream have it.
+    let chi2_best = fitted
+        .iter()
+        .find(|f| f.0 == shape)
+        .map_or(least.2, |f| f.2);
     let statistic = (white - chi2_best).max(0.0) / scale;
     let mut detection = Detection {
         low_pass: None,
