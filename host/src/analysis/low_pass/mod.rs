@@ -37,11 +37,12 @@
 //! [`shape`] (one- and two-pole, second- and fourth-order Butterworth, moving average,
 //! Bartlett), -3 dB at the cutoff, run at [`OVERSAMPLE`] times the output rate, so that it
 //! folds like a continuous-time filter sampled without anti-aliasing; its cutoff may lie
-//! above the output Nyquist frequency. Three more shapes are digital filters run on the
-//! output samples themselves (one-pole, second- and fourth-order Butterworth through the
-//! bilinear transform at the output rate), with a zero at the output Nyquist frequency. [`LowPass::two_pole`] is the critically damped
-//! two-pole `1 / (1 + s T)^2`, the DLPF's prototype without its lead zero. [`detect`] fits
-//! the shape and cutoff to a record's PSD.
+//! above the output Nyquist frequency (the one-pole is sampled exactly, as the first-order
+//! autoregression at the output rate). Two more shapes are digital filters run on the output
+//! samples themselves (second- and fourth-order Butterworth through the bilinear transform
+//! at the output rate), with a zero at the output Nyquist frequency. [`LowPass::two_pole`]
+//! is the critically damped two-pole `1 / (1 + s T)^2`, the DLPF's prototype without its
+//! lead zero. [`detect`] fits the shape and cutoff to a record's PSD.
 //!
 //! LSB rounding after the filter adds white noise of variance `lsb^2 / 12` per sample that
 //! the filter does not shape; for the MPU-6050 at its finest range it is below 0.1 % of N^2
@@ -665,7 +666,7 @@ pub fn detect_outside(
             // The fit without quantization at its own cutoff, searched a grid step either
             // side of the one with it.
             let step = (hi / lo).powf(1.0 / steps as f64);
-            let alone = |f: f64| spectrum.fit(Some((shape, f)), false).0;
+            let alone = |f: f64| spectrum.misfit(Some((shape, f)), false);
             let max_cutoff = rate_hz * shape.max_cutoff_per_rate();
             let near = golden_min(
                 alone,
@@ -812,12 +813,11 @@ impl DetectionPsd {
     /// The weighted misfit of the best non-negative (w, b, k, q) with the filter of a shape
     /// and cutoff (`None`: no filter).
     fn chi2(&self, filter: Option<(Shape, f64)>) -> f64 {
-        self.fit(filter, true).0
+        self.misfit(filter, true)
     }
 
-    /// [`DetectionPsd::chi2`] and the fitted (w, b, k, q), with q held at 0 unless
-    /// `with_q`.
-    fn fit(&self, filter: Option<(Shape, f64)>, with_q: bool) -> (f64, [f64; 4]) {
+    /// [`DetectionPsd::chi2`], with q held at 0 unless `with_q`.
+    fn misfit(&self, filter: Option<(Shape, f64)>, with_q: bool) -> f64 {
         let cascade = filter.map(|(shape, f)| generic_cascade(shape, f, self.rate_hz));
         // folded_power's sums, from the phasors computed once.
         let power = |c: &Cascade, at: &[Phasor]| c.folded_power_at(at);
@@ -841,9 +841,9 @@ impl DetectionPsd {
             .map(|(d, k)| d - k)
             .collect();
         let mut sigma: Vec<f64> = self.density.iter().map(|s| s * spread).collect();
-        let (mut chi2, mut coef) = (f64::INFINITY, [0.0; 4]);
+        let mut chi2 = f64::INFINITY;
         for _ in 0..3 {
-            coef = if with_q {
+            let coef = if with_q {
                 weighted_nnls(&rows, &noise, &sigma)
             } else {
                 let rows: Vec<[f64; 3]> = rows.iter().map(|r| [r[0], r[1], r[2]]).collect();
@@ -867,7 +867,7 @@ impl DetectionPsd {
                 .map(|(m, s)| m.max(1e-3 * s) * spread)
                 .collect();
         }
-        (chi2, coef)
+        chi2
     }
 }
 
@@ -1186,8 +1186,6 @@ pub(crate) mod tests {
     /// Each generic shape is told from the others on its own records: white noise through
     /// it at 20 Hz (200 Hz, 80 000 samples, three seeds) is detected with that shape, its
     /// cutoff within 5 % of 20 Hz and within three of its 68.3 % interval's half-widths.
-    /// (On 40 000 samples the one-pole's record of seed 0 kept the default two-pole: it fitted
-    /// better by 8.3 units, short of the 9 of `SHAPE_EVIDENCE`.)
     #[test]
     fn detect_tells_the_shapes_apart() {
         for shape in Shape::ALL {
