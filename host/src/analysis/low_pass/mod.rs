@@ -638,6 +638,7 @@ pub fn detect_outside(
     let grid: Vec<f64> = (0..=steps)
         .map(|i| lo * (hi / lo).powf(i as f64 / steps as f64))
         .collect();
+    let step = (hi / lo).powf(1.0 / steps as f64);
     // The best cutoff of each shape, and the shape whose best fits best.
     // Shapes and cutoffs are fitted in parallel: each misfit is a few weighted fits over
     // the spectrum's bins, and the search is most of the detection's time.
@@ -645,11 +646,8 @@ pub fn detect_outside(
         .par_iter()
         .map(|&shape| {
             let chi2 = |f: f64| spectrum.chi2(Some((shape, f)));
-            let grid: Vec<f64> = grid
-                .iter()
-                .copied()
-                .filter(|&f| f <= rate_hz * shape.max_cutoff_per_rate())
-                .collect();
+            let max_cutoff = rate_hz * shape.max_cutoff_per_rate();
+            let grid: Vec<f64> = grid.iter().copied().filter(|&f| f <= max_cutoff).collect();
             let profile: Vec<f64> = grid.par_iter().map(|&f| chi2(f)).collect();
             let best = (0..grid.len())
                 .min_by(|&a, &b| profile[a].total_cmp(&profile[b]))
@@ -665,9 +663,7 @@ pub fn detect_outside(
             };
             // The fit without quantization at its own cutoff, searched a grid step either
             // side of the one with it.
-            let step = (hi / lo).powf(1.0 / steps as f64);
             let alone = |f: f64| spectrum.misfit(Some((shape, f)), false);
-            let max_cutoff = rate_hz * shape.max_cutoff_per_rate();
             let near = golden_min(
                 alone,
                 cutoff / step,
