@@ -142,6 +142,9 @@ pub struct Hidden {
     pub terms: NoiseTerms,
     /// The ramp's slope, rad/s/s, for the ramp kinds.
     pub slope: Option<f64>,
+    /// The coupling to the temperature, rad/s/degC (none to its rate of change), for the
+    /// temperature kinds.
+    pub temp_coeff: Option<f64>,
     /// The slow sinusoid, for the slow-sinusoid kinds.
     pub sinusoid: Option<Sinusoid>,
     /// The line `(freq_hz, width_hz, power u^2)`, for the tone kinds.
@@ -202,6 +205,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
     };
     let mut extra: Vec<Box<dyn Fn(f64) -> f64>> = Vec::new();
     let mut temp_channel: Option<Vec<f64>> = None;
+    let mut temp_coeff = None;
     if matches!(kind, Kind::GaussMarkov | Kind::GaussMarkovAndTone) {
         let tau_c = t_rec * log_uniform(&mut rng, 0.01, 0.03);
         // The GM Allan variance peaks near tau = 1.89 tau_c.
@@ -317,6 +321,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
                 })
                 .collect(),
         );
+        temp_coeff = Some(coeff);
         extra.push(Box::new(move |t| coeff * (temp(t) - start)));
     }
     let drawn = terms;
@@ -355,6 +360,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         },
         terms: drawn,
         slope: ramp_slope,
+        temp_coeff,
         sinusoid: slow,
         tone,
         cutoff_hz,

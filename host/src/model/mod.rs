@@ -62,6 +62,7 @@ pub mod cosine;
 pub mod evidence;
 pub mod gauss_markov_fit;
 pub mod gls;
+mod joint;
 pub mod refit;
 pub mod regression;
 pub mod report;
@@ -79,6 +80,7 @@ use crate::sim::noise::NoiseTerms;
 use clean::{Removal, Temperature};
 use evidence::{Evidence, Probe, View};
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
 /// Chance, per round, that pure noise gets some candidate named: split evenly over the
@@ -361,7 +363,13 @@ pub struct Comparison {
 /// One effect added.
 #[derive(Debug, Clone, Serialize)]
 pub struct Step {
+    /// The effect as the final model holds it: a ramp, a temperature coupling and a slow
+    /// tone at their joint estimate with every effect named ([`joint`]), the others as named.
     pub effect: Effect,
+    /// The effect as estimated when it was named, beside the effects named before it.
+    pub at_naming: Effect,
+    /// Standard errors of `effect`'s parameters, by name, where known.
+    pub standard_errors: BTreeMap<&'static str, f64>,
     /// The effect in words, with its parameters' standard errors where known.
     pub description: String,
     pub view: View,
@@ -600,7 +608,7 @@ pub fn run(
     // Candidates taken back since the last step that stayed.
     let mut taken_back: Vec<Probe> = Vec::new();
     let mut last_undone: Option<Effect> = None;
-    let (final_evidence, stop) = loop {
+    let (final_evidence, final_open, stop) = loop {
         let round = simulate_round(&data, &model, &removal);
         let round = match steps.last_mut() {
             Some(s) if s.view.must_close_gap() && round.comparison.gap >= s.gap_before => {
@@ -630,6 +638,7 @@ pub fn run(
             if !taken_back.is_empty() {
                 break (
                     round.evidence,
+                    round.open,
                     Stop::NoCloser {
                         undone: last_undone,
                     },
@@ -641,10 +650,10 @@ pub fn run(
                 .filter(|e| e.effect.is_some())
                 .min_by(|a, b| a.p_value.total_cmp(&b.p_value))
                 .cloned();
-            break (round.evidence, Stop::NothingStandsOut { best });
+            break (round.evidence, round.open, Stop::NothingStandsOut { best });
         };
         if steps.len() == MAX_STEPS {
-            break (round.evidence, Stop::MaxSteps);
+            break (round.evidence, round.open, Stop::MaxSteps);
         }
         let probe = round.probes[chosen];
         let mut evidence = round.evidence.clone();
@@ -697,6 +706,8 @@ pub fn run(
         steps.push(Step {
             description: described(&effect, &evidence[chosen], channel.unit()),
             effect,
+            at_naming: effect,
+            standard_errors: evidence[chosen].standard_errors.clone(),
             view: evidence[chosen].view,
             gap_before: round.comparison.gap,
             gap_after: f64::NAN,
@@ -707,6 +718,14 @@ pub fn run(
         chosen_in = Some((round, before.0, before.1, probe));
     };
     let (initial, initial_evidence) = initial.expect("the first round always runs");
+    joint::restate(
+        &mut steps,
+        &data,
+        &removal,
+        &model,
+        &final_open,
+        channel.unit(),
+    );
     Ok(Outcome {
         channel: channel.name.clone(),
         quantity: channel.quantity,

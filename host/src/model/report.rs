@@ -106,6 +106,8 @@ pub fn document(o: &Outcome) -> Value {
         .map(|s| {
             json!({
                 "effect": s.effect,
+                "at_naming": s.at_naming,
+                "standard_errors": s.standard_errors,
                 "description": s.description,
                 "view": s.view,
                 "gap_before": s.gap_before,
@@ -150,7 +152,7 @@ fn evidence_rows(evidence: &[Evidence], named: Option<&Step>, u: &str) -> String
         .iter()
         .map(|e| {
             let verdict = match (named, e.passes) {
-                (Some(s), true) if Some(s.effect) == e.effect => "named",
+                (Some(s), true) if Some(s.at_naming) == e.effect => "named",
                 (_, true) => "passes",
                 _ => "-",
             };
@@ -344,7 +346,7 @@ fn evidence_html(page: &mut String, evidence: &[Evidence], named: Option<&Step>,
     );
     for e in evidence {
         let verdict = match (named, e.passes) {
-            (Some(s), true) if Some(s.effect) == e.effect => "<b>named</b>",
+            (Some(s), true) if Some(s.at_naming) == e.effect => "<b>named</b>",
             (_, true) => "passes",
             _ => "",
         };
