@@ -364,7 +364,8 @@ pub struct Comparison {
 #[derive(Debug, Clone, Serialize)]
 pub struct Step {
     /// The effect as the final model holds it: a ramp, a temperature coupling and a slow
-    /// tone at their joint estimate with every effect named ([`joint`]), the others as named.
+    /// tone at their joint estimate with every effect named (`model::joint`), the others as
+    /// named.
     pub effect: Effect,
     /// The effect as estimated when it was named, beside the effects named before it.
     pub at_naming: Effect,
