@@ -489,6 +489,26 @@ impl Evidence {
         Evidence::with_p(candidate, view, measured, simulated, p_value, candidates)
     }
 
+    /// Evidence whose p-value is the Monte Carlo one, `(1 + #{simulated >= statistic}) /
+    /// (draws + 1)`: exact at any number of draws when they come from the statistic's null
+    /// (Davison & Hinkley, *Bootstrap Methods and their Application*, 1997, sec. 4.2.1), so
+    /// it names on that p below the threshold alone, with no tail extrapolated and no need
+    /// for the statistic to exceed every draw.
+    pub fn monte_carlo(
+        candidate: &'static str,
+        view: View,
+        measured: (f64, Option<Effect>),
+        simulated: &[f64],
+        candidates: usize,
+    ) -> Evidence {
+        let beyond = simulated.iter().filter(|&&v| v >= measured.0).count();
+        let p_value = (1 + beyond) as f64 / (simulated.len() + 1) as f64;
+        let mut evidence =
+            Evidence::with_p(candidate, view, measured, simulated, p_value, candidates);
+        evidence.passes = p_value < evidence.p_needed && evidence.effect.is_some();
+        evidence
+    }
+
     /// Evidence with a p-value computed by the view itself.
     pub fn with_p(
         candidate: &'static str,

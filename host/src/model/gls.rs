@@ -70,6 +70,9 @@ use rayon::prelude::*;
 /// 3 h record's blocks are then 170 s long, shorter than a warm-up or a cycle.
 pub const MAX_BLOCKS: usize = 64;
 
+/// Draws between the looks of [`Estimator::test_designs_until`].
+const SEQUENTIAL_CHUNK: usize = 128;
+
 /// How a series is cut into blocks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Blocks {
@@ -364,6 +367,20 @@ impl Estimator {
         draws: usize,
         seed: u64,
     ) -> Option<Bootstrap> {
+        self.test_designs_until(designs, y, draws, seed, usize::MAX)
+    }
+
+    /// [`Estimator::test_designs`], drawing no further once `enough` draws reach the
+    /// record's statistic: the sequential Monte Carlo test of Besag & Clifford (Biometrika
+    /// 78, 1991), which stops where its p-value can no longer fall below `enough / draws`.
+    pub fn test_designs_until(
+        &self,
+        designs: &[Design],
+        y: &[f64],
+        draws: usize,
+        seed: u64,
+        enough: usize,
+    ) -> Option<Bootstrap> {
         struct Means {
             with: Vec<Vec<f64>>,
             without: Vec<Vec<f64>>,
@@ -399,16 +416,27 @@ impl Estimator {
             Likelihood::Restricted,
         )?;
         let w = Whitener::new(&self.covariance(levels), self.blocks.count)?;
-        let null: Vec<f64> = (0..draws)
-            .into_par_iter()
-            .filter_map(|i| {
-                let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_add(i as u64));
-                let z: Vec<f64> = (0..self.blocks.count)
-                    .map(|_| rng.sample::<f64, _>(StandardNormal))
-                    .collect();
-                ratio(&w.colour(&z), levels)
-            })
-            .collect();
+        let draw = |i: usize| {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_add(i as u64));
+            let z: Vec<f64> = (0..self.blocks.count)
+                .map(|_| rng.sample::<f64, _>(StandardNormal))
+                .collect();
+            ratio(&w.colour(&z), levels)
+        };
+        // Drawn in chunks, so the stop is looked at between them; draw i has seed + i
+        // whatever the chunks.
+        let mut null: Vec<f64> = Vec::with_capacity(draws);
+        let mut start = 0;
+        while start < draws && null.iter().filter(|&&v| v >= statistic).count() < enough {
+            let end = (start + SEQUENTIAL_CHUNK).min(draws);
+            null.extend(
+                (start..end)
+                    .into_par_iter()
+                    .filter_map(draw)
+                    .collect::<Vec<f64>>(),
+            );
+            start = end;
+        }
         Some(Bootstrap { statistic, null })
     }
 }

@@ -26,7 +26,9 @@
 //! [`Evidence`]) is below [`FAMILY_ALPHA`] divided by the number of candidates in the round,
 //! *and* the measured statistic exceeds every simulated one. A verdict that rests on the tail
 //! of the round's few realisations ([`UNSURE_BELOW`]) is taken again on [`REFINE`] times as
-//! many (a sequential Monte Carlo test: Besag & Clifford, Biometrika 78, 1991). Under the model (no missing
+//! many (a sequential Monte Carlo test: Besag & Clifford, Biometrika 78, 1991). A regressor
+//! test near the line, whose bootstrap draws are cheap, is decided instead by the Monte
+//! Carlo p-value of as many draws as [`MONTE_CARLO_EXCEEDANCES`] asks for. Under the model (no missing
 //! effect) the measured statistic is one more draw from the simulated distribution, so a
 //! round names nothing with probability about `1 - FAMILY_ALPHA`. Deterministic
 //! candidates (lines, ramp, temperature, the sensor's roll-off) are judged first: a baseline
@@ -108,6 +110,14 @@ pub const REFINE: usize = 4;
 pub const UNSURE_BELOW: f64 = 1e6;
 /// See [`UNSURE_BELOW`].
 pub const UNSURE_ABOVE: f64 = 3.0;
+/// A regressor test (ramp, temperature) whose p-value lies near the threshold, whether or
+/// not its statistic exceeds every draw, is decided by the Monte Carlo p-value
+/// ([`evidence::Evidence::monte_carlo`]) of as many bootstrap draws as put the threshold this
+/// many draws deep in their tail (about 1600 for eight candidates): the verdict's own Monte
+/// Carlo error is then a third of the threshold (a binomial count of mean 10). The rule
+/// "the statistic above every draw" would hold such a test at the level `1 / (draws + 1)`
+/// instead of the threshold: with 192 draws and a threshold of 8.3e-3, 5.2e-3.
+pub const MONTE_CARLO_EXCEEDANCES: f64 = 10.0;
 /// Most effects named.
 pub const MAX_STEPS: usize = 4;
 /// |z| above this marks a disagreeing tau of the Allan curve.

@@ -49,6 +49,9 @@ pub struct Setup<'a> {
     pub seed: u64,
     /// Candidates in the round (for the Bonferroni share).
     pub candidates: usize,
+    /// Whether the p-value is the draws' Monte Carlo one ([`Evidence::monte_carlo`]) rather
+    /// than a scaled chi-square matched to them.
+    pub monte_carlo: bool,
 }
 
 /// The positions of `probe`'s regressor(s) among the columns of [`Removal::design`] for a
@@ -116,7 +119,12 @@ pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
     let removals: Vec<Removal> = std::iter::once(more).chain(every).collect();
     let null = bootstrap(&notched, &removals, probe, s);
     let (statistic, simulated) = null.map_or((0.0, Vec::new()), |t| (t.statistic, t.null));
-    let mut evidence = Evidence::new(
+    let judged = if s.monte_carlo {
+        Evidence::monte_carlo
+    } else {
+        Evidence::new
+    };
+    let mut evidence = judged(
         probe.name(),
         probe.view(),
         (statistic, Some(effect)),
@@ -171,5 +179,14 @@ fn bootstrap(notched: &[f64], removals: &[Removal], probe: Probe, s: &Setup) -> 
         .iter()
         .map(|(columns, tested)| Design { columns, tested })
         .collect();
-    s.gls.test_designs(&designs, x, s.draws, s.seed)
+    // A Monte Carlo verdict cannot pass once e draws reach the statistic, (1 + e) / (draws +
+    // 1) being no longer below the threshold, so drawing stops there.
+    let enough = if s.monte_carlo {
+        let p_needed = super::FAMILY_ALPHA / s.candidates.max(1) as f64;
+        ((s.draws + 1) as f64 * p_needed - 1.0).ceil().max(1.0) as usize
+    } else {
+        usize::MAX
+    };
+    s.gls
+        .test_designs_until(&designs, x, s.draws, s.seed, enough)
 }

@@ -3,7 +3,10 @@
 //! with its evidence: every candidate's statistic, the simulated spread and z.
 
 use super::evidence::Evidence;
-use super::{Comparison, FAMILY_ALPHA, Model, Outcome, REFINE, Step, UNSURE_ABOVE, UNSURE_BELOW};
+use super::{
+    Comparison, FAMILY_ALPHA, MONTE_CARLO_EXCEEDANCES, Model, Outcome, REFINE, Step, UNSURE_ABOVE,
+    UNSURE_BELOW,
+};
 use crate::analysis::low_pass::LowPassSource;
 use crate::record::Quantity;
 use crate::report::html::{STYLE, escape};
@@ -125,7 +128,7 @@ pub fn document(o: &Outcome) -> Value {
         "samples": o.n,
         "realisations": o.realisations,
         "temperature_channel": o.temperature,
-        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance; for a spectral line, at least the line detector's own family-wise p-value) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations)"),
+        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance; for a spectral line, at least the line detector's own family-wise p-value) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations); a ramp or temperature candidate with such a p-value, above every draw or not, is decided by the Monte Carlo p-value (1 + draws at or beyond its statistic) / (draws + 1) of enough bootstrap draws that the threshold lies {MONTE_CARLO_EXCEEDANCES} draws deep in their tail"),
         "gap_definition": "gap = RMS over the measured oadev taus of z, z = (ln ADEV_measured - mean ln ADEV_simulated) / std ln ADEV_simulated; |z| > 2 marks a disagreeing tau",
         "measured": {"tau": o.measured.tau, "adev": o.measured.dev},
         "baseline": model_keys(&o.baseline),
@@ -265,7 +268,7 @@ pub fn table(o: &Outcome) -> String {
     disagreeing(&mut s, &o.initial);
     let _ = writeln!(
         s,
-        "rule: name a candidate whose p-value against the simulations is below {FAMILY_ALPHA} / (candidates) and whose statistic exceeds every simulated one (lines, ramp, temperature first); a verdict near that line is simulated again {REFINE} times as often"
+        "rule: name a candidate whose p-value against the simulations is below {FAMILY_ALPHA} / (candidates) and whose statistic exceeds every simulated one (lines, ramp, temperature first); a verdict near that line is simulated again {REFINE} times as often (a ramp or temperature one decided by the Monte Carlo p-value of enough bootstrap draws)"
     );
     for (i, st) in o.steps.iter().enumerate() {
         let _ = writeln!(

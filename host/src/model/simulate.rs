@@ -6,8 +6,8 @@ use super::candidates::{open_noise, probes};
 use super::clean::{self, Removal};
 use super::evidence::{self, Context, Evidence, Probe, View};
 use super::{
-    Band, Comparison, Data, Effect, GAUSS_MARKOV_MIN_SAMPLES, Line, Model, REFINE,
-    REGRESSION_DRAWS, Range, UNSURE_ABOVE, UNSURE_BELOW, Z_DISAGREE, cosine, gls, refit,
+    Band, Comparison, Data, Effect, GAUSS_MARKOV_MIN_SAMPLES, Line, MONTE_CARLO_EXCEEDANCES, Model,
+    REFINE, REGRESSION_DRAWS, Range, UNSURE_ABOVE, UNSURE_BELOW, Z_DISAGREE, cosine, gls, refit,
     regression, spectrum,
 };
 use crate::analysis::Deviation;
@@ -208,6 +208,7 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
         draws: REGRESSION_DRAWS,
         seed: data.settings.seed,
         candidates: probes.len(),
+        monte_carlo: false,
     };
     // A candidate's evidence from its simulated values (`on_sims` probes and the slow line)
     // or its own bootstrap of `draws` series (the regressors).
@@ -245,9 +246,11 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
         .map(|&p| judge(p, &simulated_of(p), REGRESSION_DRAWS))
         .collect();
     // Verdicts that rest on the tail of a few simulations are simulated again, REFINE times
-    // as often (the same seeds first, so the first simulations are kept).
+    // as often (the same seeds first, so the first simulations are kept); the regressors'
+    // below.
+    let regressor = |p: Probe| matches!(p, Probe::Ramp | Probe::Temperature);
     let unsure: Vec<usize> = (0..probes.len())
-        .filter(|&j| unsure(&evidence[j]))
+        .filter(|&j| !regressor(probes[j]) && unsure(&evidence[j]))
         .collect();
     if !unsure.is_empty() {
         let more = r..REFINE * r;
@@ -274,6 +277,19 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
                 None => simulated.extend(&slow_extra),
             }
             evidence[j] = judge(p, &simulated, REFINE * REGRESSION_DRAWS);
+        }
+    }
+    // The regressors' draws are cheap: a verdict still near the line is decided on enough of
+    // them for an exact Monte Carlo p-value (see `MONTE_CARLO_EXCEEDANCES`).
+    for (j, &p) in probes.iter().enumerate() {
+        if regressor(p) && near_the_line(&evidence[j]) {
+            let draws = monte_carlo_draws(evidence[j].p_needed);
+            let decisive = regression::Setup {
+                draws,
+                monte_carlo: true,
+                ..setup
+            };
+            evidence[j] = regression::test(p, data.rate, &decisive);
         }
     }
     if let Some(j) = probes.iter().position(|p| *p == Probe::GaussMarkov) {
@@ -360,13 +376,25 @@ pub(super) fn gauss_markov_fit(
     view.gauss_markov_fit(start)
 }
 
+/// Whether a candidate's p-value lies near the naming threshold, from [`UNSURE_BELOW`] times
+/// below it to [`UNSURE_ABOVE`] times above, whatever the largest simulated statistic.
+fn near_the_line(e: &Evidence) -> bool {
+    e.effect.is_some()
+        && e.p_value < UNSURE_ABOVE * e.p_needed
+        && e.p_value > e.p_needed / UNSURE_BELOW
+}
+
+/// Draws that put the threshold `p_needed` [`MONTE_CARLO_EXCEEDANCES`] draws deep in the
+/// Monte Carlo null's tail, at least [`REFINE`] times [`REGRESSION_DRAWS`].
+fn monte_carlo_draws(p_needed: f64) -> usize {
+    let deep = (MONTE_CARLO_EXCEEDANCES / p_needed).ceil() as usize;
+    deep.saturating_sub(1).max(REFINE * REGRESSION_DRAWS)
+}
+
 /// Whether a candidate's verdict rests on the tail of too few simulations (see
 /// [`UNSURE_BELOW`]).
 fn unsure(e: &Evidence) -> bool {
-    e.effect.is_some()
-        && e.statistic > e.sim_max
-        && e.p_value < UNSURE_ABOVE * e.p_needed
-        && e.p_value > e.p_needed / UNSURE_BELOW
+    e.statistic > e.sim_max && near_the_line(e)
 }
 
 /// The measured curve against the realisations' ln ADEV.
@@ -463,8 +491,8 @@ fn filter_alternatives(low_pass: Option<&LowPass>) -> Vec<LowPass> {
 #[cfg(test)]
 mod tests {
     use super::super::evidence::{Evidence, View};
-    use super::super::{Effect, REGRESSION_DRAWS};
-    use super::{ranges, unsure};
+    use super::super::{Effect, REFINE, REGRESSION_DRAWS};
+    use super::{monte_carlo_draws, ranges, unsure};
 
     /// Evidence for a ramp whose statistic `statistic` is judged against `simulated` values.
     fn ramp(statistic: f64, simulated: &[f64]) -> Evidence {
@@ -511,6 +539,36 @@ mod tests {
             !above.passes && above.p_value < 3.0 * above.p_needed && unsure(&above),
             "{above:?}"
         );
+    }
+
+    #[test]
+    fn a_monte_carlo_verdict_rests_on_the_count_beyond_the_statistic() {
+        // Eight candidates: p_needed = 6.25e-3, 10 / p_needed = 1600 draws in all.
+        let draws = monte_carlo_draws(0.05 / 8.0);
+        assert_eq!(draws, 1599);
+        let simulated: Vec<f64> = (0..draws).map(|i| i as f64).collect();
+        let judged = |statistic: f64| {
+            Evidence::monte_carlo(
+                "rate_ramp",
+                View::RegressionOnTime,
+                (statistic, Some(Effect::RateRamp { slope: 1e-9 })),
+                &simulated,
+                8,
+            )
+        };
+        // Five draws at or beyond 1593.5: p = 6 / 1600, below the threshold though the
+        // statistic is not above every draw.
+        let five = judged(1593.5);
+        assert_eq!(five.p_value, 6.0 / 1600.0);
+        assert!(five.passes && five.statistic < five.sim_max, "{five:?}");
+        // Ten beyond: p = 11 / 1600 = 6.9e-3, above it.
+        let ten = judged(1588.5);
+        assert_eq!(ten.p_value, 11.0 / 1600.0);
+        assert!(!ten.passes, "{ten:?}");
+        // Beyond every draw: 1 / 1600.
+        assert_eq!(judged(1e9).p_value, 1.0 / 1600.0);
+        // Few candidates still draw at least as many as the refinement of the other views.
+        assert_eq!(monte_carlo_draws(0.1), REFINE * REGRESSION_DRAWS);
     }
 
     #[test]
