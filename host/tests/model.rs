@@ -76,10 +76,14 @@ fn model_names_a_sinusoid_in_json_and_html() {
 
 /// The real MPU-6050 record (449 s at 100 Hz, raw counts): the workflow names the two gyro
 /// tones the line search finds in `analyze` (37.99 Hz on gy, 31.00 Hz on gz, each about
-/// 0.01 Hz wide; docs/guide/analysis.md) and nothing else on those axes, and nothing on the
-/// two quiet accelerometer axes. Not asserted: gx, whose 6.54 Hz tone sits at the line
-/// detector's margin (named at p = 3.8e-3 against 6.3e-3 needed), and az, where a rise of
-/// the Allan curve over the last minutes is named as a random walk.
+/// 0.01 Hz wide; docs/guide/analysis.md), and on gz the bias's drift as a ramp; nothing else
+/// on those axes, and nothing on the two quiet accelerometer axes. gz's ten 45 s means fall
+/// from +0.9 to -0.7 counts about as steadily as a line, whose least-squares slope is
+/// -4.68e-3 counts/s (numpy's `lstsq` on the raw column), -6.24e-7 rad/s/s at 131 counts per
+/// deg/s; its test decides at p = 5.0e-3 (7 of 1399 bootstrap draws beyond it) against
+/// 7.1e-3 needed. Not asserted: gx, whose 6.54 Hz tone sits at the line detector's margin
+/// (named at p = 3.8e-3 against 6.3e-3 needed), and az, where a rise of the Allan curve over
+/// the last minutes is named as a random walk.
 #[test]
 fn the_real_record_names_its_gyro_tones_and_nothing_on_quiet_axes() {
     let record = common::mpu_record();
@@ -89,9 +93,26 @@ fn the_real_record_names_its_gyro_tones_and_nothing_on_quiet_axes() {
         ]));
         doc["steps"].as_array().expect("steps").clone()
     };
-    for (column, freq_hz, amplitude) in [("gy", 37.99, 2.72e-4), ("gz", 31.00, 1.28e-4)] {
+    for (column, freq_hz, amplitude, ramp) in [
+        ("gy", 37.99, 2.72e-4, None),
+        ("gz", 31.00, 1.28e-4, Some(-6.24e-7)),
+    ] {
         let got = steps(column);
-        assert_eq!(got.len(), 1, "{column}: {got:#?}");
+        assert_eq!(
+            got.len(),
+            1 + usize::from(ramp.is_some()),
+            "{column}: {got:#?}"
+        );
+        if let Some(slope) = ramp {
+            let effect = &got[1]["effect"];
+            assert_eq!(effect["kind"], "rate_ramp", "{column}: {effect}");
+            let got_slope = effect["slope"].as_f64().unwrap();
+            let sd = got[1]["standard_errors"]["slope"].as_f64().unwrap();
+            assert!(
+                (got_slope - slope).abs() < sd,
+                "{column}: {got_slope} +- {sd}"
+            );
+        }
         let effect = &got[0]["effect"];
         assert_eq!(effect["kind"], "sinusoid", "{column}: {effect}");
         let f = effect["freq_hz"].as_f64().unwrap();
