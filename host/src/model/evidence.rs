@@ -475,6 +475,10 @@ pub struct Evidence {
     /// time and standard deviation: [`super::gauss_markov_fit`]).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub intervals: BTreeMap<&'static str, (Option<f64>, Option<f64>)>,
+    /// Whether `p_value` is the Monte Carlo count of the draws ([`Evidence::monte_carlo`]),
+    /// which names without the statistic above every draw.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub monte_carlo: bool,
 }
 
 impl Evidence {
@@ -506,6 +510,7 @@ impl Evidence {
         let mut evidence =
             Evidence::with_p(candidate, view, measured, simulated, p_value, candidates);
         evidence.passes = p_value < evidence.p_needed && evidence.effect.is_some();
+        evidence.monte_carlo = true;
         evidence
     }
 
@@ -541,6 +546,7 @@ impl Evidence {
             passes: super::names(statistic, p_value, p_needed, max) && effect.is_some(),
             standard_errors: BTreeMap::new(),
             intervals: BTreeMap::new(),
+            monte_carlo: false,
         }
     }
 }

@@ -412,12 +412,17 @@ impl std::fmt::Display for Stop {
         match self {
             Stop::NothingStandsOut { best: Some(e) } => write!(
                 f,
-                "no further effect stands out of the simulated spread (strongest: {} in the {}, p = {:.3e}, z = {:.2}; naming needs p < {:.2e} and a statistic above every simulation's)",
+                "no further effect stands out of the simulated spread (strongest: {} in the {}, p = {:.3e}, z = {:.2}; naming needs p < {:.2e}{})",
                 e.candidate,
                 e.view.describe(),
                 e.p_value,
                 e.z,
                 e.p_needed,
+                if e.monte_carlo {
+                    ", the Monte Carlo count of its draws"
+                } else {
+                    " and a statistic above every simulation's"
+                },
             ),
             Stop::NothingStandsOut { best: None } => write!(f, "no candidate effect applies"),
             Stop::MaxSteps => write!(f, "stopped after {MAX_STEPS} effects"),
