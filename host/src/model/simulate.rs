@@ -565,6 +565,12 @@ mod tests {
         let ten = judged(1588.5);
         assert_eq!(ten.p_value, 11.0 / 1600.0);
         assert!(!ten.passes, "{ten:?}");
+        // The stop line states that rule.
+        let stop = super::super::Stop::NothingStandsOut { best: Some(ten) }.to_string();
+        assert!(
+            stop.contains("the Monte Carlo count") && !stop.contains("above every"),
+            "{stop}"
+        );
         // Beyond every draw: 1 / 1600.
         assert_eq!(judged(1e9).p_value, 1.0 / 1600.0);
         // Few candidates still draw at least as many as the refinement of the other views.
