@@ -530,7 +530,7 @@ impl Evidence {
         let max = simulated.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let (statistic, effect) = measured;
         let z = standard_quantile(p_value);
-        let p_needed = super::FAMILY_ALPHA / candidates.max(1) as f64;
+        let p_needed = super::p_needed(candidates);
         Evidence {
             candidate,
             view,

@@ -426,16 +426,15 @@ impl Estimator {
         // Drawn in chunks, so the stop is looked at between them; draw i has seed + i
         // whatever the chunks.
         let mut null: Vec<f64> = Vec::with_capacity(draws);
-        let mut start = 0;
-        while start < draws && null.iter().filter(|&&v| v >= statistic).count() < enough {
+        let mut beyond = 0;
+        for start in (0..draws).step_by(SEQUENTIAL_CHUNK) {
+            if beyond >= enough {
+                break;
+            }
             let end = (start + SEQUENTIAL_CHUNK).min(draws);
-            null.extend(
-                (start..end)
-                    .into_par_iter()
-                    .filter_map(draw)
-                    .collect::<Vec<f64>>(),
-            );
-            start = end;
+            let chunk: Vec<f64> = (start..end).into_par_iter().filter_map(draw).collect();
+            beyond += chunk.iter().filter(|&&v| v >= statistic).count();
+            null.extend(chunk);
         }
         Some(Bootstrap { statistic, null })
     }

@@ -126,6 +126,12 @@ pub const Z_DISAGREE: f64 = 2.0;
 /// sensor's own low-pass filter.
 pub const GAUSS_MARKOV_MIN_SAMPLES: f64 = 10.0;
 
+/// The p-value a candidate must stay below in a round of `candidates`: [`FAMILY_ALPHA`]
+/// split evenly over them (Bonferroni).
+pub fn p_needed(candidates: usize) -> f64 {
+    FAMILY_ALPHA / candidates.max(1) as f64
+}
+
 /// The naming rule: the p-value against the simulated distribution below `p_needed`, and the
 /// measured statistic above every simulated one.
 pub fn names(statistic: f64, p_value: f64, p_needed: f64, sim_max: f64) -> bool {

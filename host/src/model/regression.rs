@@ -182,8 +182,9 @@ fn bootstrap(notched: &[f64], removals: &[Removal], probe: Probe, s: &Setup) -> 
     // A Monte Carlo verdict cannot pass once e draws reach the statistic, (1 + e) / (draws +
     // 1) being no longer below the threshold, so drawing stops there.
     let enough = if s.monte_carlo {
-        let p_needed = super::FAMILY_ALPHA / s.candidates.max(1) as f64;
-        ((s.draws + 1) as f64 * p_needed - 1.0).ceil().max(1.0) as usize
+        ((s.draws + 1) as f64 * super::p_needed(s.candidates) - 1.0)
+            .ceil()
+            .max(1.0) as usize
     } else {
         usize::MAX
     };
