@@ -2,17 +2,19 @@
 //! filters written independently here, as a sensor or its firmware would run them — a
 //! one-pole exponential average, a fourth-order Butterworth from the RBJ cookbook's
 //! biquads (R. Bristow-Johnson, "Cookbook formulae for audio EQ biquad filter
-//! coefficients"), a boxcar FIR and a Bartlett (triangular) FIR — at four times the output
-//! rate, then every fourth sample kept; and three run on the output samples themselves, as
+//! coefficients"), a boxcar FIR and a Bartlett (triangular) FIR — at an internal rate of 2
+//! to 8 times the output rate, drawn per record (the MPU-6050 filters at 1 kHz and outputs
+//! 100-500 Hz; the ADIS16405 runs its Bartlett at 819.2 Hz), then every k-th sample kept;
+//! and three run on the output samples themselves, as
 //! a record's author or a sensor without an oversampled stage would run them: the
 //! exponential average and the RBJ Butterworths of second and fourth order. White noise
 //! goes through the filter; flicker and random walk from the families' baseline
 //! ([`families::baseline`]) are added after it.
 //!
 //! The workflow should name one effect, `low_pass`, and its N should be the output's
-//! long-tau N: the input's times `sqrt(sum_j |H(j f_s)|^2)`, j = 0..3 (the internal rate's
+//! long-tau N: the input's times `sqrt(sum_j |H(j f_s)|^2)`, j = 0..k-1 (the internal rate's
 //! aliases of DC, folded in by the decimation; 1.12 for an exponential average at a
-//! cutoff of 0.3 f_s), and the input's own for a filter run at the output rate.
+//! cutoff of 0.3 f_s and k = 4), and the input's own for a filter run at the output rate.
 
 use super::families::{self, Shape as RecordShape};
 use super::*;
@@ -23,8 +25,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use std::f64::consts::PI;
 
-/// Internal rate of the oversampled filters, in multiples of the output rate.
-const OVERSAMPLED: usize = 4;
+/// Internal rates of the oversampled filters, in multiples of the output rate.
+const OVERSAMPLED: std::ops::RangeInclusive<usize> = 2..=8;
 
 /// A filter written independently of [`crate::analysis::low_pass`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,14 +61,14 @@ const FILTERS: [SensorFilter; 7] = [
 const BUTTERWORTH4_Q: [f64; 2] = [0.5412, 1.3066];
 
 impl SensorFilter {
-    /// The filter's rate in multiples of the output rate.
-    fn internal(self) -> usize {
-        match self {
+    /// Whether the filter runs faster than the output and is decimated.
+    fn oversampled(self) -> bool {
+        !matches!(
+            self,
             SensorFilter::ExponentialAverageAtOutputRate
-            | SensorFilter::Butterworth2AtOutputRate
-            | SensorFilter::Butterworth4AtOutputRate => 1,
-            _ => OVERSAMPLED,
-        }
+                | SensorFilter::Butterworth2AtOutputRate
+                | SensorFilter::Butterworth4AtOutputRate
+        )
     }
 
     /// `x` (at the internal rate `fi`) through the filter with nominal cutoff `cutoff`.
@@ -115,12 +117,12 @@ impl SensorFilter {
         }
     }
 
-    /// `sum_j |H(j f_s)|^2` over the internal rate's aliases of DC, from the impulse response.
-    fn dc_folding(self, cutoff: f64, fi: f64) -> f64 {
+    /// `sum_j |H(j f_s)|^2` over the aliases of DC at an internal rate of `internal` times
+    /// the output's, from the impulse response.
+    fn dc_folding(self, cutoff: f64, fi: f64, internal: usize) -> f64 {
         let mut impulse = vec![0.0; 1 << 16];
         impulse[0] = 1.0;
         let h = self.apply(&impulse, cutoff, fi);
-        let internal = self.internal();
         (0..internal)
             .map(|j| {
                 let w = 2.0 * PI * j as f64 / internal as f64;
@@ -153,18 +155,23 @@ fn rbj_low_passes(x: &[f64], qs: &[f64], cutoff: f64, fi: f64) -> Vec<f64> {
     })
 }
 
-/// A record of `shape` with white noise through `filter` (cutoff 10-30 % of the rate, drawn
-/// from `seed`), the output's long-tau N and the cutoff.
-fn record(filter: SensorFilter, shape: RecordShape, seed: u64) -> (Record, f64, f64) {
+/// A record of `shape` with white noise through `filter` (cutoff 10-30 % of the rate and,
+/// for an oversampled filter, its internal rate drawn from `seed`), the output's long-tau N,
+/// the cutoff and the internal rate in multiples of the output's.
+fn record(filter: SensorFilter, shape: RecordShape, seed: u64) -> (Record, f64, f64, usize) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut terms = families::baseline(&mut rng, shape.duration_s);
     let n_in = terms.n;
     let cutoff = shape.rate_hz * (0.1 + 0.2 * rng.random::<f64>());
+    let internal = if filter.oversampled() {
+        rng.random_range(OVERSAMPLED)
+    } else {
+        1
+    };
     terms.n = 0.0;
     let samples = (shape.rate_hz * shape.duration_s) as usize;
     let mut values =
         AxisNoise::new(terms, shape.rate_hz, shape.duration_s, &mut rng).take(samples, &mut rng);
-    let internal = filter.internal();
     let fi = shape.rate_hz * internal as f64;
     // White rate noise of density N has per-sample sd N sqrt(f) at rate f.
     let sigma = n_in * fi.sqrt();
@@ -184,7 +191,8 @@ fn record(filter: SensorFilter, shape: RecordShape, seed: u64) -> (Record, f64, 
         rate_hz: shape.rate_hz,
         channels: vec![Channel::named("gx", values)],
     };
-    (record, n_in * filter.dc_folding(cutoff, fi).sqrt(), cutoff)
+    let n_out = n_in * filter.dc_folding(cutoff, fi, internal).sqrt();
+    (record, n_out, cutoff, internal)
 }
 
 /// What the workflow made of one filter over a range of seeds.
@@ -207,7 +215,8 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<FilterOutcome> 
     // STUDY_FILTERS=Butterworth2AtOutputRate,Boxcar runs only those filters (names as in
     // `SensorFilter`'s Debug).
     let only = std::env::var("STUDY_FILTERS").unwrap_or_default();
-    // STUDY_SEEDS=104,108 runs only those seeds of the range.
+    // STUDY_SEEDS=104,108 runs only those seeds of the range; STUDY_TABLES=1 prints every
+    // record's table, not only those of records named otherwise.
     let chosen: Vec<u64> = std::env::var("STUDY_SEEDS")
         .unwrap_or_default()
         .split(',')
@@ -227,7 +236,7 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<FilterOutcome> 
                 worst_n: 0.0,
             };
             for &seed in &seeds {
-                let (record, n_out, cutoff) = record(filter, shape, seed);
+                let (record, n_out, cutoff, internal) = record(filter, shape, seed);
                 let o = run(&record, Some("gx"), None, &settings).unwrap();
                 let named: Vec<&str> = o
                     .steps
@@ -244,7 +253,7 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<FilterOutcome> 
                 {
                     outcome.filter_named += 1;
                 }
-                if named == ["low_pass"] {
+                if named == ["low_pass"] && std::env::var("STUDY_TABLES").is_err() {
                     outcome.exactly += 1;
                 } else {
                     eprintln!(
@@ -254,8 +263,10 @@ fn study(shape: RecordShape, seeds: std::ops::Range<u64>) -> Vec<FilterOutcome> 
                 }
                 let found = o.final_model().low_pass.as_ref();
                 eprintln!(
-                    "{filter:?} seed {seed}: N {:+.2} %, {:?} at {:.3} Hz against {cutoff:.3} Hz, Allan gap {:.2}",
+                    "{filter:?} at {internal}x, seed {seed}: N {:+.2} %, Q {:.2e} (baseline {:.2e}), {:?} at {:.3} Hz against {cutoff:.3} Hz, Allan gap {:.2}",
                     100.0 * n_error,
+                    o.final_model().terms.q,
+                    o.baseline.terms.q,
                     found.and_then(|lp| lp.shape),
                     found.map_or(f64::NAN, |lp| lp.cutoff_hz),
                     o.steps.last().map_or(f64::NAN, |s| s.gap_after),

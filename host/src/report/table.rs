@@ -125,9 +125,8 @@ fn low_pass_note(fit: &NoiseFit) -> Option<String> {
         ),
         LowPassSource::Fitted => {
             let [cutoff, lo, hi] = sig_interval(lp.cutoff_hz, lp.cutoff_lo_hz, lp.cutoff_hi_hz, 3);
-            format!(
-                "low-pass fitted to the spectrum: cutoff {cutoff} Hz [{lo} .. {hi}] (generic two-pole)"
-            )
+            let shape = lp.shape.map_or("generic shape", |s| s.describe());
+            format!("low-pass fitted to the spectrum: cutoff {cutoff} Hz [{lo} .. {hi}] ({shape})")
         }
     })
 }
@@ -291,4 +290,31 @@ pub fn aligned(header: &[&str], rows: &[Vec<String>]) -> String {
         out += &line(&mut row.iter().map(String::as_str));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::fit::{FitOptions, fit_allan_with};
+    use crate::analysis::low_pass::{LowPass, LowPassSource, Shape};
+
+    /// The note names the shape the spectrum chose, not a fixed one.
+    #[test]
+    fn the_low_pass_note_names_the_fitted_shape() {
+        let mut lp = LowPass::generic(Shape::Butterworth4, 10.0, 50.0).unwrap();
+        lp.source = LowPassSource::Fitted;
+        let tau: Vec<f64> = (0..12).map(|i| 0.5 * 2f64.powi(i)).collect();
+        let avar: Vec<f64> = tau.iter().map(|t| 1e-6 / t).collect();
+        let edf = vec![100.0; tau.len()];
+        let options = FitOptions {
+            low_pass: Some(lp),
+            ..FitOptions::default()
+        };
+        let fit = fit_allan_with(&tau, &avar, &edf, &options).unwrap();
+        let note = low_pass_note(&fit).unwrap();
+        assert!(
+            note.ends_with("(fourth-order Butterworth low-pass)"),
+            "{note}"
+        );
+    }
 }

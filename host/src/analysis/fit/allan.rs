@@ -35,7 +35,9 @@ pub fn fit_allan(tau: &[f64], avar: &[f64], edf: &[f64]) -> Result<NoiseFit, Fit
 /// the adequate subset with the fewest terms (ties: without R, then least deviance) each of
 /// whose terms is needed in it (dropping it raises the deviance significantly,
 /// `lr_p_value`), if any (`select_terms`). The other terms are "not detected": value 0, lo 0
-/// and hi the largest upper bound any adequate subset allows them. Without this, a
+/// and hi the largest upper bound any adequate subset allows them. A fit whose Q exceeds
+/// [`FitOptions::q_max`] (the bound the taus a fitted low-pass leaves out set, see
+/// [`fit_deviation`]) is not adequate, and Q's interval stops at it. Without this, a
 /// non-negative B or R that noise made positive takes its share from K. Measured on white
 /// noise plus rate random walk (N = 1e-3, 2 h at 100 Hz, seeds 0..200 of
 /// `tests/tests/fit_support.rs`'s simulation): at K = 1e-5 (the random walk owns the last 1.3
@@ -135,10 +137,18 @@ pub fn fit_allan_with(
         let (with, cols) = with_term(&adequate[0], j);
         lr_p_value(&curve, &with, &cols, j, &fit_cols)
     });
+    // The record's bound on Q caps its interval (`FitOptions::q_max`).
+    let capped = |j: usize, t: Term| match opts.q_max {
+        Some(q) if j == Q => Term {
+            hi: t.hi.min(q),
+            ..t
+        },
+        _ => t,
+    };
     let term = |j: usize| -> Term {
         if active.contains(&j) {
             let sd = sandwich_sd(&rows, sigma, &corr, &active, j);
-            return interval(theta[j], sd * inflate, z, opts.confidence);
+            return capped(j, interval(theta[j], sd * inflate, z, opts.confidence));
         }
         // Not detected: 0, with the largest upper bound any adequate model allows (where it
         // stands in for another term, its bound is not held down by that term).
@@ -151,11 +161,14 @@ pub fn fit_allan_with(
                 interval(with.theta[j], sd * inflate, z, opts.confidence).hi
             })
             .fold(0.0, f64::max);
-        Term {
-            value: 0.0,
-            lo: 0.0,
-            hi,
-        }
+        capped(
+            j,
+            Term {
+                value: 0.0,
+                lo: 0.0,
+                hi,
+            },
+        )
     };
     let support = std::array::from_fn(|j| Support {
         detected: active.contains(&j),
@@ -341,7 +354,8 @@ fn select_terms(
             .collect();
         let dev = deviance(rows, avar, edf, &fitted.theta);
         let p = nested_p_value(dev - deviance_full, cov.as_ref(), &dropped, birge);
-        let adequate = dropped.is_empty() || p >= opts.detection_level;
+        let adequate =
+            (dropped.is_empty() || p >= opts.detection_level) && within_q_max(&fitted, opts);
         fits.push((adequate, (kept.len(), kept.contains(&R), dev), fitted));
     }
     fits.sort_by(|a, b| {
@@ -363,12 +377,23 @@ fn select_terms(
         .position(|(adequate, _, c)| *adequate && significant(c))
         .or_else(|| fits.iter().position(|f| f.0));
     let first = chosen.map(|i| fits.remove(i).2);
+    // Without an adequate fit, the best of those within the record's bound on Q.
+    let fallback = fits
+        .iter()
+        .filter(|f| within_q_max(&f.2, opts))
+        .min_by(|a, b| a.1.2.total_cmp(&b.1.2))
+        .map(|f| f.2.clone());
     let adequate = fits.into_iter().filter(|f| f.0).map(|f| f.2);
     let mut out: Vec<Candidate> = first.into_iter().chain(adequate).collect();
     if out.is_empty() {
-        out.push(all);
+        out.push(fallback.unwrap_or(all));
     }
     out
+}
+
+/// Whether a fit's Q is within [`FitOptions::q_max`].
+fn within_q_max(fit: &Candidate, opts: &FitOptions) -> bool {
+    opts.q_max.is_none_or(|q| fit.theta[Q] <= q * q)
 }
 
 /// p-value of term j in `model` (its non-zero terms `cols`, which contain j) by the
@@ -490,6 +515,9 @@ fn nested_p_value(delta: f64, cov: Option<&Covariance>, dropped: &[usize], birge
 /// ([`crate::analysis::ci::edf`]) sets the point's variance. Starting from white FM, fit and
 /// EDFs are iterated until the noise types stop changing (at most 5 rounds).
 ///
+/// Taus before [`FitOptions::tau_min`] or a fitted low-pass's first reliable tau are left
+/// out of the fit, and bound Q (`q_bound`).
+///
 /// Why not the per-tau noise identification of the confidence intervals: at the longest taus
 /// it rests on a handful of clusters and often names the wrong type, whose larger EDF then
 /// gives the noisiest points the most weight. On simulated white + flicker + random walk
@@ -510,6 +538,18 @@ pub fn fit_deviation(
             .position(|&x| x >= t * (1.0 - 1e-9))
             .unwrap_or(dev.tau.len())
     });
+    let bound = q_bound(dev, first, n_phase);
+    let bounded;
+    let opts = match bound {
+        Some(q) if opts.q_max.is_none_or(|given| q < given) => {
+            bounded = FitOptions {
+                q_max: Some(q),
+                ..opts.clone()
+            };
+            &bounded
+        }
+        _ => opts,
+    };
     let (tau, m) = (&dev.tau[first..], &dev.m[first..]);
     let avar: Vec<f64> = dev.dev[first..].iter().map(|s| s * s).collect();
     let edf_for = |alpha: &[i32]| -> Vec<f64> {
@@ -529,6 +569,28 @@ pub fn fit_deviation(
         fit = fit_allan_with(tau, &avar, &edf_for(&alpha), opts)?;
     }
     Ok(fit)
+}
+
+/// Confidence of the upper limits on the Allan variance that bound Q.
+const Q_BOUND_CONFIDENCE: f64 = 0.999;
+
+/// The largest Q the taus before `first` allow: quantization enters after the sensor's
+/// filter, so its `3 Q^2 / tau^2` (IEEE 952 Table C.1) is at most the Allan variance at
+/// every tau, `Q <= tau sqrt(avar_hi / 3)`, with `avar_hi` the measured value's upper
+/// limit at [`Q_BOUND_CONFIDENCE`] (chi-square). Its degrees of freedom are the white-FM
+/// EDF over `first`: the filter correlates samples over about the lags it leaves out, so the
+/// record holds fewer independent differences there than white noise would.
+fn q_bound(dev: &Deviation, first: usize, n_phase: usize) -> Option<f64> {
+    (0..first.min(dev.tau.len()))
+        .filter(|&i| dev.dev[i] > 0.0)
+        .map(|i| {
+            let edf = (ci::edf(dev.estimator, 0, dev.m[i], n_phase) / first as f64).max(1.0);
+            let upper = ChiSquared::new(edf).map_or(f64::INFINITY, |c| {
+                edf / c.inverse_cdf(1.0 - Q_BOUND_CONFIDENCE)
+            });
+            dev.tau[i] * (dev.dev[i] * dev.dev[i] * upper / 3.0).sqrt()
+        })
+        .min_by(f64::total_cmp)
 }
 
 fn validate(tau: &[f64], avar: &[f64], edf: &[f64], opts: &FitOptions) -> Result<(), FitError> {

@@ -246,6 +246,11 @@ pub struct FitOptions {
     /// Significance level of the test that keeps a term in the model, in (0, 1). Default
     /// 0.01: on curves without the term it is claimed in about 1 % of records.
     pub detection_level: f64,
+    /// Largest Q the record allows, u*s: a fit with more is not adequate and an interval is
+    /// cut there. [`fit_deviation`] sets it from the taus a fitted low-pass leaves out of the
+    /// fit (quantization is added after the filter, so its `3 Q^2 / tau^2` cannot exceed
+    /// the Allan variance measured at any tau); `None`: no bound.
+    pub q_max: Option<f64>,
 }
 
 impl Default for FitOptions {
@@ -256,6 +261,7 @@ impl Default for FitOptions {
             tau_min: None,
             low_pass: None,
             detection_level: 0.01,
+            q_max: None,
         }
     }
 }

@@ -1,5 +1,5 @@
 use super::*;
-use crate::analysis::phase_from_rate;
+use crate::analysis::{Deviation, Estimator, phase_from_rate};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
@@ -386,4 +386,59 @@ fn degenerate_inputs_give_none_not_panics() {
     assert!(r.n.is_none() && r.b.is_none() && r.k.is_none());
     let r = slope_readouts(&[1.0, f64::NAN, 3.0], &[1.0, 2.0]);
     assert!(r.b.is_none());
+}
+
+/// A curve that rises as `3 Q^2 / tau^2` above white noise only from the first tau fitted,
+/// while the taus left out (where a fitted low-pass lowers the white noise) lie far below
+/// what that Q alone would give: [`fit_deviation`] must not claim the Q the fitted taus
+/// suggest, and its bound is the shortest tau's `tau sqrt(avar_hi / 3)`.
+#[test]
+fn taus_left_out_bound_the_quantization() {
+    let tau0 = 0.01;
+    let (n, first) = (1e-3f64, 16);
+    let m: Vec<usize> = (0..14).map(|i| 1usize << i).collect();
+    let tau: Vec<f64> = m.iter().map(|&m| m as f64 * tau0).collect();
+    // Q holds a tenth of the white noise's AVAR at the first fitted tau.
+    let q = (0.1 * n * n * tau[4] / 3.0).sqrt();
+    let avar = |i: usize| {
+        let t = tau[i];
+        if m[i] < first {
+            0.3 * n * n / t
+        } else {
+            n * n / t + 3.0 * q * q / (t * t)
+        }
+    };
+    let dev = Deviation {
+        estimator: Estimator::Oadev,
+        m: m.clone(),
+        tau: tau.clone(),
+        dev: (0..m.len()).map(|i| avar(i).sqrt()).collect(),
+        n: vec![0; m.len()],
+    };
+    let n_phase = 1_000_001;
+    let opts = FitOptions {
+        tau_min: Some(tau[4]),
+        ..FitOptions::default()
+    };
+    // The fitted taus alone claim the Q.
+    let fitted: Vec<usize> = (4..m.len()).collect();
+    let unbounded = fit_allan_with(
+        &fitted.iter().map(|&i| tau[i]).collect::<Vec<_>>(),
+        &fitted.iter().map(|&i| avar(i)).collect::<Vec<_>>(),
+        &fitted
+            .iter()
+            .map(|&i| crate::analysis::ci::edf(Estimator::Oadev, 0, m[i], n_phase))
+            .collect::<Vec<_>>(),
+        &FitOptions::default(),
+    )
+    .unwrap();
+    let bounded = fit_deviation(&dev, n_phase, &opts).unwrap();
+    let shortest = tau0 * (0.3 * n * n / tau0 / 3.0).sqrt();
+    assert!(unbounded.q.value > 0.9 * q, "{:?}", unbounded.q);
+    assert_eq!(bounded.q.value, 0.0);
+    assert!(
+        bounded.q.hi > shortest && bounded.q.hi < 1.1 * shortest,
+        "{} against {shortest}",
+        bounded.q.hi
+    );
 }
