@@ -61,6 +61,11 @@ pub enum Kind {
     GaussMarkovAndTone,
     /// A low-pass filter as [`Kind::LowPass`] and a ramp as [`Kind::Ramp`].
     LowPassAndRamp,
+    /// A temperature coupling as [`Kind::Temperature`] plus one to the temperature's rate of
+    /// change (a thermal gradient across the sensor), each raising the Allan deviation on
+    /// its own: the rate term peaks during the warm-up and is a quarter-cycle out of phase
+    /// with the cycles.
+    TemperatureAndItsRate,
 }
 
 impl Kind {
@@ -71,7 +76,7 @@ impl Kind {
             Kind::GaussMarkov => vec!["gauss_markov"],
             Kind::SlowSinusoid | Kind::Tone => vec!["sinusoid"],
             Kind::Ramp => vec!["rate_ramp"],
-            Kind::Temperature => vec!["temperature"],
+            Kind::Temperature | Kind::TemperatureAndItsRate => vec!["temperature"],
             Kind::ToneAndRamp => vec!["rate_ramp", "sinusoid"],
             Kind::SlowSinusoidAndTemperature => vec!["sinusoid", "temperature"],
             Kind::LowPass => vec!["low_pass"],
@@ -142,9 +147,11 @@ pub struct Hidden {
     pub terms: NoiseTerms,
     /// The ramp's slope, rad/s/s, for the ramp kinds.
     pub slope: Option<f64>,
-    /// The coupling to the temperature, rad/s/degC (none to its rate of change), for the
-    /// temperature kinds.
+    /// The coupling to the temperature, rad/s/degC, for the temperature kinds.
     pub temp_coeff: Option<f64>,
+    /// The coupling to the temperature's rate of change, rad/s per degC/s, for
+    /// [`Kind::TemperatureAndItsRate`].
+    pub temp_rate_coeff: Option<f64>,
     /// The slow sinusoid, for the slow-sinusoid kinds.
     pub sinusoid: Option<Sinusoid>,
     /// The line `(freq_hz, width_hz, power u^2)`, for the tone kinds.
@@ -206,6 +213,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
     let mut extra: Vec<Box<dyn Fn(f64) -> f64>> = Vec::new();
     let mut temp_channel: Option<Vec<f64>> = None;
     let mut temp_coeff = None;
+    let mut temp_rate_coeff = None;
     if matches!(kind, Kind::GaussMarkov | Kind::GaussMarkovAndTone) {
         let tau_c = t_rec * log_uniform(&mut rng, 0.01, 0.03);
         // The GM Allan variance peaks near tau = 1.89 tau_c.
@@ -283,6 +291,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
             | Kind::SlowSinusoidAndTemperature
             | Kind::NoneWithTemperature
             | Kind::RampAndTemperature
+            | Kind::TemperatureAndItsRate
     ) {
         let rise = uniform(&mut rng, 2.0, 6.0);
         let warm = uniform(&mut rng, 600.0, 2400.0);
@@ -296,15 +305,16 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
             start + rise * (1.0 - (-t / warm).exp()) + swing * (2.0 * PI * t / cycle).sin()
         };
         let tau = t_rec / 8.0;
-        // The coupling's Allan variance at tau is about coeff^2 times the temperature's.
-        let temp_avar = {
+        // A coupling's Allan variance at tau is about coeff^2 times its regressor's.
+        let avar_of = |f: &dyn Fn(f64) -> f64, tau: f64| {
             let m = (tau / tau0) as usize;
             let means: Vec<f64> = (0..n / m)
-                .map(|j| (0..m).map(|i| temp((j * m + i) as f64 * tau0)).sum::<f64>() / m as f64)
+                .map(|j| (0..m).map(|i| f((j * m + i) as f64 * tau0)).sum::<f64>() / m as f64)
                 .collect();
             means.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>()
                 / (2.0 * (means.len() - 1).max(1) as f64)
         };
+        let temp_avar = avar_of(&temp, tau);
         let coeff = (raise(&mut rng) * baseline_avar(&terms, tau) / temp_avar).sqrt()
             * if rng.random::<bool>() { 1.0 } else { -1.0 }
             * if kind == Kind::NoneWithTemperature {
@@ -323,6 +333,20 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         );
         temp_coeff = Some(coeff);
         extra.push(Box::new(move |t| coeff * (temp(t) - start)));
+        if kind == Kind::TemperatureAndItsRate {
+            let rate = move |t: f64| {
+                rise / warm * (-t / warm).exp()
+                    + swing * 2.0 * PI / cycle * (2.0 * PI * t / cycle).cos()
+            };
+            // Raising the deviation where the warm-up's rate shows, at a tenth of the
+            // warm-up's time constant.
+            let at = warm / 10.0;
+            let rate_coeff = (raise(&mut rng) * baseline_avar(&terms, at) / avar_of(&rate, at))
+                .sqrt()
+                * if rng.random::<bool>() { 1.0 } else { -1.0 };
+            temp_rate_coeff = Some(rate_coeff);
+            extra.push(Box::new(move |t| rate_coeff * rate(t)));
+        }
     }
     let drawn = terms;
     if low_pass.is_some() {
@@ -361,6 +385,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         terms: drawn,
         slope: ramp_slope,
         temp_coeff,
+        temp_rate_coeff,
         sinusoid: slow,
         tone,
         cutoff_hz,

@@ -23,11 +23,12 @@ const KINDS: [Kind; 11] = [
 
 /// Two effects that hide each other, in the full study only: a warm-up that is nearly a
 /// ramp beside a ramp, a Gauss-Markov bump beside a resonance's notch, a ramp beside a
-/// filter.
-const HIDING_PAIRS: [Kind; 3] = [
+/// filter, a coupling to the temperature's rate of change beside one to the temperature.
+const HIDING_PAIRS: [Kind; 4] = [
     Kind::RampAndTemperature,
     Kind::GaussMarkovAndTone,
     Kind::LowPassAndRamp,
+    Kind::TemperatureAndItsRate,
 ];
 
 fn settings() -> Settings {
@@ -53,8 +54,8 @@ fn named(kind: Kind, shape: Shape, seed: u64) -> (Vec<&'static str>, Outcome, Hi
     (kinds, o, hidden)
 }
 
-/// The errors of the named slow sinusoid's and ramp's parameters (as the final model holds
-/// them) over their stated standard errors: `(parameter, z)`.
+/// The errors of the named slow sinusoid's, ramp's and temperature coupling's parameters (as
+/// the final model holds them) over their stated standard errors: `(parameter, z)`.
 fn parameter_z(o: &Outcome, hidden: &Hidden) -> Vec<(&'static str, f64)> {
     let mut out = Vec::new();
     for step in &o.steps {
@@ -76,6 +77,16 @@ fn parameter_z(o: &Outcome, hidden: &Hidden) -> Vec<(&'static str, f64)> {
                 z("amplitude", amplitude, s.amplitude);
             }
             (Effect::RateRamp { slope }, _, Some(truth)) => z("slope", slope, truth),
+            (Effect::Temperature { coeff, rate_coeff }, _, _) => {
+                if let Some(truth) = hidden.temp_coeff {
+                    z("coeff", coeff, truth);
+                }
+                z(
+                    "rate_coeff",
+                    rate_coeff,
+                    hidden.temp_rate_coeff.unwrap_or(0.0),
+                );
+            }
             _ => {}
         }
     }
