@@ -578,13 +578,21 @@ const Q_BOUND_CONFIDENCE: f64 = 0.999;
 /// filter, so its `3 Q^2 / tau^2` (IEEE 952 Table C.1) is at most the Allan variance at
 /// every tau, `Q <= tau sqrt(avar_hi / 3)`, with `avar_hi` the measured value's upper
 /// limit at [`Q_BOUND_CONFIDENCE`] (chi-square). Its degrees of freedom are the white-FM
-/// EDF over `first`: the filter correlates samples over about the lags it leaves out, so the
-/// record holds fewer independent differences there than white noise would.
+/// EDF over the first fitted averaging factor: the filter correlates samples over about the
+/// lags it leaves out, so the record holds fewer independent differences there than white
+/// noise would.
 fn q_bound(dev: &Deviation, first: usize, n_phase: usize) -> Option<f64> {
+    let lags = dev
+        .m
+        .get(first)
+        .or(dev.m.last())
+        .copied()
+        .unwrap_or(1)
+        .max(1) as f64;
     (0..first.min(dev.tau.len()))
         .filter(|&i| dev.dev[i] > 0.0)
         .map(|i| {
-            let edf = (ci::edf(dev.estimator, 0, dev.m[i], n_phase) / first as f64).max(1.0);
+            let edf = (ci::edf(dev.estimator, 0, dev.m[i], n_phase) / lags).max(1.0);
             let upper = ChiSquared::new(edf).map_or(f64::INFINITY, |c| {
                 edf / c.inverse_cdf(1.0 - Q_BOUND_CONFIDENCE)
             });
