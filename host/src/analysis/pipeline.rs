@@ -766,8 +766,8 @@ mod tests {
     /// The detected roll-off beside a wide line in its stopband (the family of
     /// `low_pass::tests::stopband_line_record`): found in each of 10 records, within 10 % of
     /// the cutoff, and its 68.3 % interval holding the truth in at least 6 (binomial(10,
-    /// 0.683): P(<= 5) = 0.12; measured: 7, the eighth 7.5 % high where the line's band,
-    /// 1.5 times the cutoff and 0.9 Hz wide, covers the whole roll-off). Left out only where
+    /// 0.683): P(<= 5) = 0.12; measured: 7, nine within 1.3 % of the cutoff and one 8.8 %
+    /// low). Left out only where
     /// they stood above 5 % of the white level and fitted as noise elsewhere, the wings hid
     /// the filter in 2 of these records and moved it by 2 half-widths in 2 more.
     #[test]

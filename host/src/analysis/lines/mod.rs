@@ -400,15 +400,20 @@ impl Removal<'_> {
     }
 }
 
-/// Share of the background a line's wing may reach and still be taken as known PSD where a
-/// roll-off is fitted ([`wings_stand_out`]).
+/// Share of the background that the part of a line's wing its width decides may reach where
+/// a roll-off is fitted ([`wings_stand_out`]).
 pub const WING_SHARE: f64 = 0.05;
 
-/// Whether a line's wings still stand out at `f` Hz: its Lorentzian excess ([`lorentzian`])
-/// above [`WING_SHARE`] of the one-sided `background` PSD there. A pure tone (`width_hz` 0)
-/// has none, its power lying in its own bins.
+/// Whether a line's wings still stand out at `f` Hz of a roll-off fit that takes the wings'
+/// scale as a free parameter ([`crate::analysis::low_pass::Outside::known`]): the part of
+/// the Lorentzian ([`lorentzian`]) that an error in its width moves beyond that scale,
+/// above [`WING_SHARE`] of the one-sided `background` PSD there. With `x = 2 (f - f0) / w`,
+/// `d ln L / d ln w = 1 - 2 / (1 + x^2)`: the constant is the scale's, and
+/// `L 2 / (1 + x^2)` what is left, which falls as `1 / x^4` where the wing itself falls as
+/// `1 / x^2`. A pure tone (`width_hz` 0) has no wings, its power lying in its own bins.
 pub fn wings_stand_out(freq_hz: f64, width_hz: f64, power: f64, f: f64, background: f64) -> bool {
-    lorentzian(freq_hz, width_hz, power, f) > WING_SHARE * background
+    let x = 2.0 * (f - freq_hz) / width_hz;
+    lorentzian(freq_hz, width_hz, power, f) * 2.0 / (1.0 + x * x) > WING_SHARE * background
 }
 
 /// The one-sided PSD (u^2/Hz) at `f` Hz of a Lorentzian line of power `power` (u^2), full
