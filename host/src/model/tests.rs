@@ -191,9 +191,9 @@ fn model_toml_parses_as_a_model_file() {
 
 /// Every kind on three seeds at CI size (1 h at 20 Hz, shorter and slower than the study's
 /// 3 h at 50 Hz, so every effect is weaker against the noise): at least five sixths of the
-/// 33 records named exactly right (28 measured: no Gauss-Markov process of 36-108 s is found
-/// in an hour, and a filter with a line at 20 Hz is named right once in three; the full
-/// study is the claim), and at most one effect added on the six records
+/// 33 records named exactly right (29 measured: a Gauss-Markov process of 36-108 s is found
+/// once in three in an hour, a ramp twice; the full study is the claim), and at most one
+/// effect added on the six records
 /// without one (the naming rule's family-wise level is 5 % per round, 0.3 expected).
 #[test]
 fn families_at_ci_size() {
