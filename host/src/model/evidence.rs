@@ -700,12 +700,16 @@ mod tests {
                 .collect();
             add_line(&mut y, rate_hz, freq, width, (2.0 * power).sqrt(), &mut rng);
             let found = super::super::candidates::detect_lines(&y, rate_hz);
-            let statistic = |found: &[Line], removal: &Removal| {
-                roll_off(&y, rate_hz, removal, (&[], found), &white, false)
-                    .unwrap()
-                    .statistic
-            };
-            let known = statistic(&found, &Removal::default());
+            let known = roll_off(
+                &y,
+                rate_hz,
+                &Removal::default(),
+                (&[], &found),
+                &white,
+                false,
+            )
+            .unwrap()
+            .statistic;
             let bins = low_pass::tone_leakage_hz(rate_hz);
             let core = |f: f64| {
                 found

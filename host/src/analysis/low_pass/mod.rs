@@ -753,6 +753,8 @@ struct DetectionPsd {
     freq: Vec<f64>,
     density: Vec<f64>,
     known: Vec<f64>,
+    /// Whether any bin holds known PSD: only then is its scale a column of the fit.
+    has_known: bool,
     dof: f64,
     /// [`alias_phasors`] of every bin, bin after bin, and of DC: each fit's hundreds of
     /// cascades are evaluated at these same frequencies.
@@ -790,7 +792,8 @@ impl DetectionPsd {
         }
         let keep = |v: &[f64]| kept.iter().map(|&i| v[i]).collect();
         let freq: Vec<f64> = keep(&p.freq);
-        let known = freq.iter().map(|&f| known(f)).collect();
+        let known: Vec<f64> = freq.iter().map(|&f| known(f)).collect();
+        let has_known = known.iter().any(|&k| k > 0.0);
         let aliases = freq
             .iter()
             .flat_map(|&f| alias_phasors(f, rate_hz, OVERSAMPLE))
@@ -800,6 +803,7 @@ impl DetectionPsd {
             freq,
             density: keep(&p.density),
             known,
+            has_known,
             dof: HANN_DOF_PER_SEGMENT * p.segments as f64,
             aliases,
             dc_aliases: alias_phasors(0.0, rate_hz, OVERSAMPLE).collect(),
@@ -836,7 +840,7 @@ impl DetectionPsd {
             .collect();
         let columns: Vec<usize> = (0..3)
             .chain(with_q.then_some(3))
-            .chain(self.known.iter().any(|&k| k > 0.0).then_some(4))
+            .chain(self.has_known.then_some(4))
             .collect();
         let spread = (2.0 / self.dof).sqrt();
         let mut sigma: Vec<f64> = self.density.iter().map(|s| s * spread).collect();
