@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{json, run, scratch};
+use common::{json, run, run_in, scratch};
 
 #[test]
 fn model_names_a_sinusoid_in_json_and_html() {
@@ -72,6 +72,34 @@ fn model_names_a_sinusoid_in_json_and_html() {
     assert!(doc["model"]["sinusoid"]["amplitude"].as_f64().is_some());
     let page = std::fs::read_to_string(&html).unwrap();
     assert!(page.matches("<svg").count() >= 2);
+    // The model as a model file is what `simulate` takes: the named tone is its one line.
+    let toml = dir.path().join("model.toml");
+    std::fs::write(&toml, doc["model_toml"].as_str().unwrap()).unwrap();
+    let text = doc["model_toml"].as_str().unwrap();
+    assert_eq!(text.matches("[[gyro.lines]]").count(), 1, "{text}");
+    assert!(
+        !text.contains("sinusoid"),
+        "the tone is not written twice: {text}"
+    );
+    let out = dir.path().join("sim.csv");
+    let simulated = run_in(
+        &dir.path().join("store"),
+        &[
+            "simulate",
+            "--model",
+            toml.to_str().unwrap(),
+            "--rate",
+            "20",
+            "--bandwidth",
+            "5",
+            "--duration",
+            "60",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert!(simulated.status.success(), "{}", common::stderr(&simulated));
+    assert!(std::fs::read_to_string(&out).unwrap().lines().count() > 1200);
 }
 
 /// The real MPU-6050 record (449 s at 100 Hz, raw counts): the workflow names the two gyro

@@ -71,22 +71,93 @@ pub fn model_keys(model: &Model) -> Value {
     Value::Object(m)
 }
 
-/// The model as a model file (TOML) with one group. A temperature coefficient is written as
-/// `temperature = { bias_coeff }`; the simulator then needs a `[temperature]` profile, which
-/// this workflow does not estimate (it used the record's measured temperature).
+/// The model as a model file (TOML) with one group, in the simulator's terms: the white
+/// density and the lines' amplitudes are those at the sensor filter's input
+/// ([`LowPass::input_density`](crate::analysis::low_pass::LowPass::input_density),
+/// [`LowPass::line_power_gain`](crate::analysis::low_pass::LowPass::line_power_gain)),
+/// because `imunoise simulate` puts everything through the DLPF its `--bandwidth` selects;
+/// the filter itself is a comment. Every named line is in `lines` (the first is also the
+/// JSON's `sinusoid`, left out here so that it is not simulated twice). A temperature
+/// coupling is written as `temperature = { bias_coeff, rate_coeff }`; the simulator then needs
+/// a `[temperature]` profile, which this workflow does not estimate (it used the record's
+/// measured temperature).
 pub fn model_toml(quantity: Quantity, model: &Model) -> String {
-    let mut out = format!("[{}]\n", group(quantity));
-    if let Value::Object(m) = model_keys(model) {
-        for (k, v) in m {
-            let text = match v {
-                Value::Object(inner) => {
-                    let parts: Vec<String> =
-                        inner.iter().map(|(k, v)| format!("{k} = {v}")).collect();
-                    format!("{{ {} }}", parts.join(", "))
-                }
-                other => other.to_string(),
-            };
-            let _ = writeln!(out, "{k} = {text}");
+    use toml::{Table, Value as Toml};
+    let t = &model.terms;
+    let low_pass = model.low_pass.as_ref();
+    let mut keys = Table::new();
+    let put = |keys: &mut Table, k: &str, v: f64| {
+        if v != 0.0 {
+            keys.insert(k.into(), Toml::Float(v));
+        }
+    };
+    let n_in = low_pass.map_or(t.n, |lp| lp.input_density(t.n));
+    put(&mut keys, "noise_density", n_in);
+    put(&mut keys, "bias_instability", t.b);
+    put(&mut keys, "rate_random_walk", t.k);
+    put(&mut keys, "rate_ramp", t.r);
+    put(&mut keys, "quantization", t.q);
+    if let Some(g) = t.gauss_markov {
+        let mut gm = Table::new();
+        put(&mut gm, "sigma", g.sigma);
+        gm.insert("tau_c".into(), Toml::Float(g.tau_c));
+        keys.insert("gauss_markov".into(), Toml::Table(gm));
+    }
+    if model.temp_coeff.is_some() || model.temp_rate_coeff.is_some() {
+        let mut c = Table::new();
+        put(&mut c, "bias_coeff", model.temp_coeff.unwrap_or(0.0));
+        put(&mut c, "rate_coeff", model.temp_rate_coeff.unwrap_or(0.0));
+        keys.insert("temperature".into(), Toml::Table(c));
+    }
+    let lines: Vec<Toml> = model
+        .lines
+        .iter()
+        .map(|l| {
+            let gain = low_pass.map_or(1.0, |lp| lp.line_power_gain(l.freq_hz));
+            let mut line = Table::new();
+            line.insert(
+                "amplitude".into(),
+                Toml::Float(l.amplitude / gain.max(f64::MIN_POSITIVE).sqrt()),
+            );
+            line.insert("freq_hz".into(), Toml::Float(l.freq_hz));
+            line.insert("width_hz".into(), Toml::Float(l.width_hz));
+            Toml::Table(line)
+        })
+        .collect();
+    if !lines.is_empty() {
+        keys.insert("lines".into(), Toml::Array(lines));
+    }
+    let mut out = String::new();
+    if let Some(lp) = low_pass {
+        let _ = writeln!(
+            out,
+            "# The sensor's low-pass filter ({}; -3 dB at {} Hz) is not a key: `imunoise simulate`\n\
+             # applies the DLPF its --bandwidth selects. noise_density and the lines' amplitudes\n\
+             # are at the filter's input; at its output N = {} (the model's).",
+            lp.filter,
+            sig(lp.cutoff_hz, 4),
+            sig(t.n, 4)
+        );
+    }
+    if low_pass.is_none() {
+        out.push_str(
+            "# No sensor filter in the model: the values are the record's. `imunoise simulate`\n\
+             # puts them through the DLPF its --bandwidth selects, whose aliases raise N at a\n\
+             # bandwidth near or above half the --rate.\n",
+        );
+    }
+    if model.temp_coeff.is_some() || model.temp_rate_coeff.is_some() {
+        out.push_str(
+            "# The temperature coupling needs a [temperature] profile (initial, warmup, ramp,\n\
+             # cycle), which the workflow does not estimate: it used the record's temperature.\n",
+        );
+    }
+    let mut doc = Table::new();
+    doc.insert(group(quantity).into(), Toml::Table(keys));
+    match toml::to_string(&doc) {
+        Ok(text) => out.push_str(&text),
+        Err(e) => {
+            let _ = writeln!(out, "# the model could not be written as TOML: {e}");
         }
     }
     out

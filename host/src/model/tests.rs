@@ -170,23 +170,131 @@ fn study(
         .collect()
 }
 
+/// The model file the workflow writes is its model in the simulator's terms. Parsed back,
+/// every term, line and coupling is there, with the white density and the lines' amplitudes
+/// referred to the filter's input; and the simulated MPU-6050 at the filter's own settings
+/// (100 Hz, DLPF 98 Hz: its aliases fold noise in, and a line at 40 Hz keeps part of its
+/// power) puts out the model's N and the line's amplitude again. Tolerances: four standard
+/// errors of a 10-minute record (amplitude `sqrt(2 S / T)` for a one-sided PSD S; the band
+/// mean of the periodogram over its bins).
 #[test]
-fn model_toml_parses_as_a_model_file() {
+fn model_toml_is_the_model_for_the_simulator() {
+    use crate::analysis::low_pass::LowPass;
+    use crate::sim::dlpf::Sensor;
+    use crate::sim::imu::Imu;
+    use protocol::mpu6050::SensorSettings;
+    let (rate_hz, bandwidth_hz) = (100.0, 98.0);
+    let low_pass = LowPass::for_bandwidth(bandwidth_hz, rate_hz, Sensor::Gyro)
+        .expect("an MPU-6050 setting")
+        .expect("a filter");
+    let line = |freq_hz: f64, amplitude: f64, width_hz: f64| Line {
+        freq_hz,
+        amplitude,
+        width_hz,
+        statistic: 0.0,
+        p_value: 1.0,
+    };
+    let n_out = 2e-3;
     let m = Model {
         terms: NoiseTerms {
-            n: 1e-4,
-            k: 1e-7,
+            n: n_out,
+            k: 1e-6,
             gauss_markov: Some(crate::sim::noise::GaussMarkov {
                 sigma: 3e-5,
                 tau_c: 50.0,
             }),
+            sinusoid: Some(crate::sim::noise::Sinusoid {
+                amplitude: 4e-3,
+                freq_hz: 40.0,
+            }),
             ..NoiseTerms::default()
         },
-        ..Model::default()
+        temp_coeff: Some(1e-3),
+        temp_rate_coeff: Some(0.05),
+        lines: vec![line(40.0, 4e-3, 0.0), line(12.0, 2e-3, 0.3)],
+        low_pass: Some(low_pass.clone()),
     };
     let text = report::model_toml(Quantity::AngularRate, &m);
-    let parsed = crate::sim::model_file::parse(&text, std::path::Path::new("model.toml"));
-    assert!(parsed.is_ok(), "{text}: {:?}", parsed.err());
+    let parsed = crate::sim::model_file::parse(&text, std::path::Path::new("model.toml"))
+        .unwrap_or_else(|e| panic!("{text}: {e}"));
+    let gyro = &parsed.gyro;
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs();
+    let n_in = low_pass.input_density(n_out);
+    assert!(close(gyro.noise.n, n_in), "{text}");
+    assert!(
+        n_in < 0.9 * n_out,
+        "the 98 Hz filter at 100 Hz folds noise in: {n_in}"
+    );
+    assert!(close(gyro.noise.k, 1e-6) && gyro.noise.gauss_markov == m.terms.gauss_markov);
+    assert_eq!(
+        gyro.noise.sinusoid, None,
+        "the first line is not simulated twice"
+    );
+    assert_eq!(
+        (gyro.temperature.bias_coeff, gyro.temperature.rate_coeff),
+        (1e-3, 0.05)
+    );
+    assert_eq!(gyro.lines.len(), 2, "{text}");
+    for (written, named) in gyro.lines.iter().zip(&m.lines) {
+        let gain = low_pass.line_power_gain(named.freq_hz);
+        assert!(
+            close(written.amplitude, named.amplitude / gain.sqrt()),
+            "{text}"
+        );
+        assert_eq!(
+            (written.freq_hz, written.width_hz),
+            (named.freq_hz, named.width_hz)
+        );
+    }
+    assert!(
+        low_pass.line_power_gain(40.0) < 0.9,
+        "the test's line is attenuated"
+    );
+
+    let settings =
+        SensorSettings::for_rate_and_bandwidth(rate_hz, bandwidth_hz).expect("a setting");
+    let seconds = 600.0;
+    let n = (seconds * rate_hz) as usize;
+    let mut imu = Imu::new(&parsed, settings, 7, seconds);
+    let x: Vec<f64> = (0..n).map(|_| imu.next_si().gyro[0]).collect();
+    let mean = x.iter().sum::<f64>() / n as f64;
+    // The one-sided periodogram at the k-th bin and the complex amplitude at 40 Hz.
+    let dft = |f: f64| {
+        let w = 2.0 * std::f64::consts::PI * f / rate_hz;
+        x.iter().enumerate().fold((0.0, 0.0), |(re, im), (i, v)| {
+            let (s, c) = (w * i as f64).sin_cos();
+            (re + (v - mean) * c, im - (v - mean) * s)
+        })
+    };
+    let amplitude = {
+        let (re, im) = dft(40.0);
+        2.0 * re.hypot(im) / n as f64
+    };
+    // The white level between the lines: 2..8 Hz, 6 * 600 bins.
+    let bins: Vec<f64> = (2 * 600..8 * 600).map(|k| k as f64 / seconds).collect();
+    let psd = bins
+        .iter()
+        .map(|&f| {
+            let (re, im) = dft(f);
+            2.0 * (re * re + im * im) / (n as f64 * rate_hz)
+        })
+        .sum::<f64>()
+        / bins.len() as f64;
+    let want_psd = bins
+        .iter()
+        .map(|&f| 2.0 * n_out * n_out * low_pass.power_gain(f))
+        .sum::<f64>()
+        / bins.len() as f64;
+    let psd_se = want_psd / (bins.len() as f64).sqrt();
+    assert!(
+        (psd - want_psd).abs() < 4.0 * psd_se,
+        "white PSD {psd:.4e} against {want_psd:.4e} +- {psd_se:.1e}"
+    );
+    let amplitude_se = (2.0 * 2.0 * n_out * n_out * low_pass.power_gain(40.0) / seconds).sqrt();
+    assert!(
+        (amplitude - 4e-3).abs() < 4.0 * amplitude_se,
+        "line amplitude {amplitude:.4e} against 4e-3 +- {amplitude_se:.1e}"
+    );
 }
 
 /// Every kind on three seeds at CI size (1 h at 20 Hz, shorter and slower than the study's

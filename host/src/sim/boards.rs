@@ -19,7 +19,7 @@ pub fn mpu6050(model: ImuModel, seed: u64, faults: &FaultPlan) -> SimBus {
 /// ADXL345 at 0x53 following its `[accel]`, each with its own noise from `seed`. `faults`
 /// reach both chips (clock, I2C outages and resets; a WHO_AM_I only the ITG-3200's).
 pub fn gy85(model: ImuModel, seed: u64, faults: &FaultPlan) -> SimBus {
-    let mut gyro = SimItg3200::new(model, seed);
+    let mut gyro = SimItg3200::new(model.clone(), seed);
     let mut accel = SimAdxl345::new(model, seed ^ ACCEL_SEED);
     faults.apply_to_sensor(&mut gyro);
     let accel_faults = FaultPlan {

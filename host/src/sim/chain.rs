@@ -2,7 +2,9 @@
 //!
 //! 1. the continuous-time noise sampled at the internal rate f_i (gyro 8 kHz with DLPF_CFG 0
 //!    and 7, else 1 kHz; accelerometer 1 kHz): white noise of Allan coefficient N becomes
-//!    per-sample sigma `N sqrt(f_i)` ([`super::noise::AxisNoise`] at f_i does exactly this);
+//!    per-sample sigma `N sqrt(f_i)` ([`super::noise::AxisNoise`] at f_i does exactly this),
+//!    and spectral lines (a vibration, a resonance: [`super::line::LineNoise`]) are added
+//!    there, so the DLPF shapes them as it shapes the noise;
 //! 2. the DLPF of the chosen DLPF_CFG at f_i ([`super::dlpf`]);
 //! 3. decimation to the output rate f_s = f_i / M (M = 1 + SMPLRT_DIV) by taking every M-th
 //!    sample, **without** anti-alias filtering;
@@ -22,6 +24,7 @@
 //! one-sided noise-equivalent bandwidth), the familiar "noise grows as sqrt(bandwidth / rate)".
 
 use super::dlpf::{Dlpf, DlpfDesign};
+use super::line::{LineNoise, NarrowBand};
 use super::noise::{AxisNoise, NoiseTerms};
 use rand_chacha::ChaCha8Rng;
 
@@ -51,6 +54,8 @@ pub fn quantize(value: f64, lsb: f64) -> i16 {
 #[derive(Debug, Clone)]
 pub struct AxisChain {
     noise: AxisNoise,
+    lines: Vec<LineNoise>,
+    rate_hz: f64,
     rng: ChaCha8Rng,
     dlpf: Dlpf,
     /// Internal samples consumed so far.
@@ -70,11 +75,24 @@ impl AxisChain {
         let noise = AxisNoise::new(terms, design.rate_hz, duration_s, &mut rng);
         AxisChain {
             noise,
+            lines: Vec::new(),
+            rate_hz: design.rate_hz,
             rng,
             dlpf: design.filter(),
             consumed: 0,
             last: 0.0,
         }
+    }
+
+    /// The same chain with `lines` added to its noise at the internal rate, each in its
+    /// stationary state (a random phase) drawn from the chain's generator.
+    pub fn with_lines(mut self, lines: &[NarrowBand]) -> Self {
+        let rate_hz = self.rate_hz;
+        self.lines = lines
+            .iter()
+            .map(|&line| LineNoise::new(line, rate_hz, &mut self.rng))
+            .collect();
+        self
     }
 
     /// The filtered value at internal sample `index` (0-based): every internal sample up to
@@ -87,7 +105,10 @@ impl AxisChain {
             self.dlpf.prime(signal);
         }
         while self.consumed <= index {
-            let x = signal + self.noise.next(&mut self.rng);
+            let mut x = signal + self.noise.next(&mut self.rng);
+            for line in &mut self.lines {
+                x += line.next(&mut self.rng);
+            }
             self.last = self.dlpf.process(x);
             self.consumed += 1;
         }

@@ -29,6 +29,7 @@
 
 use super::chain::{AxisChain, quantize};
 use super::dlpf::{DlpfDesign, Sensor};
+use super::line::NarrowBand;
 use super::noise::{AxisNoise, NoiseTerms};
 use super::temperature::{TempCoupling, TemperatureProfile};
 use protocol::mpu6050::{
@@ -38,10 +39,13 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 /// One sensor group's error model.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct SensorModel {
     /// The same noise terms on each axis (independent realisations).
     pub noise: NoiseTerms,
+    /// Spectral lines in the rate (a vibration, a resonance), the same on each axis with
+    /// independent phases, before the sensor's filter.
+    pub lines: Vec<NarrowBand>,
     /// Constant bias per axis, u.
     pub bias: [f64; 3],
     /// Scale-factor error per axis (0.01 = +1 %).
@@ -126,7 +130,7 @@ impl TrueInput {
 }
 
 /// The whole simulated sensor's physics.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct ImuModel {
     pub gyro: SensorModel,
     pub accel: SensorModel,
@@ -198,7 +202,9 @@ impl Imu {
         let gyro_design = DlpfDesign::for_setting(settings.dlpf, Sensor::Gyro);
         let accel_design = DlpfDesign::for_setting(settings.dlpf, Sensor::Accel);
         let chains = |m: &SensorModel, d: &DlpfDesign, first: u64| {
-            [0, 1, 2].map(|i| AxisChain::new(m.noise, d, duration_s, stream(first + i)))
+            [0, 1, 2].map(|i| {
+                AxisChain::new(m.noise, d, duration_s, stream(first + i)).with_lines(&m.lines)
+            })
         };
         let mut temp_rng = stream(6);
         let temp_noise = AxisNoise::new(
@@ -208,7 +214,7 @@ impl Imu {
             &mut temp_rng,
         );
         Imu {
-            model: *model,
+            model: model.clone(),
             settings,
             gyro: chains(&model.gyro, &gyro_design, 0),
             accel: chains(&model.accel, &accel_design, 3),
@@ -260,6 +266,7 @@ impl Imu {
         let t = self.next_time();
         let temp = self.model.temperature.profile.at(t);
         let delta = temp - self.model.temperature.reference;
+        let temp_rate = self.model.temperature.profile.rate_at(t);
         let decimation = 1 + u64::from(s.smplrt_div);
         let gyro_index = self.n * decimation;
         let internal = s.dlpf.gyro_internal_rate_hz() as u64;
@@ -268,8 +275,8 @@ impl Imu {
         let input = self
             .input
             .unwrap_or_else(|| TrueInput::at_rest(self.model.gravity, STANDARD_GRAVITY));
-        let gyro_signal = deterministic(&self.model.gyro, input.angular_rate, delta);
-        let accel_signal = deterministic(&self.model.accel, input.specific_force, delta);
+        let gyro_signal = deterministic(&self.model.gyro, input.angular_rate, delta, temp_rate);
+        let accel_signal = deterministic(&self.model.accel, input.specific_force, delta, temp_rate);
         let gyro_lsb = self.gyro_lsb;
         let accel_lsb = s.accel_range.m_s2_per_lsb();
         let gyro = [0, 1, 2].map(|i| {
@@ -304,10 +311,10 @@ impl Imu {
     }
 }
 
-/// The deterministic part of one group's three axes at temperature offset `delta` for true
-/// input `u` (module documentation).
-pub(crate) fn deterministic(m: &SensorModel, u: [f64; 3], delta: f64) -> [f64; 3] {
-    let (tbias, tscale) = m.temperature.at(delta);
+/// The deterministic part of one group's three axes at temperature offset `delta`, changing
+/// at `temp_rate` degC/s, for true input `u` (module documentation).
+pub(crate) fn deterministic(m: &SensorModel, u: [f64; 3], delta: f64, temp_rate: f64) -> [f64; 3] {
+    let (tbias, tscale) = m.temperature.at(delta, temp_rate);
     let scaled: [f64; 3] = [0, 1, 2].map(|j| (1.0 + m.scale_factor[j]) * tscale * u[j]);
     [0, 1, 2].map(|i| {
         let mixed: f64 = (0..3)
@@ -399,6 +406,35 @@ mod tests {
         assert!((last.temp - 35.0).abs() < 0.01, "{}", last.temp);
         assert!((last.gyro[0] - 0.01).abs() < 2e-4, "{}", last.gyro[0]);
         assert!(samples[0].gyro[0].abs() < 2e-4);
+    }
+
+    /// A coupling to the temperature's rate of change adds `rate_coeff dT/dt`: during a
+    /// warm-up of 10 degC with tau 20 s, 0.5 degC/s at first and decaying with it. The DLPF
+    /// (42 Hz) lags a signal this slow by about 5 ms, a change of under 0.1 LSB here.
+    #[test]
+    fn a_coupling_to_the_rate_of_change_follows_the_warm_up() {
+        let mut model = ImuModel::default();
+        let (rise, tau) = (10.0, 20.0);
+        model.temperature.profile = TemperatureProfile {
+            initial: 25.0,
+            warmup: Some(Warmup { rise, tau }),
+            ..Default::default()
+        };
+        model.gyro.temperature.rate_coeff = 0.2; // rad/s per degC/s
+        let mut imu = Imu::new(&model, settings(), 3, 100.0);
+        let lsb = settings().gyro_range.rad_s_per_lsb();
+        for i in 0..6000 {
+            let s = imu.next_si();
+            let want = 0.2 * rise / tau * (-s.time / tau).exp();
+            if i > 10 {
+                assert!(
+                    (s.gyro[0] - want).abs() <= lsb,
+                    "t {}: {} against {want}",
+                    s.time,
+                    s.gyro[0]
+                );
+            }
+        }
     }
 
     #[test]

@@ -8,8 +8,14 @@
 //! `rate_ramp` R (u/s), `quantization` Q (u s), `gauss_markov = { sigma, tau_c }` (u, s),
 //! `sinusoid = { amplitude, freq_hz }` (u, Hz).
 //!
-//! `[gyro]` and `[accel]` also take `temperature = { bias_coeff, scale_coeff }` (u/degC,
-//! 1/degC), `bias = [x, y, z]` (u), `scale_factor = [x, y, z]` (relative error),
+//! `[gyro]` and `[accel]` also take `lines = [{ amplitude, freq_hz, width_hz, shape }, ...]`:
+//! spectral lines of peak amplitude `amplitude` (u, `sqrt(2 power)`) at `freq_hz` with full
+//! width at half maximum `width_hz` (Hz, default 0: a pure tone), `shape` either
+//! `"diffusing_phase"` (default: a constant amplitude whose phase wanders) or `"resonance"`
+//! (white noise through a second-order resonance), as [`super::line`] generates them; each is
+//! added at the chip's internal rate, before its filter, with an independent phase per axis.
+//! They also take `temperature = { bias_coeff, scale_coeff, rate_coeff }` (u/degC, 1/degC,
+//! u/(degC/s)), `bias = [x, y, z]` (u), `scale_factor = [x, y, z]` (relative error),
 //! `misalignment = [[..3], [..3], [..3]]` (added to the identity); `[accel]` takes
 //! `gravity_axis = "z"` (x, y, z, -x, -y, -z; default z).
 //!
@@ -40,6 +46,7 @@
 
 use super::device::{Outage, SensorClock, SimChip};
 use super::imu::{GravityAxis, ImuModel, SensorModel, TemperatureModel};
+use super::line::{NarrowBand, Shape as LineShape};
 use super::noise::{GaussMarkov, NoiseTerms, Sinusoid};
 use super::temperature::{Cycle, TempCoupling, TemperatureProfile, Warmup};
 use serde::Deserialize;
@@ -152,6 +159,7 @@ struct GroupSpec {
     quantization: Option<f64>,
     gauss_markov: Option<GaussMarkovSpec>,
     sinusoid: Option<SinusoidSpec>,
+    lines: Option<Vec<LineSpec>>,
     temperature: Option<CouplingSpec>,
     bias: Option<[f64; 3]>,
     scale_factor: Option<[f64; 3]>,
@@ -180,11 +188,32 @@ struct SinusoidSpec {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
+struct LineSpec {
+    amplitude: f64,
+    freq_hz: f64,
+    #[serde(default)]
+    width_hz: f64,
+    #[serde(default)]
+    shape: LineShapeSpec,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum LineShapeSpec {
+    #[default]
+    DiffusingPhase,
+    Resonance,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct CouplingSpec {
     #[serde(default)]
     bias_coeff: f64,
     #[serde(default)]
     scale_coeff: f64,
+    #[serde(default)]
+    rate_coeff: f64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -458,11 +487,29 @@ impl Checker<'_> {
             Some(c) => TempCoupling {
                 bias_coeff: self.finite(group, "temperature.bias_coeff", c.bias_coeff)?,
                 scale_coeff: self.finite(group, "temperature.scale_coeff", c.scale_coeff)?,
+                rate_coeff: self.finite(group, "temperature.rate_coeff", c.rate_coeff)?,
             },
             None => TempCoupling::default(),
         };
+        let lines = g
+            .lines
+            .iter()
+            .flatten()
+            .map(|l| {
+                Ok(NarrowBand {
+                    amplitude: self.non_negative(group, "lines.amplitude", l.amplitude)?,
+                    freq_hz: self.positive(group, "lines.freq_hz", l.freq_hz)?,
+                    width_hz: self.non_negative(group, "lines.width_hz", l.width_hz)?,
+                    shape: match l.shape {
+                        LineShapeSpec::DiffusingPhase => LineShape::DiffusingPhase,
+                        LineShapeSpec::Resonance => LineShape::Resonance,
+                    },
+                })
+            })
+            .collect::<Result<Vec<_>, ModelFileError>>()?;
         Ok(SensorModel {
             noise: self.noise(group, g)?,
+            lines,
             bias: triple("bias", g.bias)?,
             scale_factor: triple("scale_factor", g.scale_factor)?,
             misalignment,
@@ -476,6 +523,7 @@ impl Checker<'_> {
             group,
             &[
                 ("temperature", g.temperature.is_some()),
+                ("lines", g.lines.is_some()),
                 ("bias", g.bias.is_some()),
                 ("scale_factor", g.scale_factor.is_some()),
                 ("misalignment", g.misalignment.is_some()),
@@ -545,7 +593,8 @@ mod tests {
             quantization = 1e-6
             gauss_markov = { sigma = 1e-4, tau_c = 50 }
             sinusoid = { amplitude = 1e-3, freq_hz = 30 }
-            temperature = { bias_coeff = 1e-4, scale_coeff = 2e-4 }
+            lines = [{ amplitude = 2e-3, freq_hz = 31.5, width_hz = 0.4 }, { amplitude = 1e-3, freq_hz = 7, shape = "resonance" }]
+            temperature = { bias_coeff = 1e-4, scale_coeff = 2e-4, rate_coeff = 0.03 }
             bias = [0.01, 0, -0.01]
             scale_factor = [0.01, 0, 0]
             misalignment = [[0, 0.001, 0], [0, 0, 0], [0, 0, 0]]
@@ -564,6 +613,25 @@ mod tests {
         assert_eq!(m.gyro.noise.gauss_markov.unwrap().tau_c, 50.0);
         assert_eq!(m.gyro.noise.sinusoid.unwrap().freq_hz, 30.0);
         assert_eq!(m.gyro.temperature.scale_coeff, 2e-4);
+        assert_eq!(m.gyro.temperature.rate_coeff, 0.03);
+        assert_eq!(
+            m.gyro.lines,
+            [
+                NarrowBand {
+                    amplitude: 2e-3,
+                    freq_hz: 31.5,
+                    width_hz: 0.4,
+                    shape: LineShape::DiffusingPhase,
+                },
+                NarrowBand {
+                    amplitude: 1e-3,
+                    freq_hz: 7.0,
+                    width_hz: 0.0,
+                    shape: LineShape::Resonance,
+                },
+            ]
+        );
+        assert!(m.accel.lines.is_empty());
         assert_eq!(m.gyro.misalignment[0][1], 0.001);
         assert_eq!(m.gravity, "-x".parse().unwrap());
         assert_eq!(m.temperature.profile.warmup.unwrap().tau, 300.0);
@@ -671,6 +739,19 @@ mod tests {
             ("[gyro]\nramp = 1", "[gyro] ramp"),
             ("[magnetometer]\nnoise_density = 1", "magnetometer"),
             ("[gyro]\nsinusoid = { amplitude = 1 }", "freq_hz"),
+            (
+                "[gyro]\nlines = [{ amplitude = 1, freq_hz = 0 }]",
+                "[gyro] lines.freq_hz",
+            ),
+            (
+                "[accel]\nlines = [{ amplitude = -1, freq_hz = 3 }]",
+                "[accel] lines.amplitude",
+            ),
+            (
+                "[gyro]\nlines = [{ amplitude = 1, freq_hz = 3, shape = \"sine\" }]",
+                "sine",
+            ),
+            ("[temperature]\nlines = []", "[temperature] lines"),
             ("[faults]\nclock_pm = 1", "clock_pm"),
             ("[faults]\nclock_ppm = -1e6", "[faults] clock_ppm"),
             ("[faults]\nclock_ppm = nan", "[faults] clock_ppm"),

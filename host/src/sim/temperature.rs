@@ -9,7 +9,10 @@
 //! (a warm-up exponential after power-on, a linear ramp of the environment, a thermal cycle).
 //! Coupling, linear about a reference temperature T_ref (datasheet-style "sensitivity change
 //! vs. temperature" and "zero-rate output vs. temperature"):
-//! `bias(T) = bias_coeff (T - T_ref)` (u/degC), `scale(T) = 1 + scale_coeff (T - T_ref)` (1/degC).
+//! `bias(T) = bias_coeff (T - T_ref) + rate_coeff dT/dt` (u/degC and u/(degC/s)),
+//! `scale(T) = 1 + scale_coeff (T - T_ref)` (1/degC). The term in dT/dt is the bias a thermal
+//! gradient across the die adds while the temperature changes: it follows the rate of change,
+//! not the level (the model workflow names it beside the level's coefficient).
 
 use std::f64::consts::PI;
 
@@ -62,6 +65,20 @@ impl TemperatureProfile {
         }
         temp
     }
+
+    /// The temperature's rate of change at `t` seconds, degC/s: the derivative of
+    /// [`TemperatureProfile::at`] term by term.
+    pub fn rate_at(&self, t: f64) -> f64 {
+        let mut rate = self.ramp;
+        if let Some(w) = self.warmup.filter(|w| w.tau > 0.0) {
+            rate += w.rise / w.tau * (-t / w.tau).exp();
+        }
+        if let Some(c) = self.cycle.filter(|c| c.period > 0.0) {
+            let omega = 2.0 * PI / c.period;
+            rate += c.amplitude * omega * (omega * t).cos();
+        }
+        rate
+    }
 }
 
 /// Linear temperature coupling of one sensor group (module documentation).
@@ -71,12 +88,18 @@ pub struct TempCoupling {
     pub bias_coeff: f64,
     /// Relative scale-factor change, 1/degC.
     pub scale_coeff: f64,
+    /// Bias per rate of temperature change, u/(degC/s).
+    pub rate_coeff: f64,
 }
 
 impl TempCoupling {
-    /// (bias, scale multiplier) at `delta` = T - T_ref.
-    pub fn at(&self, delta: f64) -> (f64, f64) {
-        (self.bias_coeff * delta, 1.0 + self.scale_coeff * delta)
+    /// (bias, scale multiplier) at `delta` = T - T_ref while the temperature changes at
+    /// `rate` degC/s.
+    pub fn at(&self, delta: f64, rate: f64) -> (f64, f64) {
+        (
+            self.bias_coeff * delta + self.rate_coeff * rate,
+            1.0 + self.scale_coeff * delta,
+        )
     }
 }
 
@@ -106,7 +129,40 @@ mod tests {
         let c = TempCoupling {
             bias_coeff: 1e-3,
             scale_coeff: 2e-4,
+            rate_coeff: 0.0,
         };
-        assert_eq!(c.at(10.0), (1e-2, 1.002));
+        assert_eq!(c.at(10.0, 5.0), (1e-2, 1.002));
+        let with_rate = TempCoupling {
+            rate_coeff: 0.5,
+            ..c
+        };
+        assert_eq!(with_rate.at(10.0, 0.02), (1e-2 + 1e-2, 1.002));
+    }
+
+    /// The rate of change is the profile's derivative: against a central difference.
+    #[test]
+    fn rate_is_the_profiles_derivative() {
+        let p = TemperatureProfile {
+            initial: 20.0,
+            warmup: Some(Warmup {
+                rise: 6.0,
+                tau: 300.0,
+            }),
+            ramp: -1e-3,
+            cycle: Some(Cycle {
+                amplitude: 1.5,
+                period: 900.0,
+            }),
+        };
+        for t in [0.0, 10.0, 299.0, 1234.5, 7200.0] {
+            let h = 1e-3;
+            let numeric = (p.at(t + h) - p.at(t - h)) / (2.0 * h);
+            assert!(
+                (p.rate_at(t) - numeric).abs() < 1e-8,
+                "t = {t}: {} against {numeric}",
+                p.rate_at(t)
+            );
+        }
+        assert_eq!(TemperatureProfile::default().rate_at(5.0), 0.0);
     }
 }

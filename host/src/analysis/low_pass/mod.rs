@@ -330,6 +330,22 @@ impl LowPass {
         folded_power(&self.chain, self.decimation, freq_hz) / self.dc_folded_power
     }
 
+    /// The power gain of the filter alone at `freq_hz`, relative to DC: what a spectral line
+    /// at that frequency keeps of its power (one frequency, so no alias folds into it, as
+    /// white noise's do in [`LowPass::power_gain`]).
+    pub fn line_power_gain(&self, freq_hz: f64) -> f64 {
+        self.chain.power(freq_hz) / self.chain.power(0.0)
+    }
+
+    /// The white density at the filter's input, u/sqrt(Hz), sampled at the filter's own rate
+    /// (the simulator's `noise_density` for a chain at that rate), whose output has the
+    /// long-tau Allan coefficient `n_density`: `n_density / sqrt(sum_j |H(j f_s)|^2)`, the
+    /// folding of [`crate::sim::chain`] undone. Per-sample sigma `sigma = N_in sqrt(f_i)` at
+    /// the internal rate f_i gives output N `sigma * gain`, so `N_in = N / (gain sqrt(f_i))`.
+    pub fn input_density(&self, n_density: f64) -> f64 {
+        n_density / (self.gain * self.chain.rate_hz().sqrt())
+    }
+
     /// `samples` output samples of white rate noise whose long-tau Allan coefficient is
     /// `n_density` (u/sqrt(Hz)), through this filter: white noise at the internal rate, the
     /// filter, every D-th sample, as [`crate::sim::chain`] does it. The filter runs for one

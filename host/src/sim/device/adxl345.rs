@@ -81,10 +81,10 @@ impl AccelChain {
             terms.n *= factor;
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             rng.set_stream(i as u64);
-            AxisChain::new(terms, &design, duration_s, rng)
+            AxisChain::new(terms, &design, duration_s, rng).with_lines(&model.accel.lines)
         });
         AccelChain {
-            model: *model,
+            model: model.clone(),
             axes,
             rate_hz,
             n: 0,
@@ -94,9 +94,15 @@ impl AccelChain {
     /// The next output sample in m/s^2.
     pub fn next_sample(&mut self) -> [f64; 3] {
         let t = self.n as f64 / self.rate_hz;
-        let delta = self.model.temperature.profile.at(t) - self.model.temperature.reference;
+        let profile = &self.model.temperature.profile;
+        let delta = profile.at(t) - self.model.temperature.reference;
         let input = TrueInput::at_rest(self.model.gravity, STANDARD_GRAVITY);
-        let signal = deterministic(&self.model.accel, input.specific_force, delta);
+        let signal = deterministic(
+            &self.model.accel,
+            input.specific_force,
+            delta,
+            profile.rate_at(t),
+        );
         let index = self.n * OVERSAMPLING;
         self.n += 1;
         [0, 1, 2].map(|i| self.axes[i].advance_to(index, signal[i]))

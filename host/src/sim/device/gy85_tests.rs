@@ -30,7 +30,7 @@ fn model(gyro_n: f64, accel_n: f64) -> ImuModel {
 
 fn gy85(model: ImuModel) -> SimBus {
     SimBus::new(vec![
-        BusChip::Itg3200(SimItg3200::new(model, 1)),
+        BusChip::Itg3200(SimItg3200::new(model.clone(), 1)),
         BusChip::Adxl345(SimAdxl345::new(model, 2)),
     ])
 }
