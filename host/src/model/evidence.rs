@@ -442,7 +442,8 @@ pub fn with_random_walks(columns: &[Column]) -> Vec<Column> {
 /// chi-square distributed in the classical case. So the simulated values (clamped at 0) are
 /// matched by a scaled chi-square `s chi2_k` with the same mean and variance
 /// (Satterthwaite, 1946: `k = 2 mean^2 / var`, `s = var / (2 mean)`), and `p = P(s chi2_k >
-/// measured)`. `z` is the standard normal quantile of `1 - p`. The line view's p is at least
+/// measured)`. `z` is the standard normal quantile of `1 - p` (infinite at a p of 0 or 1,
+/// null in JSON). The line view's p is at least
 /// the detector's own family-wise p-value ([`line_p_value`]): when no realisation shows a
 /// line, the measured line stands on the detector's false-alarm control.
 #[derive(Debug, Clone, Serialize)]
@@ -571,9 +572,14 @@ pub fn stronger_of_two(a: Evidence, b: Evidence) -> Evidence {
 /// The standard normal quantile of `1 - p`, clamped where it runs out of double precision
 /// (p below 1e-300) and, symmetrically, where p is 1.
 fn standard_quantile(p: f64) -> f64 {
-    Normal::standard()
-        .inverse_cdf((1.0 - p).clamp(1e-300, 1.0 - 1e-300))
-        .clamp(-40.0, 40.0)
+    if p >= 1.0 {
+        return f64::NEG_INFINITY;
+    }
+    if p <= 0.0 {
+        return f64::INFINITY;
+    }
+    // The upper tail's quantile from p itself keeps a p below 1e-16 finite.
+    -Normal::standard().inverse_cdf(p)
 }
 
 /// `P(s chi2_k > statistic)` for the scaled chi-square with the mean and variance of the

@@ -248,38 +248,46 @@ impl Effect {
 
     /// In words and numbers (4 significant digits), `u` the channel's unit.
     pub fn describe(&self, u: &str) -> String {
+        use crate::report::sig;
         match *self {
-            Effect::GaussMarkov { tau_c, sigma } => {
-                format!("Gauss-Markov, tau_c = {tau_c:.4} s, sigma = {sigma:.4e} {u}")
-            }
+            Effect::GaussMarkov { tau_c, sigma } => format!(
+                "Gauss-Markov, tau_c = {} s, sigma = {} {u}",
+                sig(tau_c, 4),
+                sig(sigma, 4)
+            ),
+            // A frequency counted over many cycles is known to more digits than the rest.
             Effect::Sinusoid {
                 freq_hz,
                 amplitude,
                 width_hz,
             } => format!(
-                "spectral line, f = {freq_hz:.5} Hz, amplitude = {amplitude:.4e} {u}, width = {width_hz:.3} Hz"
+                "spectral line, f = {} Hz, amplitude = {} {u}, width = {} Hz",
+                sig(freq_hz, 5),
+                sig(amplitude, 4),
+                sig(width_hz, 3)
             ),
             Effect::Temperature { coeff, rate_coeff } => format!(
-                "temperature sensitivity, {coeff:.4e} {u}/degC and {rate_coeff:.4e} {u}/(degC/s)"
+                "temperature sensitivity, {} {u}/degC and {} {u}/(degC/s)",
+                sig(coeff, 4),
+                sig(rate_coeff, 4)
             ),
-            Effect::RateRamp { slope } => format!("rate ramp, R = {slope:.4e} {u}/s"),
-            Effect::Quantization { q } => format!("quantization, Q = {q:.4e} {u} s"),
-            Effect::BiasInstability { b } => format!("bias instability, B = {b:.4e} {u}"),
+            Effect::RateRamp { slope } => format!("rate ramp, R = {} {u}/s", sig(slope, 4)),
+            Effect::Quantization { q } => format!("quantization, Q = {} {u} s", sig(q, 4)),
+            Effect::BiasInstability { b } => format!("bias instability, B = {} {u}", sig(b, 4)),
             Effect::RateRandomWalk { k } => {
-                format!("rate random walk, K = {k:.4e} {u} sqrt(Hz)")
+                format!("rate random walk, K = {} {u} sqrt(Hz)", sig(k, 4))
             }
-            Effect::LowPass { cutoff_hz, shape } => {
-                format!(
-                    "low-pass filter (the sensor's own): {}, -3 dB at {cutoff_hz:.4} Hz",
-                    shape.describe()
-                )
-            }
+            Effect::LowPass { cutoff_hz, shape } => format!(
+                "low-pass filter (the sensor's own): {}, -3 dB at {} Hz",
+                shape.describe(),
+                sig(cutoff_hz, 4)
+            ),
         }
     }
 }
 
 /// `effect` in words, with the standard errors and intervals of its parameters where its
-/// `evidence` gives them: `rate ramp, R = -2.8000e-8 rad/s/s (standard error: slope 4.1e-9)`,
+/// `evidence` gives them: `rate ramp, R = -2.800e-8 rad/s/s (standard error: slope 4.1e-9)`,
 /// `Gauss-Markov ... (68.3 % interval: sigma [2.63e-5, 3.63e-5], tau_c [30.0, 57.7])`.
 fn described(effect: &Effect, evidence: &Evidence, unit: &str) -> String {
     let mut words = effect.describe(unit);
@@ -287,7 +295,7 @@ fn described(effect: &Effect, evidence: &Evidence, unit: &str) -> String {
         let errors: Vec<String> = evidence
             .standard_errors
             .iter()
-            .map(|(name, sd)| format!("{name} {sd:.2e}"))
+            .map(|(name, sd)| format!("{name} {}", crate::report::sig(*sd, 2)))
             .collect();
         words = format!("{words} (standard error: {})", errors.join(", "));
     }
@@ -418,12 +426,12 @@ impl std::fmt::Display for Stop {
         match self {
             Stop::NothingStandsOut { best: Some(e) } => write!(
                 f,
-                "no further effect stands out of the simulated spread (strongest: {} in the {}, p = {:.3e}, z = {:.2}; naming needs p < {:.2e}{})",
+                "no further effect stands out of the simulated spread (strongest: {} in the {}, p = {}, z = {}; naming needs p < {}{})",
                 e.candidate,
                 e.view.describe(),
-                e.p_value,
-                e.z,
-                e.p_needed,
+                report::p_text(e.p_value),
+                report::z_text(e.z),
+                report::p_text(e.p_needed),
                 if e.monte_carlo {
                     ", the Monte Carlo count of its draws"
                 } else {

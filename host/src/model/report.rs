@@ -218,6 +218,21 @@ pub fn document(o: &Outcome) -> Value {
     })
 }
 
+/// A p-value with 3 significant digits (`1` when nothing in the record exceeds the noise).
+pub(super) fn p_text(p: f64) -> String {
+    if p >= 1.0 { "1".to_string() } else { sig(p, 3) }
+}
+
+/// A z with 2 decimals; `-` where it is infinite: a p of 1 (the view found nothing above
+/// the noise) or of 0 (beyond double precision), which JSON also writes as null.
+pub(super) fn z_text(z: f64) -> String {
+    if z.is_finite() {
+        format!("{z:.2}")
+    } else {
+        "-".to_string()
+    }
+}
+
 /// The evidence of one round as aligned rows: candidate, view, measured statistic, the
 /// simulated mean +- sd and maximum, how many simulations they come from, p, z, and the
 /// verdict.
@@ -238,8 +253,8 @@ fn evidence_rows(evidence: &[Evidence], named: Option<&Step>, u: &str) -> String
                 format!("{} +- {}", sig(e.sim_mean, 3), sig(e.sim_sd, 3)),
                 sig(e.sim_max, 3),
                 e.simulations.to_string(),
-                format!("{:.2e}", e.p_value),
-                format!("{:.2}", e.z),
+                p_text(e.p_value),
+                z_text(e.z),
                 verdict.to_string(),
             ]
         })
@@ -426,7 +441,7 @@ fn evidence_html(page: &mut String, evidence: &[Evidence], named: Option<&Step>,
         };
         let _ = writeln!(
             page,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.2e}</td><td>{:.2}</td><td>{verdict}</td></tr>",
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{verdict}</td></tr>",
             escape(
                 &e.effect
                     .map_or_else(|| format!("{}: none found", e.candidate), |x| x.describe(u))
@@ -437,16 +452,18 @@ fn evidence_html(page: &mut String, evidence: &[Evidence], named: Option<&Step>,
             sig(e.sim_sd, 3),
             sig(e.sim_max, 3),
             e.simulations,
-            e.p_value,
-            e.z
+            p_text(e.p_value),
+            z_text(e.z)
         );
     }
     page.push_str("</table>\n");
 }
 
+/// The panel as a figure whose own title says what the panel shows, so that the panel's
+/// caption (the step and its Allan gap) is not printed twice.
 fn figure(page: &mut String, p: Panel) -> Result<(), plot::PlotError> {
     let svg = plot::svg_string(&Figure {
-        title: p.title.clone(),
+        title: "measured against the model's simulations".into(),
         panels: vec![p],
     })?;
     let _ = write!(page, "<div class=\"svg\">{svg}</div>");

@@ -13,7 +13,7 @@ use std::fmt::Write;
 /// The stylesheet every report page shares.
 pub const STYLE: &str = "body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}\
     table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .6em;text-align:right}\
-    th{background:#f3f3f3}td{white-space:nowrap}td:first-child,th:first-child{text-align:left}.svg svg{max-width:100%;height:auto}\
+    th{background:#f3f3f3}td{white-space:nowrap}td:first-child,th:first-child{text-align:left}td:first-child{white-space:normal}.svg svg{max-width:100%;height:auto}\
     pre{background:#f7f7f7;padding:1em;overflow-x:auto}.warn{color:#a40}";
 
 pub fn page(
