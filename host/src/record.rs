@@ -182,11 +182,64 @@ impl Record {
             channels,
         })
     }
+
+    /// Leave out the channels without noise — constant over the whole record: a dead axis, a
+    /// temperature that never changed a count, a simulated group without noise — so that an
+    /// analysis of every channel analyses the others; one warning per channel left out. When
+    /// every channel is constant none is left out, and the analysis then says why it cannot
+    /// start.
+    pub fn leave_out_constant(&mut self) -> Vec<String> {
+        let constant = |c: &Channel| {
+            c.values.first().is_some_and(|v0| v0.is_finite())
+                && c.values.iter().all(|v| *v == c.values[0])
+        };
+        if self.channels.iter().all(constant) {
+            return Vec::new();
+        }
+        let (gone, kept): (Vec<Channel>, Vec<Channel>) = std::mem::take(&mut self.channels)
+            .into_iter()
+            .partition(constant);
+        self.channels = kept;
+        gone.iter()
+            .map(|c| {
+                format!(
+                    "channel '{}' is constant ({} for all {} samples): left out, it has no noise to analyse",
+                    c.name,
+                    c.values[0],
+                    c.values.len()
+                )
+            })
+            .collect()
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn constant_channels_are_left_out_with_a_warning_unless_all_are() {
+        let channel = Channel::named;
+        let mut record = Record {
+            source: "r".into(),
+            rate_hz: 10.0,
+            channels: vec![
+                channel("gx", vec![0.1, -0.2, 0.3]),
+                channel("ax", vec![0.0; 3]),
+                channel("temp", vec![25.5; 3]),
+            ],
+        };
+        let warnings = record.leave_out_constant();
+        assert_eq!(record.names(), ["gx"]);
+        assert_eq!(warnings.len(), 2);
+        assert!(warnings[1].contains("'temp' is constant (25.5 for all 3 samples)"));
+        let mut quiet = Record {
+            channels: vec![channel("ax", vec![1.0; 3])],
+            ..record
+        };
+        assert!(quiet.leave_out_constant().is_empty());
+        assert_eq!(quiet.names(), ["ax"]);
+    }
 
     #[test]
     fn names_map_to_quantities() {

@@ -307,6 +307,57 @@ fn numpy_input_with_names() {
     assert_eq!(doc["channels"][0]["n"], 2000);
 }
 
+/// A record with a channel that never changes (a dead axis, a temperature that never moved a
+/// count) is analysed without it, and says so on stderr and in the JSON's input warnings;
+/// asked for by name, the channel is an error.
+#[test]
+fn a_constant_channel_is_left_out_of_the_others_analysis() {
+    let tmp = scratch();
+    let path = tmp.path().join("dead.csv");
+    let mut next = uniform(7);
+    let rows: String = (0..400)
+        .map(|_| format!("{},0,25.5\n", next() - 0.5))
+        .collect();
+    std::fs::write(&path, format!("gx,ax,temp\n{rows}")).unwrap();
+    let out = run(&[
+        "analyze",
+        path.to_str().unwrap(),
+        "--rate",
+        "10",
+        "--json",
+        "-",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let doc = json_of(&out);
+    let names: Vec<&str> = doc["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["gx"]);
+    let warnings = doc["input"]["warnings"].to_string();
+    assert!(
+        warnings.contains("'ax' is constant (0 for all 400 samples): left out"),
+        "{warnings}"
+    );
+    assert!(stderr(&out).contains("'temp' is constant (25.5 for all 400 samples)"));
+    let named = run(&[
+        "analyze",
+        path.to_str().unwrap(),
+        "--rate",
+        "10",
+        "--column",
+        "ax",
+    ]);
+    assert!(!named.status.success());
+    assert!(
+        stderr(&named).contains("channel 'ax' is constant"),
+        "{}",
+        stderr(&named)
+    );
+}
+
 #[test]
 fn bad_inputs_get_clear_errors() {
     let cases: [(&str, &str, &[&str], &str); 6] = [

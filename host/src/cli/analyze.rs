@@ -384,10 +384,15 @@ pub fn analyse(loaded: Loaded, args: &AnalysisArgs) -> Result<Analysed> {
     let Loaded {
         record,
         settings,
-        report: read,
+        report: mut read,
         ..
     } = loaded;
     let mut record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
+    if args.columns.is_empty() {
+        let left_out = record.leave_out_constant();
+        stored::print_warnings(&left_out);
+        read.warnings.extend(left_out);
+    }
     if let Some(segment) = args.psd_segment {
         check_psd_segment(segment, Some(record.len()))?;
     }
