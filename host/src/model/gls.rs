@@ -400,13 +400,17 @@ impl Estimator {
             .collect();
         let y = self.blocks.means(y);
         // Twice the drop of the plain likelihood's minimum when the tested columns join,
-        // the largest over the designs.
+        // the largest over the designs. The first design must be testable; a later one whose
+        // columns are degenerate (a temperature channel that never changed, or that moved
+        // only as a straight line in time) is passed over rather than voiding the test.
         let ratio = |y: &[f64], start: [f64; 2]| -> Option<f64> {
-            means.iter().try_fold(0.0f64, |most, m| {
+            let drop = |m: &Means| -> Option<f64> {
                 let (_, without) = self.likeliest(&m.without, y, start, Likelihood::Plain)?;
                 let (_, with) = self.likeliest(&m.with, y, start, Likelihood::Plain)?;
-                Some(most.max(2.0 * (without - with)))
-            })
+                Some(2.0 * (without - with))
+            };
+            let first = drop(means.first()?)?;
+            Some(means[1..].iter().filter_map(drop).fold(first, f64::max))
         };
         let statistic = ratio(&y, self.start)?;
         let (levels, _) = self.likeliest(
@@ -988,6 +992,34 @@ mod tests {
             assert!(b >= s, "{both:?} {single:?}");
         }
         assert!(both.null.iter().zip(&single.null).any(|(b, s)| b > s));
+    }
+
+    /// A later design whose columns are degenerate (a temperature channel that never changed
+    /// is a column of zeros once centred) is passed over: the test is the first design's,
+    /// on the record and on every draw, instead of no test at all.
+    #[test]
+    fn a_degenerate_design_beside_a_testable_one_is_passed_over() {
+        let case = ramp_case();
+        let (n, time, estimator) = (case.n, &case.time, &case.estimator);
+        let alone = vec![vec![1.0; n], time.clone()];
+        let flat = vec![vec![1.0; n], time.clone(), vec![0.0; n]];
+        let mut y = series(case.truth, case.rate, n, 7);
+        y.iter_mut().zip(time).for_each(|(v, t)| *v += 1e-4 * t);
+        let one = Design {
+            columns: &alone,
+            tested: &[1],
+        };
+        let degenerate = Design {
+            columns: &flat,
+            tested: &[1],
+        };
+        assert!(estimator.test_designs(&[degenerate], &y, 4, 5).is_none());
+        let single = estimator.test_designs(&[one], &y, 16, 5).unwrap();
+        let both = estimator
+            .test_designs(&[one, degenerate], &y, 16, 5)
+            .expect("the first design is testable");
+        assert_eq!(both.statistic, single.statistic);
+        assert_eq!(both.null, single.null);
     }
 
     #[test]

@@ -464,6 +464,8 @@ pub struct Outcome {
     pub baseline_fit: fit::NoiseFit,
     /// The temperature channel used, if any.
     pub temperature: Option<String>,
+    /// Why the record's temperature channel was not used, where it was not.
+    pub temperature_note: Option<String>,
     pub initial: Comparison,
     /// The candidates' evidence against the baseline.
     pub initial_evidence: Vec<Evidence>,
@@ -564,7 +566,20 @@ pub fn run(
     settings: &Settings,
 ) -> Result<Outcome, ModelError> {
     let channel = pick(record, column)?;
-    let temp_channel = pick_temperature(record, temp_column)?;
+    let picked_temperature = pick_temperature(record, temp_column)?;
+    // A temperature that never changed explains nothing and makes the regression's columns
+    // degenerate: the coupling is not a candidate then, and the outcome says why.
+    let temperature_note = picked_temperature
+        .filter(|t| t.values.iter().all(|v| *v == t.values[0]))
+        .map(|t| {
+            format!(
+                "temperature channel '{}' is constant ({} for all {} samples): the temperature coupling is not tried",
+                t.name,
+                t.values[0],
+                t.values.len()
+            )
+        });
+    let temp_channel = picked_temperature.filter(|_| temperature_note.is_none());
     // The baseline is fitted to the record without its spectral lines: a strong tone would
     // otherwise become quantization noise or a roll-off, and the lines are named as steps.
     let line_free = pipeline::without_lines(&channel.values, record.rate_hz);
@@ -767,6 +782,7 @@ pub fn run(
         baseline,
         baseline_fit: fitted,
         temperature: temp_channel.map(|t| t.name.clone()),
+        temperature_note,
         initial,
         initial_evidence,
         steps,

@@ -199,6 +199,7 @@ pub fn document(o: &Outcome) -> Value {
         "samples": o.n,
         "realisations": o.realisations,
         "temperature_channel": o.temperature,
+        "temperature_note": o.temperature_note,
         "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance; for a spectral line, at least the line detector's own family-wise p-value) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations); a ramp or temperature candidate with such a p-value, above every draw or not, is decided by the Monte Carlo p-value (1 + draws at or beyond its statistic) / (draws + 1) of enough bootstrap draws that the threshold lies {MONTE_CARLO_EXCEEDANCES} draws deep in their tail"),
         "gap_definition": "gap = RMS over the measured oadev taus of z, z = (ln ADEV_measured - mean ln ADEV_simulated) / std ln ADEV_simulated; |z| > 2 marks a disagreeing tau",
         "measured": {"tau": o.measured.tau, "adev": o.measured.dev},
@@ -233,6 +234,16 @@ pub(super) fn z_text(z: f64) -> String {
     }
 }
 
+/// A summary of the simulated values, or `-` where the view drew none (its test could not
+/// run on this record).
+fn simulated(e: &Evidence, text: String) -> String {
+    if e.simulations == 0 {
+        "-".to_string()
+    } else {
+        text
+    }
+}
+
 /// The evidence of one round as aligned rows: candidate, view, measured statistic, the
 /// simulated mean +- sd and maximum, how many simulations they come from, p, z, and the
 /// verdict.
@@ -250,8 +261,8 @@ fn evidence_rows(evidence: &[Evidence], named: Option<&Step>, u: &str) -> String
                     .map_or_else(|| format!("{}: none found", e.candidate), |x| x.describe(u)),
                 e.view.describe().to_string(),
                 sig(e.statistic, 4),
-                format!("{} +- {}", sig(e.sim_mean, 3), sig(e.sim_sd, 3)),
-                sig(e.sim_max, 3),
+                simulated(e, format!("{} +- {}", sig(e.sim_mean, 3), sig(e.sim_sd, 3))),
+                simulated(e, sig(e.sim_max, 3)),
                 e.simulations.to_string(),
                 p_text(e.p_value),
                 z_text(e.z),
@@ -345,6 +356,9 @@ pub fn table(o: &Outcome) -> String {
             .map_or(String::new(), |t| format!(", temperature channel {t}")),
         o.realisations
     );
+    if let Some(note) = &o.temperature_note {
+        let _ = writeln!(s, "{note}");
+    }
     let _ = writeln!(s, "baseline: {}", model_line(&o.baseline, u));
     let _ = writeln!(
         s,
@@ -448,9 +462,9 @@ fn evidence_html(page: &mut String, evidence: &[Evidence], named: Option<&Step>,
             ),
             e.view.describe(),
             sig(e.statistic, 4),
-            sig(e.sim_mean, 3),
-            sig(e.sim_sd, 3),
-            sig(e.sim_max, 3),
+            simulated(e, sig(e.sim_mean, 3)),
+            simulated(e, sig(e.sim_sd, 3)),
+            simulated(e, sig(e.sim_max, 3)),
             e.simulations,
             p_text(e.p_value),
             z_text(e.z)

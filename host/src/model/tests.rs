@@ -297,6 +297,28 @@ fn model_toml_is_the_model_for_the_simulator() {
     );
 }
 
+/// A temperature channel that never changed (a simulated sensor at a constant temperature, a
+/// reading that never moved a count) is not a regressor: the outcome says so, and the
+/// workflow runs exactly as on the record without it, its ramp test alive (on a record with
+/// a ramp the family names at this size).
+#[test]
+fn a_constant_temperature_channel_is_set_aside() {
+    let hidden = families::generate(Kind::Ramp, CI_SHAPE, 1);
+    let mut with_temp = hidden.record.clone();
+    let n = with_temp.channels[0].values.len();
+    with_temp
+        .channels
+        .push(crate::record::Channel::named("temp", vec![25.5; n]));
+    let plain = run(&hidden.record, Some("gx"), None, &settings()).unwrap();
+    let o = run(&with_temp, Some("gx"), None, &settings()).unwrap();
+    let note = o.temperature_note.as_deref().unwrap_or_default();
+    assert!(note.contains("'temp' is constant (25.5 for all"), "{note}");
+    assert_eq!(o.temperature, None);
+    let kinds = |o: &Outcome| o.steps.iter().map(|s| s.effect.kind()).collect::<Vec<_>>();
+    assert_eq!(kinds(&o), kinds(&plain));
+    assert!(kinds(&o).contains(&"rate_ramp"), "{:?}", kinds(&o));
+}
+
 /// Every kind on three seeds at CI size (1 h at 20 Hz, shorter and slower than the study's
 /// 3 h at 50 Hz, so every effect is weaker against the noise): at least five sixths of the
 /// 33 records named exactly right (29 measured: a Gauss-Markov process of 36-108 s is found
