@@ -131,9 +131,9 @@ pub fn model_toml(quantity: Quantity, model: &Model) -> String {
     if let Some(lp) = low_pass {
         let _ = writeln!(
             out,
-            "# The sensor's low-pass filter ({}; -3 dB at {} Hz) is not a key: `imunoise simulate`\n\
-             # applies the DLPF its --bandwidth selects. noise_density and the lines' amplitudes\n\
-             # are at the filter's input; at its output N = {} (the model's).",
+            "# The sensor's low-pass filter: {}; -3 dB at {} Hz. It is not a key:\n\
+             # `imunoise simulate` applies the DLPF its --bandwidth selects. noise_density and\n\
+             # the lines' amplitudes are at the filter's input; at its output N = {} (the model's).",
             lp.filter,
             sig(lp.cutoff_hz, 4),
             sig(t.n, 4)
