@@ -201,16 +201,16 @@ impl Record {
             .partition(constant);
         self.channels = kept;
         gone.iter()
-            .map(|c| {
-                format!(
-                    "channel '{}' is constant ({} for all {} samples): left out, it has no noise to analyse",
-                    c.name,
-                    c.values[0],
-                    c.values.len()
-                )
-            })
+            .map(|c| left_out_as_constant(&c.name, c.values[0], c.values.len()))
             .collect()
     }
+}
+
+/// The warning for a channel left out because it never changed.
+pub fn left_out_as_constant(name: &str, value: f64, samples: usize) -> String {
+    format!(
+        "channel '{name}' is constant ({value} for all {samples} samples): left out, it has no noise to analyse"
+    )
 }
 
 #[cfg(test)]

@@ -179,6 +179,26 @@ impl Bounded {
         Ok(())
     }
 
+    /// Leave out the channels that never changed, once every row has been fed, as
+    /// [`crate::record::Record::leave_out_constant`] does for a record in memory: one warning
+    /// per channel left out, none left out when every channel is constant (then
+    /// [`Bounded::finish`] says why the analysis cannot be made).
+    pub fn leave_out_constant(&mut self) -> Vec<String> {
+        if self.channels.iter().all(|c| !c.varies) {
+            return Vec::new();
+        }
+        let samples = self.samples;
+        let (gone, kept): (Vec<_>, Vec<_>) = std::mem::take(&mut self.channels)
+            .into_iter()
+            .partition(|c| !c.varies);
+        self.channels = kept;
+        gone.iter()
+            .map(|c| {
+                crate::record::left_out_as_constant(&c.name, c.first.unwrap_or(f64::NAN), samples)
+            })
+            .collect()
+    }
+
     /// The results, once every row has been fed.
     pub fn finish(self) -> Result<Vec<ChannelResult>, BoundedError> {
         if self.fed != self.samples {
@@ -407,6 +427,38 @@ mod tests {
             );
             assert!(matches!(s.psd_terms, Err(PsdFitError::NotComputed(_))));
         }
+    }
+
+    /// A channel that never changed is left out after the last row, with its warning, and
+    /// the others come out as without it; when every channel is constant none is left out.
+    #[test]
+    fn a_constant_channel_is_left_out_after_the_last_row() {
+        let names = [
+            ("gx".to_string(), Quantity::AngularRate),
+            ("temp".to_string(), Quantity::Temperature),
+        ];
+        let options = Options::default();
+        let gx = series(1000, 5);
+        let mut b = Bounded::new(&names, 1000, 100.0, &options).unwrap();
+        b.feed(&[&gx, &[25.5; 1000]]).unwrap();
+        assert_eq!(
+            b.leave_out_constant(),
+            [
+                "channel 'temp' is constant (25.5 for all 1000 samples): left out, it has no noise to analyse"
+            ]
+        );
+        let results = b.finish().unwrap();
+        let mut alone = Bounded::new(&names[..1], 1000, 100.0, &options).unwrap();
+        alone.feed(&[&gx]).unwrap();
+        let want = alone.finish().unwrap();
+        assert_eq!(results.len(), 1);
+        assert_eq!(results[0].name, "gx");
+        let n = |r: &ChannelResult| r.fit.as_ref().map(|f| f.n.value).ok();
+        assert_eq!(n(&results[0]), n(&want[0]));
+        let mut quiet = Bounded::new(&names[1..], 1000, 100.0, &options).unwrap();
+        quiet.feed(&[&[25.5; 1000]]).unwrap();
+        assert!(quiet.leave_out_constant().is_empty());
+        assert!(quiet.finish().is_err());
     }
 
     /// A non-finite sample is the pipeline's error, at its index in the record; a constant

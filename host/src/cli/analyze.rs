@@ -244,9 +244,15 @@ fn analyse_streamed(mut stream: NpyStream, args: &AnalysisArgs) -> Result<Analys
             .with_context(|| record.source.clone())?;
         bar.inc(columns[0].len() as u64);
     }
+    let mut report = stream.report.clone();
+    if args.columns.is_empty() {
+        let left_out = analysis.leave_out_constant();
+        stored::print_warnings(&left_out);
+        report.warnings.extend(left_out);
+    }
     let results = analysis.finish().with_context(|| record.source.clone())?;
     bar.finish_and_clear();
-    write_outputs(&record, options, &results, &stream.report, args)
+    write_outputs(&record, options, &results, &report, args)
 }
 
 /// How to read a record: shared by every command that takes one (analyze, replay, model).
