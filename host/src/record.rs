@@ -102,6 +102,14 @@ pub struct Channel {
 }
 
 impl Channel {
+    /// Whether every sample equals the first (a channel with no noise to analyse); false for
+    /// an empty channel.
+    pub fn is_constant(&self) -> bool {
+        self.values
+            .first()
+            .is_some_and(|v0| self.values.iter().all(|v| v == v0))
+    }
+
     /// A channel whose quantity is guessed from its name ([`Quantity::from_name`]).
     pub fn named(name: impl Into<String>, values: Vec<f64>) -> Channel {
         let name = name.into();
@@ -189,16 +197,12 @@ impl Record {
     /// every channel is constant none is left out, and the analysis then says why it cannot
     /// start.
     pub fn leave_out_constant(&mut self) -> Vec<String> {
-        let constant = |c: &Channel| {
-            c.values.first().is_some_and(|v0| v0.is_finite())
-                && c.values.iter().all(|v| *v == c.values[0])
-        };
-        if self.channels.iter().all(constant) {
+        if self.channels.iter().all(Channel::is_constant) {
             return Vec::new();
         }
         let (gone, kept): (Vec<Channel>, Vec<Channel>) = std::mem::take(&mut self.channels)
             .into_iter()
-            .partition(constant);
+            .partition(Channel::is_constant);
         self.channels = kept;
         gone.iter()
             .map(|c| left_out_as_constant(&c.name, c.values[0], c.values.len()))

@@ -384,7 +384,7 @@ fn validate(c: &Channel) -> Result<(), AnalysisError> {
             value: c.values[index],
         });
     }
-    if c.values.iter().all(|v| *v == c.values[0]) {
+    if c.is_constant() {
         return Err(AnalysisError::Constant {
             channel: c.name.clone(),
             value: c.values[0],

@@ -246,9 +246,7 @@ fn analyse_streamed(mut stream: NpyStream, args: &AnalysisArgs) -> Result<Analys
     }
     let mut report = stream.report.clone();
     if args.columns.is_empty() {
-        let left_out = analysis.leave_out_constant();
-        stored::print_warnings(&left_out);
-        report.warnings.extend(left_out);
+        warn_left_out(analysis.leave_out_constant(), &mut report);
     }
     let results = analysis.finish().with_context(|| record.source.clone())?;
     bar.finish_and_clear();
@@ -395,9 +393,7 @@ pub fn analyse(loaded: Loaded, args: &AnalysisArgs) -> Result<Analysed> {
     } = loaded;
     let mut record = record.select(&args.columns).map_err(anyhow::Error::msg)?;
     if args.columns.is_empty() {
-        let left_out = record.leave_out_constant();
-        stored::print_warnings(&left_out);
-        read.warnings.extend(left_out);
+        warn_left_out(record.leave_out_constant(), &mut read);
     }
     if let Some(segment) = args.psd_segment {
         check_psd_segment(segment, Some(record.len()))?;
@@ -411,6 +407,13 @@ pub fn analyse(loaded: Loaded, args: &AnalysisArgs) -> Result<Analysed> {
         .with_context(|| record.source.clone())?;
     bar.finish_and_clear();
     write_outputs(&record, options, &results, &read, args)
+}
+
+/// The warnings for channels left out of an analysis: on stderr now, and in the read
+/// report the outputs carry.
+fn warn_left_out(left_out: Vec<String>, report: &mut ReadReport) {
+    stored::print_warnings(&left_out);
+    report.warnings.extend(left_out);
 }
 
 /// Print and write everything `args` ask for from `results`; the JSON document.

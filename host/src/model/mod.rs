@@ -570,7 +570,7 @@ pub fn run(
     // A temperature that never changed explains nothing and makes the regression's columns
     // degenerate: the coupling is not a candidate then, and the outcome says why.
     let temperature_note = picked_temperature
-        .filter(|t| t.values.iter().all(|v| *v == t.values[0]))
+        .filter(|t| t.is_constant())
         .map(|t| {
             format!(
                 "temperature channel '{}' is constant ({} for all {} samples): the temperature coupling is not tried",

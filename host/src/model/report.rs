@@ -103,7 +103,8 @@ pub fn model_toml(quantity: Quantity, model: &Model) -> String {
         gm.insert("tau_c".into(), Toml::Float(g.tau_c));
         keys.insert("gauss_markov".into(), Toml::Table(gm));
     }
-    if model.temp_coeff.is_some() || model.temp_rate_coeff.is_some() {
+    let coupled = model.temp_coeff.is_some() || model.temp_rate_coeff.is_some();
+    if coupled {
         let mut c = Table::new();
         put(&mut c, "bias_coeff", model.temp_coeff.unwrap_or(0.0));
         put(&mut c, "rate_coeff", model.temp_rate_coeff.unwrap_or(0.0));
@@ -146,7 +147,7 @@ pub fn model_toml(quantity: Quantity, model: &Model) -> String {
              # bandwidth near or above half the --rate.\n",
         );
     }
-    if model.temp_coeff.is_some() || model.temp_rate_coeff.is_some() {
+    if coupled {
         out.push_str(
             "# The temperature coupling needs a [temperature] profile (initial, warmup, ramp,\n\
              # cycle), which the workflow does not estimate: it used the record's temperature.\n",
