@@ -312,6 +312,17 @@ pub fn solve4(mut g: [[f64; 4]; 4], mut h: [f64; 4]) -> Option<[f64; 4]> {
     Some(x)
 }
 
+/// The median of `v` (the upper of the two middle values for an even length), reordering
+/// `v`; `None` when it is empty.
+pub fn median_in_place(v: &mut [f64]) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let mid = v.len() / 2;
+    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(*m)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

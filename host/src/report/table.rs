@@ -126,7 +126,14 @@ fn low_pass_note(fit: &NoiseFit) -> Option<String> {
         LowPassSource::Fitted => {
             let [cutoff, lo, hi] = sig_interval(lp.cutoff_hz, lp.cutoff_lo_hz, lp.cutoff_hi_hz, 3);
             let shape = lp.shape.map_or("generic shape", |s| s.describe());
-            format!("low-pass fitted to the spectrum: cutoff {cutoff} Hz [{lo} .. {hi}] ({shape})")
+            let knee = if lp.shape_approximate {
+                "; its shape fitted to the knee only"
+            } else {
+                ""
+            };
+            format!(
+                "low-pass fitted to the spectrum: cutoff {cutoff} Hz [{lo} .. {hi}] ({shape}{knee})"
+            )
         }
     })
 }

@@ -79,6 +79,19 @@ pub const DETECTION_THRESHOLD: f64 = 25.0;
 /// For a fitted low-pass, the largest share by which the filter may lower the white Allan
 /// variance at the first tau fitted ([`LowPass::first_tau`]).
 pub const FITTED_SHAPE_SHARE: f64 = 0.05;
+/// [`FITTED_SHAPE_SHARE`] for a filter whose shape was fitted to the knee only
+/// ([`LowPass::shape_approximate`]): its stopband is not the filter's, so the fit starts
+/// where even a shape error of the filter's whole effect is within a few tenths of the
+/// white Allan variance's spread over a long record's first taus.
+pub const APPROXIMATE_SHAPE_SHARE: f64 = 0.01;
+/// For a filter fitted on its knee, the fit also starts no earlier than this many periods of
+/// its cutoff, whatever the fitted shape says, since the real filter's shape is not known:
+/// its effect on the white Allan variance, `3 tau0 M1 / tau` (module documentation), is
+/// then 0.95 % for a one-pole of that cutoff (`tau0 M1 = 1 / (4 pi f_c)`, the centroid of
+/// its autocovariance) and 0.92 % for a critically damped two-pole (0.97 of it). With the
+/// fitted shape's 1 % alone, the MPU-6050 accelerometer's 260 Hz DLPF at 1 kHz, whose lead
+/// zero makes it peak, gave N 5 % high with a reduced chi-square of 36.
+pub const APPROXIMATE_SHAPE_CYCLES: f64 = 25.0;
 /// Impulse responses are cut where they have decayed to this fraction of their peak.
 const DECAYED: f64 = 1e-13;
 /// Longest impulse response followed, internal samples (a filter slower than this is refused).
@@ -116,6 +129,11 @@ pub struct LowPass {
     /// not tell them apart.
     #[serde(skip)]
     pub comparable: Vec<(Shape, f64)>,
+    /// For a fitted filter, whether its shape was fitted to the spectrum's knee only
+    /// ([`KNEE_END_PER_RATE`]): the Allan fit then starts where
+    /// the filter lowers the white Allan variance by [`APPROXIMATE_SHAPE_SHARE`].
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub shape_approximate: bool,
     #[serde(skip)]
     chain: Chain,
     #[serde(skip)]
@@ -200,7 +218,7 @@ impl LowPass {
             return Err(LowPassError::BadRate(rate_hz));
         }
         let (min, max) = (
-            rate_hz * MIN_CUTOFF_PER_RATE / 4.0,
+            rate_hz * KNEE_MIN_CUTOFF_PER_RATE / 2.0,
             rate_hz * shape.max_cutoff_per_rate(),
         );
         if !(cutoff_hz >= min && cutoff_hz <= max) {
@@ -277,6 +295,7 @@ impl LowPass {
             gain: level.sqrt(),
             dc_folded_power,
             comparable: Vec::new(),
+            shape_approximate: false,
         })
     }
 
@@ -314,13 +333,23 @@ impl LowPass {
             return tau0;
         }
         let share = |m: usize| (1.0 - self.white_avar(m as f64 * tau0) * m as f64 * tau0).abs();
+        let allowed = if self.shape_approximate {
+            APPROXIMATE_SHAPE_SHARE
+        } else {
+            FITTED_SHAPE_SHARE
+        };
         // Beyond 2L lags the share falls as 3 tau0 M1 / tau (module documentation).
         let last = 2 * self.autocov.len() + 2;
         let mut first = last;
-        while first > 1 && share(first - 1) <= FITTED_SHAPE_SHARE {
+        while first > 1 && share(first - 1) <= allowed {
             first -= 1;
         }
-        first as f64 * tau0
+        let floor = if self.shape_approximate {
+            APPROXIMATE_SHAPE_CYCLES / self.cutoff_hz
+        } else {
+            0.0
+        };
+        (first as f64 * tau0).max(floor)
     }
 
     /// The power gain of the sampled chain at `freq_hz` (0 ..= f_s / 2), relative to DC: the
@@ -525,6 +554,26 @@ pub fn tone_leakage_hz(rate_hz: f64) -> f64 {
 
 /// Welch segment of the detection PSD (shorter for short records).
 pub const DETECT_SEGMENT: usize = 1024;
+/// A roll-off whose knee ends ([`KNEE_SHARE`]) below this share of the rate is fitted on its
+/// knee alone. Below it lies more than a decade of stopband, where the shapes differ most
+/// and a real filter may be none of them: the MPU-6050 DLPF's lead zero (`sim::dlpf`) makes
+/// its stopband fall as `f^-2` where the two-pole shapes fall as `f^-4`. Fitted over the
+/// whole band, the flicker and random-walk columns took that fall: for a 20 Hz DLPF at
+/// 1 kHz the best "filter" was a 240 Hz moving average, and the Allan fit put N at 0.
+pub const KNEE_END_PER_RATE: f64 = 0.125;
+/// A best fit whose reduced chi-square exceeds this (a Birge ratio of 2) leaves a roll-off
+/// no shape describes, wherever its knee ends: the knee's fit is taken.
+pub const POOR_SHAPE_FIT: f64 = 4.0;
+/// Welch segment of the knee's PSD: eight times the detection's, so that cutoffs down to
+/// [`KNEE_MIN_CUTOFF_PER_RATE`] keep bins below them.
+pub const KNEE_SEGMENT: usize = 8 * DETECT_SEGMENT;
+/// Lowest cutoff searched on the knee, in multiples of the rate.
+pub const KNEE_MIN_CUTOFF_PER_RATE: f64 = 1.0 / 512.0;
+/// Where the knee ends: the PSD fallen to this share of its plateau (-13 dB). Down to there
+/// the generic shapes agree on the cutoff; below it their stopbands differ.
+pub const KNEE_SHARE: f64 = 0.05;
+/// Bins whose median marks the knee's end.
+const KNEE_WINDOW: usize = 16;
 /// Fewest Welch segments worth a detection.
 const MIN_SEGMENTS: usize = 8;
 /// Fewest PSD bins fitted: four shapes and a cutoff need several bins each.
@@ -649,11 +698,96 @@ pub fn detect_outside(
         statistic: 0.0,
         reduced_chi2: f64::NAN,
     };
-    let Some(spectrum) = DetectionPsd::new(y, rate_hz, outside) else {
+    let Some(full) = DetectionPsd::new(y, rate_hz, outside, DETECT_SEGMENT, MIN_CUTOFF_PER_RATE)
+    else {
         return Ok(none);
     };
+    let mut knee = None;
+    let mut found = search(&full, rate_hz);
+    // A roll-off low in the band, or one no shape describes, is fitted again on its knee
+    // alone ([`DetectionPsd::knee`]), from a longer segment that reaches lower cutoffs.
+    let mut approximate = false;
+    if found.statistic >= threshold && found.chi2_best < found.white {
+        let poor = found.reduced > POOR_SHAPE_FIT;
+        // The whole band's own knee tells, without the longer segment, whether to look.
+        let low = full.knee_is_low(KNEE_SHARE);
+        if poor || low {
+            knee = DetectionPsd::new(y, rate_hz, outside, KNEE_SEGMENT, KNEE_MIN_CUTOFF_PER_RATE)
+                .and_then(|p| p.knee(KNEE_SHARE));
+        }
+        if let Some(knee) = &knee {
+            let again = search(knee, rate_hz);
+            // A knee high in the band replaces a poor fit only when it describes its own
+            // bins better.
+            if again.statistic >= threshold && (low || again.reduced < found.reduced) {
+                found = again;
+                approximate = true;
+            }
+        }
+    }
+    let mut detection = Detection {
+        low_pass: None,
+        best_cutoff_hz: (found.chi2_best < found.white).then_some(found.cutoff),
+        statistic: found.statistic,
+        reduced_chi2: found.reduced,
+    };
+    let (spectrum, shape, cutoff, chi2_best, scale) = (
+        found.spectrum,
+        found.shape,
+        found.cutoff,
+        found.chi2_best,
+        found.scale,
+    );
+    if found.statistic < threshold || chi2_best >= found.white || cutoff >= rate_hz / 2.0 {
+        return Ok(detection);
+    }
+    let z = Normal::standard().inverse_cdf(0.5 + confidence / 2.0);
+    // The cutoff's interval with the shape held: the shapes' cutoffs are not the same
+    // quantity where their knees differ.
+    let rise = |f: f64| (spectrum.chi2(Some((shape, f))) - chi2_best) / scale - z * z;
+    let lo_end = crossing(&rise, cutoff, found.lo);
+    let hi_end = crossing(&rise, cutoff, rate_hz * shape.max_cutoff_per_rate());
+    let mut low_pass = LowPass::generic(shape, cutoff, rate_hz)?.fitted(lo_end, hi_end);
+    low_pass.shape_approximate = approximate;
+    low_pass.comparable = found
+        .fitted
+        .iter()
+        .filter(|f| f.0 != shape && (f.2 - chi2_best) / scale <= z * z)
+        .map(|f| (f.0, f.1))
+        .collect();
+    detection.low_pass = Some(low_pass);
+    Ok(detection)
+}
+
+/// The best shape and cutoff of [`detect_outside`] on one detection PSD, with the evidence
+/// for it.
+struct Search<'a> {
+    spectrum: &'a DetectionPsd,
+    shape: Shape,
+    cutoff: f64,
+    /// The chosen shape's misfit at its cutoff, quantization free.
+    chi2_best: f64,
+    /// The misfit without a filter.
+    white: f64,
+    /// `HANN_BIN_CORRELATION` times the Birge ratio's square.
+    scale: f64,
+    /// Reduced chi-square of the best fit.
+    reduced: f64,
+    /// The likelihood-ratio statistic of the filter against none.
+    statistic: f64,
+    /// Every shape: (shape, best cutoff, misfit with quantization, misfit without).
+    fitted: Vec<(Shape, f64, f64, f64)>,
+    /// The lowest cutoff searched, Hz.
+    lo: f64,
+}
+
+/// The profile search of [`detect_outside`] on `spectrum` (its documentation).
+fn search(spectrum: &DetectionPsd, rate_hz: f64) -> Search<'_> {
     let white = spectrum.chi2(None);
-    let (lo, hi) = (rate_hz * MIN_CUTOFF_PER_RATE, rate_hz * MAX_CUTOFF_PER_RATE);
+    let (lo, hi) = (
+        rate_hz * spectrum.min_cutoff_per_rate,
+        rate_hz * MAX_CUTOFF_PER_RATE,
+    );
     let steps = ((hi / lo).log10() * GRID_PER_DECADE).ceil() as usize;
     let grid: Vec<f64> = (0..=steps)
         .map(|i| lo * (hi / lo).powf(i as f64 / steps as f64))
@@ -737,29 +871,18 @@ pub fn detect_outside(
         .find(|f| f.0 == shape)
         .map_or(least.2, |f| f.2);
     let statistic = (white - chi2_best).max(0.0) / scale;
-    let mut detection = Detection {
-        low_pass: None,
-        best_cutoff_hz: (chi2_best < white).then_some(cutoff),
+    Search {
+        spectrum,
+        shape,
+        cutoff,
+        chi2_best,
+        white,
+        scale,
+        reduced,
         statistic,
-        reduced_chi2: reduced,
-    };
-    if statistic < threshold || chi2_best >= white || cutoff >= rate_hz / 2.0 {
-        return Ok(detection);
+        fitted,
+        lo,
     }
-    let z = Normal::standard().inverse_cdf(0.5 + confidence / 2.0);
-    // The cutoff's interval with the shape held: the shapes' cutoffs are not the same
-    // quantity where their knees differ.
-    let rise = |f: f64| (spectrum.chi2(Some((shape, f))) - chi2_best) / scale - z * z;
-    let lo_end = crossing(&rise, cutoff, lo);
-    let hi_end = crossing(&rise, cutoff, rate_hz * shape.max_cutoff_per_rate());
-    let mut found = LowPass::generic(shape, cutoff, rate_hz)?.fitted(lo_end, hi_end);
-    found.comparable = fitted
-        .iter()
-        .filter(|f| f.0 != shape && (f.2 - chi2_best) / scale <= z * z)
-        .map(|f| (f.0, f.1))
-        .collect();
-    detection.low_pass = Some(found);
-    Ok(detection)
 }
 
 /// The record's Welch PSD over the bins the detection fits, with their EDF, and the known
@@ -776,11 +899,22 @@ struct DetectionPsd {
     /// cascades are evaluated at these same frequencies.
     aliases: Vec<Phasor>,
     dc_aliases: Vec<Phasor>,
+    /// The lowest cutoff searched on it, in multiples of the rate.
+    min_cutoff_per_rate: f64,
 }
 
 impl DetectionPsd {
-    fn new(y: &[f64], rate_hz: f64, outside: &Outside) -> Option<DetectionPsd> {
-        let mut segment = DETECT_SEGMENT;
+    /// The PSD from Welch segments of `segment` samples (fewer for a short record), for
+    /// cutoffs from `min_cutoff_per_rate` times the rate: its bins start a quarter of that
+    /// below.
+    fn new(
+        y: &[f64],
+        rate_hz: f64,
+        outside: &Outside,
+        segment: usize,
+        min_cutoff_per_rate: f64,
+    ) -> Option<DetectionPsd> {
+        let mut segment = segment;
         while segment > 64 && y.len() < segment * MIN_SEGMENTS / 2 {
             segment /= 2;
         }
@@ -794,7 +928,7 @@ impl DetectionPsd {
             detrend_mean: true,
         };
         let p = psd::welch(y, rate_hz, &options).ok()?;
-        let first = (segment / 256).max(2);
+        let first = ((segment as f64 * min_cutoff_per_rate / 4.0) as usize).max(2);
         let last = segment / 2 - 1;
         let known = |f: f64| outside.known.map_or(0.0, |k| k(f).max(0.0));
         let kept: Vec<usize> = (first..last)
@@ -823,6 +957,61 @@ impl DetectionPsd {
             dof: HANN_DOF_PER_SEGMENT * p.segments as f64,
             aliases,
             dc_aliases: alias_phasors(0.0, rate_hz, OVERSAMPLE).collect(),
+            min_cutoff_per_rate,
+        })
+    }
+
+    /// Where the PSD's knee ends: the first bin at which it has fallen to `share` of its
+    /// plateau (the median of its lowest three octaves), the fall read from the median of
+    /// [`KNEE_WINDOW`] bins so that one low bin does not end it; the bin count when it never
+    /// falls that far.
+    fn knee_end(&self, share: f64) -> Option<usize> {
+        let lowest = self.freq.first()?;
+        let mut plateau: Vec<f64> = self
+            .freq
+            .iter()
+            .zip(&self.density)
+            .filter(|(f, _)| **f < 8.0 * lowest)
+            .map(|(_, d)| *d)
+            .collect();
+        let plateau = numerics::median_in_place(&mut plateau)?;
+        Some(
+            (0..self.bins())
+                .find(|&i| {
+                    let mut window: Vec<f64> =
+                        self.density[i..(i + KNEE_WINDOW).min(self.bins())].to_vec();
+                    numerics::median_in_place(&mut window).is_some_and(|m| m < share * plateau)
+                })
+                .unwrap_or(self.bins()),
+        )
+    }
+
+    /// Whether the PSD's knee ([`DetectionPsd::knee_end`]) ends below
+    /// [`KNEE_END_PER_RATE`] times the rate.
+    fn knee_is_low(&self, share: f64) -> bool {
+        self.knee_end(share)
+            .and_then(|end| self.freq.get(end))
+            .is_some_and(|&f| f < KNEE_END_PER_RATE * self.rate_hz)
+    }
+
+    /// The PSD's bins up to its knee's end ([`DetectionPsd::knee_end`]); `None` when fewer
+    /// than [`MIN_BINS`] remain.
+    fn knee(&self, share: f64) -> Option<DetectionPsd> {
+        let end = self.knee_end(share)?;
+        if end < MIN_BINS {
+            return None;
+        }
+        let keep = |v: &[f64]| v[..end].to_vec();
+        Some(DetectionPsd {
+            rate_hz: self.rate_hz,
+            freq: keep(&self.freq),
+            density: keep(&self.density),
+            known: keep(&self.known),
+            has_known: self.known[..end].iter().any(|&k| k > 0.0),
+            dof: self.dof,
+            aliases: self.aliases[..end * OVERSAMPLE].to_vec(),
+            dc_aliases: self.dc_aliases.clone(),
+            min_cutoff_per_rate: self.min_cutoff_per_rate,
         })
     }
 
@@ -1201,6 +1390,63 @@ pub(crate) mod tests {
     /// The generic family finds its own cutoff: white noise through the two-pole at 20 Hz
     /// (200 Hz, 10 records of 100 s) is detected every time, and the 68.3 % interval of the
     /// cutoff contains 20 Hz in at least 4 of 10 (binomial(10, 0.683): P(<= 3) = 1 %).
+    /// The MPU-6050's DLPF far below Nyquist (gyro 20 Hz and 5 Hz, accelerometer 21 Hz, all
+    /// at 1 kHz): its lead zero's stopband is none of the shapes', and over the whole band
+    /// the flicker and random-walk columns took it (a 240 Hz "moving average" for the 20 Hz
+    /// filter, nothing below f_s / 64 for the 5 Hz one). And the accelerometer's 260 Hz row,
+    /// which peaks, fitted by no shape. Fitted on its knee, the cutoff is the filter's, and
+    /// the Allan fit from the approximate shape's first tau finds N within its interval's
+    /// reach (3 of its standard deviations, from the 68.3 % half-width).
+    #[test]
+    fn a_roll_off_low_in_the_band_is_fitted_on_its_knee() {
+        use crate::analysis::fit::{FitOptions, fit_deviation};
+        use crate::analysis::taus::{self, TauGrid};
+        let rate = 1000.0;
+        let n_density = 1.5e-4;
+        // SMPLRT_DIV 7 puts DLPF_CFG 0's 8 kHz internal rate at 1 kHz too.
+        for (cfg, div, sensor, bandwidth) in [
+            (DlpfCfg::Cfg4, 0, Sensor::Gyro, 20.0),
+            (DlpfCfg::Cfg6, 0, Sensor::Gyro, 5.0),
+            (DlpfCfg::Cfg4, 0, Sensor::Accel, 21.0),
+            (DlpfCfg::Cfg0, 7, Sensor::Accel, 260.0),
+        ] {
+            let settings = SensorSettings {
+                dlpf: cfg,
+                smplrt_div: div,
+                ..SensorSettings::default()
+            };
+            let chip = LowPass::mpu6050(&settings, sensor).expect("a DLPF");
+            let y = chip.white_through(n_density, 600_000, &mut ChaCha8Rng::seed_from_u64(7));
+            let found = detect(&y, rate, 0.683)
+                .unwrap()
+                .low_pass
+                .expect("a roll-off");
+            assert!(found.shape_approximate, "{cfg:?} {sensor:?}: {found:?}");
+            assert!(
+                (found.cutoff_hz / bandwidth - 1.0).abs() < 0.3,
+                "{cfg:?} {sensor:?}: {} Hz",
+                found.cutoff_hz
+            );
+            let phase = phase_from_rate(&y, 1.0 / rate);
+            let ms = taus::factors(
+                TauGrid::PerDecade(10),
+                allan::max_factor(Estimator::Oadev, phase.len()),
+            );
+            let d = allan::deviation(Estimator::Oadev, &phase, 1.0 / rate, &ms);
+            let options = FitOptions {
+                low_pass: Some(found.clone()),
+                ..FitOptions::default()
+            };
+            let fit = fit_deviation(&d, phase.len(), &options).unwrap();
+            let sd = (fit.n.hi - fit.n.lo) / 2.0;
+            assert!(
+                (fit.n.value - n_density).abs() < 3.0 * sd,
+                "{cfg:?} {sensor:?}: N {:?} against {n_density}",
+                fit.n
+            );
+        }
+    }
+
     #[test]
     fn detect_recovers_the_generic_cutoff() {
         let lp = LowPass::two_pole(20.0, 200.0).unwrap();
