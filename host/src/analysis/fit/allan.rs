@@ -593,12 +593,36 @@ fn q_bound(dev: &Deviation, first: usize, n_phase: usize) -> Option<f64> {
         .filter(|&i| dev.dev[i] > 0.0)
         .map(|i| {
             let edf = (ci::edf(dev.estimator, 0, dev.m[i], n_phase) / lags).max(1.0);
-            let upper = ChiSquared::new(edf).map_or(f64::INFINITY, |c| {
-                edf / c.inverse_cdf(1.0 - Q_BOUND_CONFIDENCE)
-            });
+            let upper = edf / chi_square_quantile(edf, 1.0 - Q_BOUND_CONFIDENCE);
             dev.tau[i] * (dev.dev[i] * dev.dev[i] * upper / 3.0).sqrt()
         })
+        // A bound that is not a number bounds nothing (and a negative NaN would sort first).
+        .filter(|q| q.is_finite())
         .min_by(f64::total_cmp)
+}
+
+/// The `p` quantile of chi-square with `dof` degrees of freedom: statrs' inversion, or where
+/// it fails (it returns NaN at 1 and 1.37 degrees of freedom for p = 0.001, which voided the
+/// Q bound of every record whose fit starts a thousand samples in), bisection of its CDF.
+fn chi_square_quantile(dof: f64, p: f64) -> f64 {
+    let Ok(chi2) = ChiSquared::new(dof) else {
+        return f64::NAN;
+    };
+    let exact = chi2.inverse_cdf(p);
+    if exact.is_finite() {
+        return exact;
+    }
+    // The CDF is increasing; its quantiles lie within (0, dof + 40 sqrt(dof) + 100).
+    let (mut lo, mut hi) = (0.0, dof + 40.0 * dof.sqrt() + 100.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if chi2.cdf(mid) < p {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 fn validate(tau: &[f64], avar: &[f64], edf: &[f64], opts: &FitOptions) -> Result<(), FitError> {
@@ -850,5 +874,32 @@ fn interval(theta: f64, sd: f64, z: f64, confidence: f64) -> Term {
         value,
         lo: lo.max(0.0).sqrt().min(value),
         hi: hi.sqrt().max(value),
+    }
+}
+
+#[cfg(test)]
+mod quantile_tests {
+    use super::*;
+
+    /// Against closed forms: chi-square(1) is a squared standard normal, so its p quantile
+    /// is `Phi^-1((1 + p) / 2)^2`; chi-square(2) is exponential with mean 2, `-2 ln(1 - p)`.
+    /// statrs' own inversion returns NaN at 1 degree of freedom for p = 0.001.
+    #[test]
+    fn chi_square_quantiles_match_closed_forms() {
+        for p in [0.001, 0.01, 0.5, 0.999] {
+            let z = Normal::standard().inverse_cdf(0.5 + p / 2.0);
+            let one = chi_square_quantile(1.0, p);
+            assert!(
+                (one / (z * z) - 1.0).abs() < 1e-6,
+                "p {p}: {one} against {}",
+                z * z
+            );
+            let two = chi_square_quantile(2.0, p);
+            let exact = -2.0 * (1.0 - p).ln();
+            assert!(
+                (two / exact - 1.0).abs() < 1e-6,
+                "p {p}: {two} against {exact}"
+            );
+        }
     }
 }

@@ -1438,6 +1438,14 @@ pub(crate) mod tests {
                 ..FitOptions::default()
             };
             let fit = fit_deviation(&d, phase.len(), &options).unwrap();
+            // No quantization was added: the shortest tau bounds Q (`3 Q^2 / tau^2` at most
+            // its Allan variance, here with a factor 2 to spare).
+            let q_most = d.tau[0] * (2.0 * d.dev[0] * d.dev[0] / 3.0).sqrt();
+            assert!(
+                fit.q.hi <= q_most,
+                "{cfg:?} {sensor:?}: Q {:?} against {q_most}",
+                fit.q
+            );
             let sd = (fit.n.hi - fit.n.lo) / 2.0;
             assert!(
                 (fit.n.value - n_density).abs() < 3.0 * sd,
