@@ -48,7 +48,8 @@ pub enum Kind {
     /// bins of the record's periodogram from the temperature cycle: closer, a sinusoid is
     /// indistinguishable from a coupling to the temperature's rate of change.
     SlowSinusoidAndTemperature,
-    /// The white noise through a low-pass filter of unknown cutoff (10-30 % of the rate).
+    /// The white noise through a low-pass filter of unknown cutoff (3-30 % of the rate,
+    /// log-uniform).
     LowPass,
     /// A low-pass filter as [`Kind::LowPass`] and a line as [`Kind::Tone`] where the filter
     /// passes at least a tenth of the power, its strength relative to the filtered white
@@ -246,7 +247,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         kind,
         Kind::LowPass | Kind::LowPassAndTone | Kind::LowPassAndRamp
     )
-    .then(|| shape.rate_hz * uniform(&mut rng, 0.1, 0.3));
+    .then(|| shape.rate_hz * log_uniform(&mut rng, 0.03, 0.3));
     let low_pass =
         cutoff_hz.map(|c| LowPass::two_pole(c, shape.rate_hz).expect("a cutoff below Nyquist"));
     let mut tone: Option<(f64, f64, f64)> = None;
@@ -255,10 +256,14 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         Kind::Tone | Kind::ToneAndRamp | Kind::LowPassAndTone | Kind::GaussMarkovAndTone
     ) {
         let passes = |f: f64| low_pass.as_ref().map_or(1.0, |lp| lp.power_gain(f));
-        let mut freq_hz = shape.rate_hz * uniform(&mut rng, 0.1, 0.45);
-        while passes(freq_hz) < 0.1 {
-            freq_hz = shape.rate_hz * uniform(&mut rng, 0.1, 0.45);
+        // Where the filter passes a tenth of the power: a low cutoff moves the lines' band
+        // below a tenth of the rate.
+        let mut top = 0.45 * shape.rate_hz;
+        while passes(top) < 0.1 {
+            top *= 0.99;
         }
+        let bottom = (0.1 * shape.rate_hz).min(0.5 * top);
+        let freq_hz = uniform(&mut rng, bottom, top);
         let width_hz = if rng.random::<f64>() < 0.3 {
             0.0
         } else {
