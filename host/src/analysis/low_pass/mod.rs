@@ -640,6 +640,13 @@ pub struct Detection {
 /// A low-pass is claimed when `Delta >= DETECTION_THRESHOLD` and the cutoff is below f_s / 2;
 /// a cutoff above Nyquist folds back almost flat, so it is reported as no roll-off. The
 /// interval is where the profile rises by at most z^2 in those units (z the normal quantile).
+///
+/// **The knee.** A claimed roll-off whose PSD falls to [`KNEE_SHARE`] of its plateau below
+/// [`KNEE_END_PER_RATE`] times the rate, or whose best fit has a reduced chi-square above
+/// [`POOR_SHAPE_FIT`], is searched again on its knee alone: the bins of a [`KNEE_SEGMENT`]
+/// Welch PSD up to that fall, cutoffs from [`KNEE_MIN_CUTOFF_PER_RATE`] times the rate. The
+/// knee's fit is taken (for a poor fit, when it describes its own bins better) and marked
+/// [`LowPass::shape_approximate`].
 pub fn detect(y: &[f64], rate_hz: f64, confidence: f64) -> Result<Detection, LowPassError> {
     detect_outside(
         y,
