@@ -53,6 +53,57 @@ pub fn nnls(g: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
     lawson_hanson(g, b, bnorm)
 }
 
+/// [`nnls`] of a design held column by column: `a` holds its p columns of `b.len()` rows
+/// one after another. Both are overwritten by the Householder reduction [`nnls`] makes,
+/// which on contiguous columns needs no row-by-row copy of the design.
+pub fn nnls_by_columns(a: &mut [f64], b: &mut [f64]) -> Vec<f64> {
+    let n = b.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    let p = a.len() / n;
+    let bnorm = b.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if n <= p {
+        let g: Vec<Vec<f64>> = (0..n)
+            .map(|i| (0..p).map(|j| a[j * n + i]).collect())
+            .collect();
+        return lawson_hanson(&g, b, bnorm);
+    }
+    for c in 0..p {
+        let (done, rest) = a.split_at_mut((c + 1) * n);
+        let v = &mut done[c * n + c..];
+        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm == 0.0 {
+            continue;
+        }
+        let alpha = if v[0] > 0.0 { -norm } else { norm };
+        v[0] -= alpha;
+        let vnorm2: f64 = v.iter().map(|x| x * x).sum();
+        if vnorm2 == 0.0 {
+            v[0] += alpha;
+            continue;
+        }
+        let reflect = |x: &mut [f64]| {
+            let s = 2.0 * v.iter().zip(x.iter()).map(|(a, b)| a * b).sum::<f64>() / vnorm2;
+            x.iter_mut().zip(v.iter()).for_each(|(x, a)| *x -= s * a);
+        };
+        for other in rest.chunks_exact_mut(n) {
+            reflect(&mut other[c..]);
+        }
+        reflect(&mut b[c..]);
+        // The reflection takes the column to `alpha` on the diagonal and 0 below it.
+        v[0] = alpha;
+    }
+    let r: Vec<Vec<f64>> = (0..p)
+        .map(|i| {
+            (0..p)
+                .map(|j| if j >= i { a[j * n + i] } else { 0.0 })
+                .collect()
+        })
+        .collect();
+    lawson_hanson(&r, &b[..p], bnorm)
+}
+
 /// `(R, c)` of a tall `G = Q R` (Householder) and `c` the first p entries of `Q^T b`: for
 /// every x, `||G x - b||^2 = ||R x - c||^2 + ||(Q^T b)[p..]||^2`, so a least-squares problem
 /// on `G`, constrained or not, has the same solution on `R`.
@@ -326,6 +377,44 @@ pub fn median_in_place(v: &mut [f64]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A design held column by column gives the solution of [`nnls`] on the same design held
+    /// row by row, on any subset of columns.
+    #[test]
+    fn a_design_by_columns_gives_the_nnls_solution() {
+        use rand::{Rng, SeedableRng, rngs::StdRng};
+        for seed in 0..20u64 {
+            let mut rng = StdRng::seed_from_u64(seed);
+            let rows: Vec<[f64; 4]> = (0..200)
+                .map(|i| {
+                    let f = 0.1 * 100f64.powf(i as f64 / 199.0);
+                    [1.0, 1.0 / f, 1.0 / (f * f), f * f / 100.0]
+                })
+                .collect();
+            let b: Vec<f64> = rows
+                .iter()
+                .map(|r| 0.5 * r[0] + 0.02 * r[2] + 0.3 * (rng.random::<f64>() - 0.5))
+                .collect();
+            for columns in [vec![0, 1, 2, 3], vec![0, 2], vec![1, 3], vec![2]] {
+                let g: Vec<Vec<f64>> = rows
+                    .iter()
+                    .map(|r| columns.iter().map(|&j| r[j]).collect())
+                    .collect();
+                let want = nnls(&g, &b);
+                let mut a: Vec<f64> = columns
+                    .iter()
+                    .flat_map(|&j| rows.iter().map(move |r| r[j]))
+                    .collect();
+                let got = nnls_by_columns(&mut a, &mut b.clone());
+                for (got, want) in got.iter().zip(&want) {
+                    assert!(
+                        (got - want).abs() <= 1e-9 * want.abs().max(1e-6),
+                        "seed {seed}, columns {columns:?}: {got} against {want}"
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn nnls_matches_a_hand_solved_case() {

@@ -225,6 +225,32 @@ fn biquad_parts(b: [f64; 3], a: [f64; 2], z: Complex<f64>) -> (Complex<f64>, Com
     (b[0] + z * b[1] + z2 * b[2], 1.0 + z * a[0] + z2 * a[1])
 }
 
+/// A [`Section::Boxcar`]'s `|H|^2` at the delay `z1` (`z^-1`), given `zm = z1^m` for its
+/// `m = floor(len)` whole taps.
+fn boxcar_power(len: f64, z1: Complex<f64>, zm: Complex<f64>) -> f64 {
+    let one = Complex::new(1.0, 0.0);
+    let below = (one - z1).norm_sqr();
+    if below < 1e-18 {
+        return 1.0;
+    }
+    // (whole + zm frac) (1 - z^-1), whole the geometric sum of the m whole taps.
+    let m = len.floor();
+    ((one - zm) + zm * (len - m) * (one - z1)).norm_sqr() / (below * len * len)
+}
+
+/// `e^{-j 2 pi k / OVERSAMPLE}`, k = 0..OVERSAMPLE-1: the turns between the aliases
+/// [`Cascade::folded_power_at`] sums.
+static ALIAS_TURNS: std::sync::LazyLock<[Complex<f64>; super::OVERSAMPLE]> =
+    std::sync::LazyLock::new(|| {
+        std::array::from_fn(|k| {
+            Complex::from_polar(1.0, -2.0 * PI * k as f64 / super::OVERSAMPLE as f64)
+        })
+    });
+
+/// Most sections a cascade of [`Shape::sections`] has: [`Cascade::folded_power_at`] keeps
+/// their boxcars' first-alias delays on the stack.
+const MAX_SECTIONS: usize = 4;
+
 /// One stage of a cascade, at the cascade's rate.
 #[derive(Debug, Clone, PartialEq)]
 pub(super) enum Section {
@@ -280,15 +306,7 @@ impl Section {
             Section::Biquad { b, a } => biquad(b, a, z1),
             Section::AtOutputRate { b, a } => biquad(b, a, at.z_output),
             Section::Boxcar { len } => {
-                let one = Complex::new(1.0, 0.0);
-                let below = (one - z1).norm_sqr();
-                if below < 1e-18 {
-                    return 1.0;
-                }
-                // (whole + zm frac) (1 - z^-1), whole the geometric sum of the m whole taps.
-                let m = len.floor();
-                let zm = Complex::from_polar(1.0, -at.w * m);
-                ((one - zm) + zm * (len - m) * (one - z1)).norm_sqr() / (below * len * len)
+                boxcar_power(len, z1, Complex::from_polar(1.0, -at.w * len.floor()))
             }
         }
     }
@@ -345,6 +363,10 @@ impl Cascade {
     /// this cascade's rate `OVERSAMPLE f_s`: the power folded onto `f`. A cascade run wholly
     /// at the output rate has the same response at every alias (its delays turn by whole
     /// turns from one to the next), so it is evaluated once.
+    ///
+    /// The aliases are those of [`super::alias_phasors`]: the k-th lies `k / OVERSAMPLE` of a
+    /// turn from the first, so a boxcar's `z^-m` there is the first alias's turned by `k m`
+    /// such steps, one sine and cosine per section rather than one per alias.
     pub(super) fn folded_power_at(&self, aliases: &[Phasor]) -> f64 {
         let all_at_output_rate = self
             .sections
@@ -352,6 +374,35 @@ impl Cascade {
             .all(|s| matches!(s, Section::AtOutputRate { .. }));
         match aliases.first() {
             Some(first) if all_at_output_rate => aliases.len() as f64 * self.power_at(first),
+            Some(first)
+                if self.sections.len() <= MAX_SECTIONS && aliases.len() <= super::OVERSAMPLE =>
+            {
+                let mut first_zm = [Complex::new(1.0, 0.0); MAX_SECTIONS];
+                for (zm, s) in first_zm.iter_mut().zip(&self.sections) {
+                    if let Section::Boxcar { len } = *s {
+                        *zm = Complex::from_polar(1.0, -first.w * len.floor());
+                    }
+                }
+                let turns = &*ALIAS_TURNS;
+                aliases
+                    .iter()
+                    .enumerate()
+                    .map(|(k, at)| {
+                        self.sections
+                            .iter()
+                            .zip(&first_zm)
+                            .map(|(s, zm)| match *s {
+                                Section::Boxcar { len } => {
+                                    let m = len.floor() as usize;
+                                    let turn = turns[(k * m) % super::OVERSAMPLE];
+                                    boxcar_power(len, at.z1, zm * turn)
+                                }
+                                _ => s.power(at),
+                            })
+                            .product::<f64>()
+                    })
+                    .sum()
+            }
             _ => aliases.iter().map(|p| self.power_at(p)).sum(),
         }
     }
