@@ -740,20 +740,18 @@ pub fn detect_outside(
         statistic: found.statistic,
         reduced_chi2: found.reduced,
     };
-    let (spectrum, shape, cutoff, chi2_best, scale) = (
-        found.spectrum,
-        found.shape,
-        found.cutoff,
-        found.chi2_best,
-        found.scale,
-    );
-    if found.statistic < threshold || chi2_best >= found.white || cutoff >= rate_hz / 2.0 {
+    if found.statistic < threshold
+        || found.chi2_best >= found.white
+        || found.cutoff >= rate_hz / 2.0
+    {
         return Ok(detection);
     }
     let z = Normal::standard().inverse_cdf(0.5 + confidence / 2.0);
+    let (shape, cutoff, chi2_best, scale) =
+        (found.shape, found.cutoff, found.chi2_best, found.scale);
     // The cutoff's interval with the shape held: the shapes' cutoffs are not the same
     // quantity where their knees differ.
-    let rise = |f: f64| (spectrum.chi2(Some((shape, f))) - chi2_best) / scale - z * z;
+    let rise = |f: f64| (found.spectrum.chi2(Some((shape, f))) - chi2_best) / scale - z * z;
     let lo_end = crossing(&rise, cutoff, found.lo);
     let hi_end = crossing(&rise, cutoff, rate_hz * shape.max_cutoff_per_rate());
     let mut low_pass = LowPass::generic(shape, cutoff, rate_hz)?.fitted(lo_end, hi_end);
@@ -991,14 +989,16 @@ impl DetectionPsd {
             .map(|(_, d)| *d)
             .collect();
         let plateau = numerics::median_in_place(&mut plateau)?;
+        let bins = self.bins();
+        let mut window = Vec::with_capacity(KNEE_WINDOW);
         Some(
-            (0..self.bins())
+            (0..bins)
                 .find(|&i| {
-                    let mut window: Vec<f64> =
-                        self.density[i..(i + KNEE_WINDOW).min(self.bins())].to_vec();
+                    window.clear();
+                    window.extend_from_slice(&self.density[i..(i + KNEE_WINDOW).min(bins)]);
                     numerics::median_in_place(&mut window).is_some_and(|m| m < share * plateau)
                 })
-                .unwrap_or(self.bins()),
+                .unwrap_or(bins),
         )
     }
 
