@@ -583,7 +583,7 @@ const GRID_PER_DECADE: f64 = 12.0;
 /// Golden-section steps refining a cutoff from the two grid steps around the grid's best:
 /// `0.618^17` of their 0.38 in ln f is 1.1e-4, so the cutoff lies within 6e-5 of the
 /// misfit's minimum, below the four digits it is shown with. The narrowest intervals are a
-/// boxcar's on hours of data (+-0.03 % from 2.2 h at 200 Hz): 0.2 of that, where the misfit
+/// boxcar's on long records (+-0.03 % from 33 min at 200 Hz): 0.2 of that, where the misfit
 /// is within 0.04 of its minimum against the 1 that ends the interval.
 const CUTOFF_GOLDEN_STEPS: usize = 17;
 /// Bisections of a cutoff interval's end from one scan step (7 % of the cutoff): 2^-20 of
