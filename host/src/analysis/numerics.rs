@@ -41,21 +41,26 @@ pub fn nnls_normalised(mut g: Vec<Vec<f64>>, b: &[f64]) -> Vec<f64> {
 /// Lawson–Hanson non-negative least squares, min ||G x - b|| subject to x >= 0 (Lawson &
 /// Hanson, "Solving Least Squares Problems", 1974, ch. 23). `g` is row-major with p columns.
 ///
-/// A problem with more rows than columns is first reduced to its p x p triangle
-/// by Householder QR: the active-set iterations then cost nothing per row.
+/// A problem with more rows than columns is first reduced to its p x p triangle by
+/// Householder QR ([`nnls_by_columns`], on the columns copied out once): the active-set
+/// iterations then cost nothing per row.
 pub fn nnls(g: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
     let p = g.first().map_or(0, Vec::len);
-    let bnorm = b.iter().map(|v| v * v).sum::<f64>().sqrt();
     if g.len() > p {
-        let (r, c) = qr_reduce(g, b);
-        return lawson_hanson(&r, &c, bnorm);
+        let mut columns: Vec<f64> = (0..p)
+            .flat_map(|j| g.iter().map(move |row| row[j]))
+            .collect();
+        return nnls_by_columns(&mut columns, &mut b.to_vec());
     }
+    let bnorm = b.iter().map(|v| v * v).sum::<f64>().sqrt();
     lawson_hanson(g, b, bnorm)
 }
 
 /// [`nnls`] of a design held column by column: `a` holds its p columns of `b.len()` rows
-/// one after another. Both are overwritten by the Householder reduction [`nnls`] makes,
-/// which on contiguous columns needs no row-by-row copy of the design.
+/// one after another. Both are overwritten by the Householder reduction to the p x p
+/// triangle `R` of `a = Q R` and `c`, the first p entries of `Q^T b`: for every x,
+/// `||a x - b||^2 = ||R x - c||^2 + ||(Q^T b)[p..]||^2`, so the constrained problem has the
+/// same solution on `R`. On contiguous columns each reflection is a pass over memory.
 pub fn nnls_by_columns(a: &mut [f64], b: &mut [f64]) -> Vec<f64> {
     let n = b.len();
     if n == 0 {
@@ -102,22 +107,6 @@ pub fn nnls_by_columns(a: &mut [f64], b: &mut [f64]) -> Vec<f64> {
         })
         .collect();
     lawson_hanson(&r, &b[..p], bnorm)
-}
-
-/// `(R, c)` of a tall `G = Q R` (Householder) and `c` the first p entries of `Q^T b`: for
-/// every x, `||G x - b||^2 = ||R x - c||^2 + ||(Q^T b)[p..]||^2`, so a least-squares problem
-/// on `G`, constrained or not, has the same solution on `R`.
-fn qr_reduce(g: &[Vec<f64>], b: &[f64]) -> (Vec<Vec<f64>>, Vec<f64>) {
-    let p = g.first().map_or(0, Vec::len);
-    let mut a = g.to_vec();
-    let mut rhs = b.to_vec();
-    householder_triangularise(&mut a, &mut rhs);
-    a.truncate(p);
-    for (i, row) in a.iter_mut().enumerate() {
-        row[..i].fill(0.0);
-    }
-    rhs.truncate(p);
-    (a, rhs)
 }
 
 /// The active-set iterations of [`nnls`]; `bnorm` is the norm of the original right-hand
@@ -378,8 +367,9 @@ pub fn median_in_place(v: &mut [f64]) -> Option<f64> {
 mod tests {
     use super::*;
 
-    /// A design held column by column gives the solution of [`nnls`] on the same design held
-    /// row by row, on any subset of columns.
+    /// The Householder reduction changes no solution: a design held column by column gives
+    /// what the active-set iterations find on the whole design held row by row, unreduced,
+    /// on any subset of columns.
     #[test]
     fn a_design_by_columns_gives_the_nnls_solution() {
         use rand::{Rng, SeedableRng, rngs::StdRng};
@@ -400,7 +390,8 @@ mod tests {
                     .iter()
                     .map(|r| columns.iter().map(|&j| r[j]).collect())
                     .collect();
-                let want = nnls(&g, &b);
+                let bnorm = b.iter().map(|v| v * v).sum::<f64>().sqrt();
+                let want = lawson_hanson(&g, &b, bnorm);
                 let mut a: Vec<f64> = columns
                     .iter()
                     .flat_map(|&j| rows.iter().map(move |r| r[j]))

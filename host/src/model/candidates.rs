@@ -8,7 +8,7 @@ use super::refit::{self, Column};
 use super::simulate::Round;
 use super::{Data, Effect, Line, Model, restore, spectrum};
 use crate::analysis::lines::{self, LineOptions};
-use crate::analysis::low_pass::LowPass;
+use crate::analysis::low_pass::{LowPass, LowPassSource};
 use crate::analysis::pipeline::LowPassChoice;
 use crate::sim::noise::{NoiseTerms, Sinusoid};
 use std::collections::BTreeMap;
@@ -146,14 +146,39 @@ pub(super) fn probes(data: &Data, model: &Model, removal: &Removal) -> Vec<Probe
     out
 }
 
+/// The roll-off a round's evidence shows but the model has not taken: the passing low-pass
+/// candidate's filter, as a fitted one. Another effect named before it (a line, whose wings
+/// could mimic the roll-off, comes first) is refitted beyond that filter's reach
+/// ([`refit::beyond_fitted_filter`]): refitted with an unfiltered white column, the
+/// record's short taus, far below `N^2 / tau` there, pull N down by orders of magnitude
+/// and B up to make the long taus good again, and the roll-off is then no longer seen
+/// against realisations that have almost no white noise (a filter at 4 % of the rate
+/// beside a line 0.6 Hz wide above it was named as a Gauss-Markov process so).
+pub(super) fn unnamed_filter(round: &Round, rate_hz: f64) -> Option<LowPass> {
+    let (_, e) = round
+        .probes
+        .iter()
+        .zip(&round.evidence)
+        .find(|(p, e)| **p == Probe::RollOff && e.passes)?;
+    let Some(Effect::LowPass { cutoff_hz, shape }) = e.effect else {
+        return None;
+    };
+    let mut filter = LowPass::generic(shape, cutoff_hz, rate_hz).ok()?;
+    filter.source = LowPassSource::Fitted;
+    Some(filter)
+}
+
 /// The model with `effect` added: deterministic effects join the removal and the stochastic
 /// terms are refitted to the record cleaned of them; stochastic ones are refitted with it.
+/// `unnamed` is a roll-off the round showed but did not name ([`unnamed_filter`]): the
+/// refit leaves its taus out until it is named.
 pub(super) fn add(
     data: &Data,
     model: &Model,
     removal: &mut Removal,
     chosen: (Probe, Effect),
     sd_ln: &[f64],
+    unnamed: Option<&LowPass>,
 ) -> Model {
     let (probe, effect) = chosen;
     let mut out = model.clone();
@@ -273,7 +298,8 @@ pub(super) fn add(
     };
     let tau0 = 1.0 / data.rate_hz;
     let target = RefitTarget::of(data.rate, removal, &out.lines, &shape);
-    let sd_ln = &refit::beyond_fitted_filter(sd_ln, &data.measured.tau, out.low_pass.as_ref());
+    let sd_ln =
+        &refit::beyond_fitted_filter(sd_ln, &data.measured.tau, out.low_pass.as_ref().or(unnamed));
     // A wide line's power is read against the refitted model's background, and the refit
     // takes the line's Allan variance out at that power: twice settles both.
     for _ in 0..2 {

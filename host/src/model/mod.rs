@@ -747,7 +747,15 @@ pub fn run(
             _ => {}
         }
         let before = (model.clone(), removal.clone());
-        model = add(&data, &model, &mut removal, (probe, effect), &round.sd_ln);
+        let unnamed = candidates::unnamed_filter(&round, data.rate_hz);
+        model = add(
+            &data,
+            &model,
+            &mut removal,
+            (probe, effect),
+            &round.sd_ln,
+            unnamed.as_ref(),
+        );
         steps.push(Step {
             description: described(&effect, &evidence[chosen], channel.unit()),
             effect,

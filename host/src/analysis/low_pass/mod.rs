@@ -61,7 +61,7 @@ use rand::Rng;
 use rand_distr::StandardNormal;
 use rayon::prelude::*;
 use serde::Serialize;
-use shape::{Cascade, Phasor};
+use shape::{Aliases, Cascade, Phasor};
 use statrs::distribution::{ContinuousCDF, Normal};
 use std::f64::consts::PI;
 
@@ -512,13 +512,6 @@ fn generic_cascade(shape: Shape, cutoff_hz: f64, rate_hz: f64) -> Cascade {
     }
 }
 
-/// The phasors of `f + j f_s`, j = 0..D-1, at the internal rate `D f_s`: the frequencies
-/// whose power [`folded_power`] sums.
-fn alias_phasors(freq_hz: f64, rate_hz: f64, decimation: usize) -> impl Iterator<Item = Phasor> {
-    let internal = rate_hz * decimation as f64;
-    (0..decimation).map(move |j| Phasor::new(freq_hz + j as f64 * rate_hz, internal))
-}
-
 /// `sum_j |H(f + j f_s)|^2`, j = 0..D-1: the power of the aliases that fold onto `freq_hz`.
 fn folded_power(chain: &Chain, decimation: usize, freq_hz: f64) -> f64 {
     let fs = chain.rate_hz() / decimation as f64;
@@ -905,10 +898,10 @@ struct DetectionPsd {
     /// Whether any bin holds known PSD: only then is its scale a column of the fit.
     has_known: bool,
     dof: f64,
-    /// [`alias_phasors`] of every bin, bin after bin, and of DC: each fit's hundreds of
-    /// cascades are evaluated at these same frequencies.
-    aliases: Vec<Phasor>,
-    dc_aliases: Vec<Phasor>,
+    /// The aliases of every bin and of DC: each fit's hundreds of cascades are evaluated at
+    /// these same frequencies.
+    aliases: Vec<Aliases>,
+    dc_aliases: Aliases,
     /// The lowest cutoff searched on it, in multiples of the rate.
     min_cutoff_per_rate: f64,
 }
@@ -958,10 +951,7 @@ impl DetectionPsd {
             .iter()
             .map(|&f| 4.0 * (PI * f / rate_hz).sin().powi(2))
             .collect();
-        let aliases = freq
-            .iter()
-            .flat_map(|&f| alias_phasors(f, rate_hz, OVERSAMPLE))
-            .collect();
+        let aliases = freq.iter().map(|&f| Aliases::new(f, rate_hz)).collect();
         Some(DetectionPsd {
             rate_hz,
             freq,
@@ -971,7 +961,7 @@ impl DetectionPsd {
             has_known,
             dof: HANN_DOF_PER_SEGMENT * p.segments as f64,
             aliases,
-            dc_aliases: alias_phasors(0.0, rate_hz, OVERSAMPLE).collect(),
+            dc_aliases: Aliases::new(0.0, rate_hz),
             min_cutoff_per_rate,
         })
     }
@@ -1027,7 +1017,7 @@ impl DetectionPsd {
             quantization: keep(&self.quantization),
             has_known: self.known[..end].iter().any(|&k| k > 0.0),
             dof: self.dof,
-            aliases: self.aliases[..end * OVERSAMPLE].to_vec(),
+            aliases: self.aliases[..end].to_vec(),
             dc_aliases: self.dc_aliases.clone(),
             min_cutoff_per_rate: self.min_cutoff_per_rate,
         })
@@ -1048,12 +1038,12 @@ impl DetectionPsd {
     fn misfit(&self, filter: Option<(Shape, f64)>, with_q: bool) -> f64 {
         let cascade = filter.map(|(shape, f)| generic_cascade(shape, f, self.rate_hz));
         // folded_power's sums, from the phasors computed once.
-        let power = |c: &Cascade, at: &[Phasor]| c.folded_power_at(at);
+        let power = |c: &Cascade, at: &Aliases| c.folded_power_at(at);
         let dc = cascade.as_ref().map_or(1.0, |c| power(c, &self.dc_aliases));
         let rows: Vec<[f64; COLUMNS]> = self
             .freq
             .iter()
-            .zip(self.aliases.chunks_exact(OVERSAMPLE))
+            .zip(&self.aliases)
             .zip(&self.known)
             .zip(&self.quantization)
             .map(|(((&f, at), &known), &q)| {

@@ -208,6 +208,22 @@ pub(super) struct Phasor {
     z_output: Complex<f64>,
 }
 
+/// The phasors of `f + j f_s`, j = 0..OVERSAMPLE-1, at the internal rate `OVERSAMPLE f_s`:
+/// the frequencies whose power folds onto `f` at the output rate `f_s`. Built only here, so
+/// the k-th lies `k / OVERSAMPLE` of a turn from the first, which
+/// [`Cascade::folded_power_at`] relies on.
+#[derive(Debug, Clone)]
+pub(super) struct Aliases([Phasor; super::OVERSAMPLE]);
+
+impl Aliases {
+    pub(super) fn new(freq_hz: f64, output_rate_hz: f64) -> Aliases {
+        let internal = output_rate_hz * super::OVERSAMPLE as f64;
+        Aliases(std::array::from_fn(|j| {
+            Phasor::new(freq_hz + j as f64 * output_rate_hz, internal)
+        }))
+    }
+}
+
 impl Phasor {
     pub(super) fn new(freq_hz: f64, rate_hz: f64) -> Phasor {
         let w = 2.0 * PI * freq_hz / rate_hz;
@@ -359,52 +375,52 @@ impl Cascade {
         self.sections.iter().map(|s| s.power(at)).product()
     }
 
-    /// `sum_j |H|^2` over `aliases`, the phasors of `f + j f_s`, j = 0..OVERSAMPLE-1, at
-    /// this cascade's rate `OVERSAMPLE f_s`: the power folded onto `f`. A cascade run wholly
-    /// at the output rate has the same response at every alias (its delays turn by whole
-    /// turns from one to the next), so it is evaluated once.
+    /// `sum_j |H|^2` over `aliases` at this cascade's rate `OVERSAMPLE f_s`: the power
+    /// folded onto `f`. A cascade run wholly at the output rate has the same response at
+    /// every alias (its delays turn by whole turns from one to the next), so it is evaluated
+    /// once.
     ///
-    /// The aliases are those of [`super::alias_phasors`]: the k-th lies `k / OVERSAMPLE` of a
-    /// turn from the first, so a boxcar's `z^-m` there is the first alias's turned by `k m`
-    /// such steps, one sine and cosine per section rather than one per alias.
-    pub(super) fn folded_power_at(&self, aliases: &[Phasor]) -> f64 {
+    /// The k-th alias lies `k / OVERSAMPLE` of a turn from the first ([`Aliases`]), so a
+    /// boxcar's `z^-m` there is the first alias's turned by `k m` such steps: one sine and
+    /// cosine per section rather than one per alias.
+    pub(super) fn folded_power_at(&self, aliases: &Aliases) -> f64 {
+        let aliases = &aliases.0;
+        let first = &aliases[0];
         let all_at_output_rate = self
             .sections
             .iter()
             .all(|s| matches!(s, Section::AtOutputRate { .. }));
-        match aliases.first() {
-            Some(first) if all_at_output_rate => aliases.len() as f64 * self.power_at(first),
-            Some(first)
-                if self.sections.len() <= MAX_SECTIONS && aliases.len() <= super::OVERSAMPLE =>
-            {
-                let mut first_zm = [Complex::new(1.0, 0.0); MAX_SECTIONS];
-                for (zm, s) in first_zm.iter_mut().zip(&self.sections) {
-                    if let Section::Boxcar { len } = *s {
-                        *zm = Complex::from_polar(1.0, -first.w * len.floor());
-                    }
-                }
-                let turns = &*ALIAS_TURNS;
-                aliases
-                    .iter()
-                    .enumerate()
-                    .map(|(k, at)| {
-                        self.sections
-                            .iter()
-                            .zip(&first_zm)
-                            .map(|(s, zm)| match *s {
-                                Section::Boxcar { len } => {
-                                    let m = len.floor() as usize;
-                                    let turn = turns[(k * m) % super::OVERSAMPLE];
-                                    boxcar_power(len, at.z1, zm * turn)
-                                }
-                                _ => s.power(at),
-                            })
-                            .product::<f64>()
-                    })
-                    .sum()
-            }
-            _ => aliases.iter().map(|p| self.power_at(p)).sum(),
+        if all_at_output_rate {
+            return aliases.len() as f64 * self.power_at(first);
         }
+        if self.sections.len() > MAX_SECTIONS {
+            return aliases.iter().map(|p| self.power_at(p)).sum();
+        }
+        let mut first_zm = [Complex::new(1.0, 0.0); MAX_SECTIONS];
+        for (zm, s) in first_zm.iter_mut().zip(&self.sections) {
+            if let Section::Boxcar { len } = *s {
+                *zm = Complex::from_polar(1.0, -first.w * len.floor());
+            }
+        }
+        let turns = &*ALIAS_TURNS;
+        aliases
+            .iter()
+            .enumerate()
+            .map(|(k, at)| {
+                self.sections
+                    .iter()
+                    .zip(&first_zm)
+                    .map(|(s, zm)| match *s {
+                        Section::Boxcar { len } => {
+                            let m = len.floor() as usize;
+                            let turn = turns[(k * m) % super::OVERSAMPLE];
+                            boxcar_power(len, at.z1, zm * turn)
+                        }
+                        _ => s.power(at),
+                    })
+                    .product::<f64>()
+            })
+            .sum()
     }
 
     /// Whether a section runs at the output rate ([`Section::AtOutputRate`]).
@@ -630,11 +646,7 @@ mod tests {
                     .map(|j| f + j as f64 * output)
                     .collect();
                 let want: f64 = aliases.iter().map(|&a| c.response(a).norm_sqr()).sum();
-                let phasors: Vec<Phasor> = aliases
-                    .iter()
-                    .map(|&a| Phasor::new(a, INTERNAL_HZ))
-                    .collect();
-                let got = c.folded_power_at(&phasors);
+                let got = c.folded_power_at(&Aliases::new(f, output));
                 assert!(
                     (got - want).abs() <= 1e-10 * want.max(1e-6),
                     "{shape:?} {cutoff} Hz at {f} Hz: {got} against {want}"
