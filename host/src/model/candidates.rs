@@ -80,8 +80,9 @@ pub(super) fn line_standard_errors(
 }
 
 /// The candidate to name, leaving out those `taken_back` in this round: a passing
-/// temperature coupling first, then the smallest p-value (the largest z, which is clamped
-/// where p underflows) among the other passing deterministic candidates, else among the
+/// temperature coupling first, then the smallest p-value ([`evidence::Evidence::ranking_p`];
+/// the largest z, which is clamped where p underflows) among the other passing deterministic
+/// candidates, else among the
 /// passing stochastic ones. P-values below [`evidence::LEAST_P`] are not told apart (a strong
 /// line and a strong roll-off both reach it), and ties go to the earlier probe: lines first,
 /// whose removal can change what the roll-off and the regressions see (a roll-off fitted with
@@ -111,7 +112,7 @@ pub(super) fn choose(round: &Round, taken_back: &[Probe]) -> Option<usize> {
             .filter(|&(i, _)| open(i))
             .filter(|(_, e)| e.passes && e.view.is_deterministic() == deterministic)
             .min_by(|a, b| {
-                let told = |e: &evidence::Evidence| e.p_value.max(evidence::LEAST_P);
+                let told = |e: &evidence::Evidence| e.ranking_p().max(evidence::LEAST_P);
                 told(a.1).total_cmp(&told(b.1))
             })
             .map(|(i, _)| i)

@@ -571,8 +571,13 @@ mod tests {
             stop.contains("the Monte Carlo count") && !stop.contains("above every"),
             "{stop}"
         );
-        // Beyond every draw: 1 / 1600.
-        assert_eq!(judged(1e9).p_value, 1.0 / 1600.0);
+        // Beyond every draw: 1 / 1600, a bound. It is ranked on the draws' tail fit, as
+        // the other views' verdicts are; one with draws beyond it keeps its count.
+        let beyond = judged(1e4);
+        assert_eq!(beyond.p_value, 1.0 / 1600.0);
+        let tail = super::evidence::scaled_chi_square_p(1e4, &simulated);
+        assert!(tail < 1e-6 && beyond.ranking_p() == tail, "{beyond:?}");
+        assert_eq!(five.ranking_p(), five.p_value);
         // Few candidates still draw at least as many as the refinement of the other views.
         assert_eq!(monte_carlo_draws(0.1), REFINE * REGRESSION_DRAWS);
     }
