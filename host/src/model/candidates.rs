@@ -82,11 +82,11 @@ pub(super) fn line_standard_errors(
 /// The candidate to name, leaving out those `taken_back` in this round: a passing
 /// temperature coupling first, then the smallest p-value ([`evidence::Evidence::ranking_p`];
 /// the largest z, which is clamped where p underflows) among the other passing deterministic
-/// candidates, else among the
-/// passing stochastic ones. P-values below [`evidence::LEAST_P`] are not told apart (a strong
-/// line and a strong roll-off both reach it), and ties go to the earlier probe: lines first,
-/// whose removal can change what the roll-off and the regressions see (a roll-off fitted with
-/// a strong line beyond it put the cutoff below the line).
+/// candidates, else among the passing stochastic ones. P-values below [`evidence::LEAST_P`]
+/// are not told apart (a strong line and a strong roll-off both reach it), and ties go to
+/// the earlier probe: lines first, whose removal can change what the roll-off and the
+/// regressions see (a roll-off fitted with a strong line beyond it put the cutoff below the
+/// line).
 ///
 /// Why the coupling first: it has a measured cause, and a rate that follows the temperature
 /// carries the temperature's own cycles as slow lines, which the line detectors see as
