@@ -635,9 +635,10 @@ pub struct Detection {
 /// unless another shape lowers the misfit by [`SHAPE_EVIDENCE`] in the units of `Delta`
 /// below (a shape that does not match the filter leaves a residual roll-off that
 /// quantization or a short Gauss-Markov process would otherwise take). The shapes whose fit
-/// without q is within [`SHAPE_EVIDENCE`] of the best fit with it are chosen from first, by
-/// that fit (a sampled one-pole's stopband floor is otherwise fitted as well by a two-pole
-/// plus quantization); every shape only when none is. No filter is G = 1.
+/// without q, u and v is within [`SHAPE_EVIDENCE`] of the best fit with them are chosen from
+/// first, by that fit (a sampled one-pole's stopband floor is otherwise fitted as well by a
+/// two-pole plus quantization or u); every shape only when none is, by its fit with them.
+/// The cutoff is always the fit's with them. No filter is G = 1.
 ///
 /// **Decision.** `Delta = (chi2(none) - chi2(f_c)) / (c B^2)`, c = `HANN_BIN_CORRELATION`
 /// for the correlated bins and `B^2 = max(1, chi2 / dof)` the Birge ratio, which widens
@@ -775,7 +776,7 @@ struct Search<'a> {
     spectrum: &'a DetectionPsd,
     shape: Shape,
     cutoff: f64,
-    /// The chosen shape's misfit at its cutoff, quantization free.
+    /// The chosen shape's misfit at its cutoff, the unshaped columns free.
     chi2_best: f64,
     /// The misfit without a filter.
     white: f64,
@@ -785,7 +786,7 @@ struct Search<'a> {
     reduced: f64,
     /// The likelihood-ratio statistic of the filter against none.
     statistic: f64,
-    /// Every shape: (shape, best cutoff, misfit with quantization, misfit without).
+    /// Every shape: (shape, best cutoff, misfit with the unshaped columns, misfit without).
     fitted: Vec<(Shape, f64, f64, f64)>,
     /// The lowest cutoff searched, Hz.
     lo: f64,
@@ -825,8 +826,8 @@ fn search(spectrum: &DetectionPsd, rate_hz: f64) -> Search<'_> {
                 c if c <= profile[best] => (golden, c),
                 _ => (grid[best], profile[best]),
             };
-            // The fit without quantization at its own cutoff, searched a grid step either
-            // side of the one with it.
+            // The fit of the shape alone at its own cutoff, searched a grid step either side
+            // of the one with the unshaped columns.
             let alone = |f: f64| spectrum.misfit(Some((shape, f)), false);
             let near = golden_min(
                 alone,
@@ -834,8 +835,8 @@ fn search(spectrum: &DetectionPsd, rate_hz: f64) -> Search<'_> {
                 (cutoff * step).min(max_cutoff),
                 CUTOFF_GOLDEN_STEPS,
             );
-            let without_q = alone(near).min(alone(cutoff));
-            (shape, cutoff, chi2_best, without_q)
+            let shape_alone = alone(near).min(alone(cutoff));
+            (shape, cutoff, chi2_best, shape_alone)
         })
         .collect();
     let least = fitted
@@ -847,11 +848,13 @@ fn search(spectrum: &DetectionPsd, rate_hz: f64) -> Search<'_> {
     let reduced = least.2 / dof;
     let scale = HANN_BIN_CORRELATION * reduced.max(1.0);
     // A filter whose stopband floor is higher than a shape's (a sampled one-pole's against a
-    // two-pole's) is fitted by that shape plus the quantization term about as well as by its
-    // own shape, and a model of the shape alone then lacks the floor the Allan curve's
-    // shortest taus measure. So the shapes that describe the spectrum without quantization
-    // (their fit without it within SHAPE_EVIDENCE of the best fit with it) are chosen from
-    // first, by that fit; only when none does, every shape by its fit with quantization.
+    // two-pole's) is fitted by that shape plus quantization or the unshaped white and
+    // flicker about as well as by its own shape, and a model of the shape alone then lacks
+    // the floor the Allan curve's shortest taus measure. So the shapes that describe the
+    // spectrum alone (their fit without those columns within SHAPE_EVIDENCE of the best fit
+    // with them) are chosen from first, by that fit; only when none does, every shape by its
+    // fit with them. Either way the cutoff is the fit's with them, which a floor after the
+    // filter does not move.
     let explain_alone: Vec<(Shape, f64, f64)> = fitted
         .iter()
         .filter(|f| (f.3 - least.2) / scale < SHAPE_EVIDENCE)
@@ -874,8 +877,8 @@ fn search(spectrum: &DetectionPsd, rate_hz: f64) -> Search<'_> {
         Some(&two_pole) if (two_pole.2 - best.2) / scale < SHAPE_EVIDENCE => two_pole,
         _ => best,
     };
-    // The statistic and the interval are the chosen shape's with quantization free, as the
-    // fits downstream have it.
+    // The statistic and the interval are the chosen shape's with the unshaped columns free
+    // (quantization as the fits downstream have it).
     let chi2_best = fitted
         .iter()
         .find(|f| f.0 == shape)
@@ -1042,9 +1045,9 @@ impl DetectionPsd {
         self.misfit(filter, true)
     }
 
-    /// [`DetectionPsd::chi2`], with q held at 0 unless `with_q`. The known PSD's scale is
-    /// a column of its own where there is one ([`Outside::known`]).
-    fn misfit(&self, filter: Option<(Shape, f64)>, with_q: bool) -> f64 {
+    /// [`DetectionPsd::chi2`], with q, u and v held at 0 unless `unshaped`. The known PSD's
+    /// scale is a column of its own where there is one ([`Outside::known`]).
+    fn misfit(&self, filter: Option<(Shape, f64)>, unshaped: bool) -> f64 {
         let cascade = filter.map(|(shape, f)| generic_cascade(shape, f, self.rate_hz));
         // folded_power's sums, from the phasors computed once.
         let power = |c: &Cascade, at: &Aliases| c.folded_power_at(at);
@@ -1060,11 +1063,16 @@ impl DetectionPsd {
                 [g, g / f, g / (f * f), q, known, 1.0, 1.0 / f]
             })
             .collect();
-        // Without a filter the unfiltered columns repeat the filtered ones.
+        // Without a filter u and v repeat w and b.
+        let after_filter = if unshaped && cascade.is_some() {
+            5..7
+        } else {
+            0..0
+        };
         let columns: Vec<usize> = (0..3)
-            .chain(with_q.then_some(3))
+            .chain(unshaped.then_some(3))
             .chain(self.has_known.then_some(4))
-            .chain(cascade.as_ref().map_or(0..0, |_| 5..7))
+            .chain(after_filter)
             .collect();
         let spread = (2.0 / self.dof).sqrt();
         let mut sigma: Vec<f64> = self.density.iter().map(|s| s * spread).collect();

@@ -1,0 +1,202 @@
+#!/usr/bin/env python3
+"""Hidden-effect records made outside imunoise, and what `imunoise model` names in them.
+
+The model workflow judges every record against realisations of its own simulator, and the
+family studies (`host/src/model/families.rs`) build their records with that simulator too. A
+record from another lab's generator could differ from both in ways no effect explains. This
+script builds the families' kinds with numpy and scipy only, by other methods:
+
+- white rate noise of density N: per-sample standard deviation N sqrt(f_s);
+- flicker of level B: white noise shaped in the frequency domain to the one-sided PSD
+  B^2 / (pi f) (IEEE 952 Table C.1: two-sided B^2 / (2 pi f)) over four times the record's
+  length, the first quarter kept (power below 1 / T, no wrap-around);
+- rate random walk K: the running sum of white increments of variance K^2 / f_s;
+- a Gauss-Markov process: the exact first-order autoregression (scipy.signal.lfilter);
+- a low-pass filter: scipy.signal.butter's second-order Butterworth (bilinear, -3 dB at the
+  cutoff) on the white noise only, so that flicker and the random walk reach the stopband.
+
+Levels and effect strengths are drawn from the families' ranges: N log-uniform 5e-5..5e-4,
+B = N x 0.03..0.12, the random walk crossing N at 0.1..0.3 of the record; the Gauss-Markov
+process (tau_c 1-3 % of the record), slow sinusoid (period 5-20 % of it), ramp (at T/4) and
+temperature coupling (warm-up and a cycle, at T/8) raising the Allan deviation 2-3.5 times
+(ramps 3-5) where they show; the filter's cutoff 3-30 % of the rate.
+
+Usage (numpy and scipy installed; the imunoise executable built with `cargo build --release`):
+
+    python3 scripts/foreign_records.py --imunoise target/release/imunoise \
+        --kinds none,none_temp,gm,sin,ramp,temp,lowpass --seeds 1-10 --out /tmp/foreign
+
+It prints, per kind, how many records were named exactly right (B and K aside, as in the
+family study) and, for the filter, how often `analyze`'s 68.3 % cutoff interval holds the
+truth.
+"""
+import argparse
+import json
+import pathlib
+import subprocess
+
+import numpy as np
+from scipy.signal import butter, lfilter
+
+EXPECTED = {
+    "none": [],
+    "none_temp": [],
+    "gm": ["gauss_markov"],
+    "sin": ["sinusoid"],
+    "ramp": ["rate_ramp"],
+    "temp": ["temperature"],
+    "lowpass": ["low_pass"],
+}
+
+
+def log_uniform(rng, lo, hi):
+    return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+
+
+def flicker(rng, b, n, tau0):
+    """Flicker of level b over n samples, shaped over 4 n and cropped."""
+    m = 4 * n
+    f = np.fft.rfftfreq(m, tau0)
+    psd = np.zeros(len(f))
+    psd[1:] = b * b / (np.pi * f[1:])
+    # Unit-variance white noise has the one-sided PSD 2 tau0.
+    spectrum = np.fft.rfft(rng.standard_normal(m)) * np.sqrt(psd / (2.0 * tau0))
+    return np.fft.irfft(spectrum, m)[:n]
+
+
+def temperature(rng, t, t_rec):
+    rise, warm = rng.uniform(2, 6), rng.uniform(600, 2400)
+    swing, cycle = rng.uniform(0.5, 2), t_rec * rng.uniform(0.15, 0.4)
+    start = rng.uniform(20, 30)
+    return start + rise * (1 - np.exp(-t / warm)) + swing * np.sin(2 * np.pi * t / cycle)
+
+
+def record(kind, seed, rate, hours):
+    """(rate samples, temperature or None, truth) for one record."""
+    rng = np.random.default_rng(seed)
+    n = int(rate * hours * 3600)
+    tau0 = 1.0 / rate
+    t_rec = n * tau0
+    t = np.arange(n) * tau0
+    big_n = log_uniform(rng, 5e-5, 5e-4)
+    big_b = big_n * log_uniform(rng, 0.03, 0.12)
+    big_k = np.sqrt(3) * big_n / (t_rec * rng.uniform(0.1, 0.3))
+    white = big_n / np.sqrt(tau0) * rng.standard_normal(n)
+    y = white + flicker(rng, big_b, n, tau0)
+    y += np.cumsum(big_k * np.sqrt(tau0) * rng.standard_normal(n))
+
+    def baseline_avar(tau):
+        return big_n**2 / tau + 2 * np.log(2) / np.pi * big_b**2 + big_k**2 * tau / 3
+
+    def raise_by(lo=2.0, hi=3.5):
+        f = rng.uniform(lo, hi)
+        return f * f - 1
+
+    truth = {"N": big_n, "B": big_b, "K": big_k}
+    temp = None
+    if kind == "gm":
+        tau_c = t_rec * log_uniform(rng, 0.01, 0.03)
+        peak = 1.89 * tau_c
+        r = peak / tau_c
+        unit = (tau_c / peak) ** 2 * (2 * r - 3 + 4 * np.exp(-r) - np.exp(-2 * r))
+        sigma = np.sqrt(raise_by() * baseline_avar(peak) / unit)
+        a = np.exp(-tau0 / tau_c)
+        drive = sigma * np.sqrt(1 - a * a) * rng.standard_normal(n)
+        start = sigma * rng.standard_normal()
+        y += lfilter([1.0], [1.0, -a], drive, zi=[a * start])[0]
+        truth.update(tau_c=tau_c, sigma=sigma)
+    elif kind == "sin":
+        freq = 1.0 / (t_rec * rng.uniform(0.05, 0.2))
+        peak = 0.371 / freq
+        unit = np.sin(np.pi * freq * peak) ** 4 / (np.pi * freq * peak) ** 2
+        amplitude = np.sqrt(raise_by() * baseline_avar(peak) / unit)
+        y += amplitude * np.sin(2 * np.pi * freq * t + rng.uniform(0, 2 * np.pi))
+        truth.update(freq_hz=freq, amplitude=amplitude)
+    elif kind == "ramp":
+        tau = t_rec / 4
+        slope = np.sqrt(raise_by(3.0, 5.0) * baseline_avar(tau) * 2 / tau**2)
+        slope *= rng.choice([-1, 1])
+        y += slope * t
+        truth.update(slope=slope)
+    elif kind in ("temp", "none_temp"):
+        temp = temperature(rng, t, t_rec)
+        if kind == "temp":
+            m = int(t_rec / 8 / tau0)
+            means = temp[: (n // m) * m].reshape(-1, m).mean(axis=1)
+            temp_avar = np.mean(np.diff(means) ** 2) / 2
+            coeff = np.sqrt(raise_by() * baseline_avar(t_rec / 8) / temp_avar)
+            coeff *= rng.choice([-1, 1])
+            y += coeff * (temp - temp[0])
+            truth.update(coeff=coeff)
+        temp = temp + 0.01 * rng.standard_normal(n)
+    elif kind == "lowpass":
+        cutoff = rate * log_uniform(rng, 0.03, 0.3)
+        b, a = butter(2, cutoff / (rate / 2))
+        y += lfilter(b, a, white) - white
+        truth.update(cutoff_hz=cutoff)
+    return y + rng.uniform(-0.02, 0.02), temp, truth
+
+
+def write(path, y, temp):
+    if temp is None:
+        path = path.with_suffix(".npy")
+        np.save(path, y)
+    else:
+        path = path.with_suffix(".csv")
+        np.savetxt(path, np.column_stack([y, temp]), delimiter=",", fmt="%.9e",
+                   header="gx,temp", comments="")
+    return path
+
+
+def seeds_of(text):
+    lo, _, hi = text.partition("-")
+    return range(int(lo), int(hi or lo) + 1)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--imunoise", required=True)
+    p.add_argument("--kinds", default=",".join(EXPECTED))
+    p.add_argument("--seeds", default="1-10")
+    p.add_argument("--rate", type=float, default=50.0)
+    p.add_argument("--hours", type=float, default=3.0)
+    p.add_argument("--out", default="foreign-records")
+    args = p.parse_args()
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    store = out / "store"
+    for kind in args.kinds.split(","):
+        right, held, seeds = 0, 0, list(seeds_of(args.seeds))
+        for seed in seeds:
+            y, temp, truth = record(kind, seed, args.rate, args.hours)
+            data = write(out / f"{kind}_{seed}", y, temp)
+            result = out / f"{kind}_{seed}.model.json"
+            subprocess.run([args.imunoise, "--store", str(store), "model", str(data),
+                            "--rate", str(args.rate), "--json", str(result)],
+                           check=True, capture_output=True)
+            steps = json.loads(result.read_text())["steps"]
+            named = sorted(s["effect"]["kind"] for s in steps
+                           if s["effect"]["kind"] not in ("bias_instability", "rate_random_walk"))
+            right += named == EXPECTED[kind]
+            hidden = ", ".join(f"{k} {float(v):.4g}" for k, v in truth.items())
+            line = f"{kind} seed {seed}: named {named}; hidden {hidden}"
+            if kind == "lowpass":
+                analysis = out / f"{kind}_{seed}.analyze.json"
+                subprocess.run([args.imunoise, "--store", str(store), "analyze", str(data),
+                                "--rate", str(args.rate), "--json", str(analysis)],
+                               check=True, capture_output=True)
+                lp = json.loads(analysis.read_text())["channels"][0]["low_pass"]
+                if lp:
+                    inside = lp["cutoff_lo_hz"] <= truth["cutoff_hz"] <= lp["cutoff_hi_hz"]
+                    held += inside
+                    line += (f"; cutoff {lp['cutoff_hz']:.4f} [{lp['cutoff_lo_hz']:.4f}, "
+                             f"{lp['cutoff_hi_hz']:.4f}] Hz")
+            print(line, flush=True)
+        print(f"{kind}: {right}/{len(seeds)} named exactly right", flush=True)
+        if kind == "lowpass":
+            print(f"{kind}: the 68.3 % cutoff interval held the truth on {held}/{len(seeds)}",
+                  flush=True)
+
+
+if __name__ == "__main__":
+    main()
