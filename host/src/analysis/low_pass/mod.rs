@@ -628,9 +628,11 @@ pub struct Detection {
 /// / 12` per sample, a share of the variance far below the Allan fit's concern but not
 /// below a stopband's), and flicker that enters after the filter, or that a generator adds
 /// to filtered white noise. Without them the roll-off moved up to hold that floor: on 3 h at
-/// 50 Hz, a two-pole Butterworth at 10 % of the rate read 0.5-0.9 % high with rounding to a
-/// third of the noise's standard deviation or with unfiltered flicker, two to four times its
-/// interval's half-width. chi2(f_c) is profiled over a log grid from f_s / 64 to 2 f_s and
+/// 50 Hz, a second-order Butterworth at 10 % of the rate read 2.5 % high (six interval
+/// half-widths) with the output rounded to a third of its standard deviation, 1.8 % with
+/// 0.1 % of the variance added as white noise after it, and 0.1-0.9 % (up to four
+/// half-widths) with flicker and a random walk added after it. chi2(f_c) is profiled over a
+/// log grid from f_s / 64 to 2 f_s and
 /// refined by golden section, for every shape of [`Shape::ALL`]; the two-pole is taken
 /// unless another shape lowers the misfit by [`SHAPE_EVIDENCE`] in the units of `Delta`
 /// below (a shape that does not match the filter leaves a residual roll-off that
