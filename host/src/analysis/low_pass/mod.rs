@@ -1185,7 +1185,7 @@ pub(crate) mod tests {
     use super::*;
     use crate::analysis::{Estimator, allan, phase_from_rate};
     use crate::sim::chain::{AxisChain, white_noise_inflation};
-    use crate::sim::noise::{NoiseTerms, add_line};
+    use crate::sim::noise::{AxisNoise, NoiseTerms, add_line};
     use protocol::mpu6050::DlpfCfg;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -1553,8 +1553,7 @@ pub(crate) mod tests {
                 b: n_density / 10.0,
                 ..NoiseTerms::default()
             };
-            let after = crate::sim::noise::AxisNoise::new(flicker, rate, 2000.0, &mut rng)
-                .take(y.len(), &mut rng);
+            let after = AxisNoise::new(flicker, rate, 2000.0, &mut rng).take(y.len(), &mut rng);
             y.iter_mut().zip(&after).for_each(|(v, a)| *v += a);
             let lsb = (y.iter().map(|v| v * v).sum::<f64>() / y.len() as f64).sqrt() / 3.0;
             y.iter_mut().for_each(|v| *v = (*v / lsb).round() * lsb);
