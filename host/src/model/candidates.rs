@@ -82,7 +82,8 @@ pub(super) fn line_standard_errors(
 /// The candidate to name, leaving out those `taken_back` in this round: a passing
 /// temperature coupling first, then the smallest p-value ([`evidence::Evidence::ranking_p`];
 /// the largest z, which is clamped where p underflows) among the other passing deterministic
-/// candidates, else among the passing stochastic ones. P-values below [`evidence::LEAST_P`]
+/// candidates, else among the passing stochastic ones (which [`super::naming::name`] then
+/// weighs against each other by the Allan gap). P-values below [`evidence::LEAST_P`]
 /// are not told apart (a strong line and a strong roll-off both reach it), and ties go to
 /// the earlier probe: lines first, whose removal can change what the roll-off and the
 /// regressions see (a roll-off fitted with a strong line beyond it put the cutoff below the

@@ -39,7 +39,10 @@
 //! the round's open noise model (`open_noise`: the random terms refitted with every
 //! deterministic candidate removed), so two effects the baseline put into K do not hide
 //! each other. Among the passing
-//! candidates of the first group that has any, the smallest p is named. Then the model takes
+//! candidates of the first group that has any, the smallest p is named; among two or more
+//! passing random terms, the one whose model the simulations bring closest to the record
+//! (the least Allan gap, see `naming.rs`): a bump one term explains makes others pass
+//! beside it, sometimes with a smaller p. Then the model takes
 //! the effect, its stochastic terms are refitted to the cleaned record, and the loop repeats
 //! (at most [`MAX_STEPS`] effects), so a record with two effects gets both. A stochastic
 //! term or a sensor filter after which the Allan gap does not shrink is taken back and the round's next passing
@@ -58,13 +61,14 @@
 //! example a slowly varying scale factor on a static record) cannot be seen.
 
 mod candidates;
-use candidates::{add, choose, detect_lines};
+use candidates::{choose, detect_lines};
 pub mod clean;
 pub mod cosine;
 pub mod evidence;
 pub mod gauss_markov_fit;
 pub mod gls;
 mod joint;
+mod naming;
 pub mod refit;
 pub mod regression;
 pub mod report;
@@ -700,62 +704,11 @@ pub fn run(
         if steps.len() == MAX_STEPS {
             break (round.evidence, round.open, Stop::MaxSteps);
         }
+        let named = naming::name(&data, &model, &removal, &round, chosen, &taken_back);
+        let (chosen, effect, evidence) = (named.index, named.effect, named.evidence);
         let probe = round.probes[chosen];
-        let mut evidence = round.evidence.clone();
-        let Some(mut effect) = evidence[chosen].effect else {
-            unreachable!("a passing candidate has an effect")
-        };
-        // A named line's errors: the line search once more on the record as the round
-        // cleaned it, with the errors its realisations' searches leave out.
-        // A slow line's: the least-squares sandwich under the open noise model it was judged
-        // against, on the record its view read.
-        match (probe, effect) {
-            (Probe::Line, Effect::Sinusoid { freq_hz, .. }) => {
-                let (clean, _) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
-                evidence[chosen].standard_errors =
-                    candidates::line_standard_errors(&clean, data.rate_hz, freq_hz);
-            }
-            (Probe::SlowLine, Effect::Sinusoid { freq_hz, .. }) => {
-                let (clean, _) = simulate::regressors_out(&data, &removal).apply(
-                    data.rate,
-                    data.rate_hz,
-                    data.temperature.as_ref(),
-                );
-                evidence[chosen].standard_errors = sinusoid_errors::sinusoid_standard_errors(
-                    &clean,
-                    data.rate_hz,
-                    freq_hz,
-                    &round.open,
-                    model.low_pass.as_ref(),
-                );
-            }
-            // A Gauss-Markov term's: its maximum-likelihood parameters in the cosine view,
-            // whichever view named it, with their profile intervals.
-            (Probe::GaussMarkov, Effect::GaussMarkov { .. }) => {
-                if let Some(fit) = simulate::gauss_markov_fit(&data, &model, &removal) {
-                    effect = Effect::GaussMarkov {
-                        tau_c: fit.tau_c,
-                        sigma: fit.sigma,
-                    };
-                    let e = &mut evidence[chosen];
-                    e.effect = Some(effect);
-                    e.intervals = [("tau_c", fit.tau_c_interval), ("sigma", fit.sigma_interval)]
-                        .into_iter()
-                        .collect();
-                }
-            }
-            _ => {}
-        }
-        let before = (model.clone(), removal.clone());
-        let unnamed = candidates::unnamed_filter(&round, data.rate_hz);
-        model = add(
-            &data,
-            &model,
-            &mut removal,
-            (probe, effect),
-            &round.sd_ln,
-            unnamed.as_ref(),
-        );
+        let before = (model, removal);
+        (model, removal) = (named.model, named.removal);
         steps.push(Step {
             description: described(&effect, &evidence[chosen], channel.unit()),
             effect,

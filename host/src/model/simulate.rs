@@ -87,6 +87,78 @@ pub(super) fn realise(
     y
 }
 
+/// How a round realises a model: its noise with the named lines, carrying the deterministic
+/// effects as estimated from the record.
+struct Realisations<'a> {
+    data: &'a Data<'a>,
+    model: &'a Model,
+    /// The named lines the realisations carry (see [`realise`]); slow tones are regressors.
+    lines: Vec<Line>,
+    /// The record less its cleaned self: the regressors' estimated signal.
+    deterministic: Vec<f64>,
+}
+
+impl<'a> Realisations<'a> {
+    fn of(data: &'a Data<'a>, model: &'a Model, removal: &Removal) -> Realisations<'a> {
+        // The regressors (slow tones among them) as estimated jointly from the record; the
+        // notched lines are simulated (see `realise`).
+        let regressors = Removal {
+            notches: Vec::new(),
+            ..removal.clone()
+        };
+        let lines = model
+            .lines
+            .iter()
+            .filter(|l| !removal.is_tone(l.freq_hz))
+            .copied()
+            .collect();
+        let (clean, _) = regressors.apply(data.rate, data.rate_hz, data.temperature.as_ref());
+        let deterministic = data.rate.iter().zip(&clean).map(|(x, c)| x - c).collect();
+        Realisations {
+            data,
+            model,
+            lines,
+            deterministic,
+        }
+    }
+
+    /// Realisation `i` of the stochastic `terms` with the model's filter and lines.
+    fn series(&self, terms: &NoiseTerms, i: usize) -> Vec<f64> {
+        let low_pass = self.model.low_pass.as_ref();
+        realise(self.data, terms, low_pass, &self.lines, i)
+    }
+
+    /// The ln ADEV of realisations `0..r` with the deterministic effects added, on the
+    /// record's averaging factors, and each realisation itself when `keep`.
+    fn band(&self, r: usize, keep: bool) -> (Vec<Vec<f64>>, Vec<Option<Vec<f64>>>) {
+        let data = self.data;
+        (0..r)
+            .into_par_iter()
+            .map(|i| {
+                let s = self.series(&self.model.terms, i);
+                let with: Vec<f64> = s
+                    .iter()
+                    .zip(&self.deterministic)
+                    .map(|(a, b)| a + b)
+                    .collect();
+                let log = evidence::allan_avar(with, data.rate_hz, &data.measured.m)
+                    .iter()
+                    .map(|v| 0.5 * v.max(f64::MIN_POSITIVE).ln())
+                    .collect();
+                (log, keep.then_some(s))
+            })
+            .unzip()
+    }
+}
+
+/// The record against realisations of `model` (the Allan comparison of a round, without the
+/// candidates' statistics): what choosing among stochastic candidates compares.
+pub(super) fn comparison_of(data: &Data, model: &Model, removal: &Removal) -> Comparison {
+    let r = data.settings.realisations.max(2);
+    let (logs, _) = Realisations::of(data, model, removal).band(r, false);
+    compare(&data.measured, &logs)
+}
+
 /// Simulate the model twice over the same seeds: first its Allan band (each realisation
 /// carrying the named deterministic effects as estimated from the record), whose spread
 /// weights the refits; then every candidate's statistic, on the record and on each
@@ -97,36 +169,10 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
     let longest = data.measured.tau.last().copied().unwrap_or(tau0);
     let m = &data.measured.m;
     let r = data.settings.realisations.max(2);
-    // The regressors (slow tones among them) as estimated jointly from the record; the
-    // notched lines are simulated (see `realise`).
-    let regressors = Removal {
-        notches: Vec::new(),
-        ..removal.clone()
-    };
-    let simulated_lines: Vec<Line> = model
-        .lines
-        .iter()
-        .filter(|l| !removal.is_tone(l.freq_hz))
-        .copied()
-        .collect();
-    let (clean, _) = regressors.apply(data.rate, data.rate_hz, data.temperature.as_ref());
-    let deterministic: Vec<f64> = data.rate.iter().zip(&clean).map(|(x, c)| x - c).collect();
-    let realise = |terms: &NoiseTerms, i: usize| {
-        realise(data, terms, model.low_pass.as_ref(), &simulated_lines, i)
-    };
+    let realisations = Realisations::of(data, model, removal);
     let keep = r.saturating_mul(data.rate.len()) <= KEPT_REALISATION_SAMPLES;
-    let (logs, kept): (Vec<Vec<f64>>, Vec<Option<Vec<f64>>>) = (0..r)
-        .into_par_iter()
-        .map(|i| {
-            let s = realise(&model.terms, i);
-            let with: Vec<f64> = s.iter().zip(&deterministic).map(|(a, b)| a + b).collect();
-            let log = evidence::allan_avar(with, data.rate_hz, m)
-                .iter()
-                .map(|v| 0.5 * v.max(f64::MIN_POSITIVE).ln())
-                .collect();
-            (log, keep.then_some(s))
-        })
-        .unzip();
+    let (logs, kept) = realisations.band(r, keep);
+    let realise = |terms: &NoiseTerms, i: usize| realisations.series(terms, i);
     let comparison = compare(&data.measured, &logs);
     let sd_ln: Vec<f64> = comparison.band.std_log.iter().map(|s| 2.0 * s).collect();
     let sd_ln = refit::beyond_fitted_filter(&sd_ln, &data.measured.tau, model.low_pass.as_ref());

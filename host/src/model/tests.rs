@@ -347,6 +347,27 @@ fn a_filter_beside_a_wide_line_above_it_is_named_after_the_line() {
     );
 }
 
+/// A Gauss-Markov bump the baseline took into its white and flicker terms makes
+/// quantization pass beside the process, with the smaller p: named by p, quantization came
+/// first and stayed (it shrank the gap a little), and the process was named after it. Of
+/// random terms passing together, the one whose model lies closest to the record is named
+/// ([`super::naming`]): here the process, and nothing else.
+#[test]
+fn of_random_terms_passing_together_the_one_closest_to_the_record_is_named() {
+    let (got, o, _) = named(Kind::GaussMarkov, CI_SHAPE, 3);
+    assert_eq!(got, Kind::GaussMarkov.expected(), "{}", report::table(&o));
+    let first = &o.steps[0];
+    let by_p = first
+        .evidence
+        .iter()
+        .filter(|e| e.passes && !e.view.is_deterministic())
+        .min_by(|a, b| a.ranking_p().total_cmp(&b.ranking_p()))
+        .expect("random terms pass in the first round");
+    assert_eq!(by_p.candidate, "quantization", "{}", report::table(&o));
+    assert_eq!(first.effect.kind(), "gauss_markov", "{}", report::table(&o));
+    assert!(first.gap_after < first.gap_before);
+}
+
 /// Every kind on three seeds at CI size (1 h at 20 Hz, shorter and slower than the study's
 /// 3 h at 50 Hz, so every effect is weaker against the noise): at least five sixths of the
 /// 33 records named exactly right (29 measured: a Gauss-Markov process of 36-108 s is found
