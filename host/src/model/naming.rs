@@ -61,16 +61,18 @@ pub(super) fn name(
     if !stochastic(chosen) || rivals.len() < 2 {
         return made(data, model, removal, round, chosen);
     }
-    rivals
+    let closest = rivals
         .into_iter()
         .map(|i| {
             let named = made(data, model, removal, round, i);
             let gap = simulate::comparison_of(data, &named.model, &named.removal).gap;
             (gap, named)
         })
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, named)| named)
-        .unwrap_or_else(|| made(data, model, removal, round, chosen))
+        .min_by(|a, b| a.0.total_cmp(&b.0));
+    let Some((_, named)) = closest else {
+        unreachable!("two or more rivals were weighed")
+    };
+    named
 }
 
 /// Candidate `chosen` of `round` added to `model`: its effect with the errors the round's
