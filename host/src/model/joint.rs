@@ -9,7 +9,7 @@
 //! step (`at_naming`) and in its evidence.
 
 use super::clean::{Removal, notch};
-use super::{Data, Effect, Model, Step, described, gls};
+use super::{Data, Effect, Model, Step, described, gls, weighed_words};
 use crate::sim::noise::NoiseTerms;
 use std::collections::BTreeMap;
 
@@ -68,10 +68,14 @@ pub(super) fn restate(
                     .collect();
             }
             step.standard_errors = e.standard_errors.clone();
+            // A step named by the gap in place of a random term must close the gap, which
+            // its own view would not require.
+            let stands_in = step.must_close_gap && !step.view.must_close_gap();
             step.description = format!(
-                "{}; estimated with every effect named (at naming, beside those before it: {})",
+                "{}; estimated with every effect named (at naming, beside those before it: {}){}",
                 described(&effect, e, unit),
-                step.at_naming.describe(unit)
+                step.at_naming.describe(unit),
+                weighed_words(&step.rivals, stands_in)
             );
         }
     }

@@ -315,6 +315,24 @@ fn described(effect: &Effect, evidence: &Evidence, unit: &str) -> String {
     words
 }
 
+/// How a step was chosen among rivals, in words: each one's Allan gap with it added, and
+/// whether the step stands in for a random term that passed (empty when none were weighed).
+pub(super) fn weighed_words(weighed: &[naming::Weighed], stands_in: bool) -> String {
+    if weighed.is_empty() {
+        return String::new();
+    }
+    let gaps: Vec<String> = weighed
+        .iter()
+        .map(|w| format!("{} {}", w.effect.kind(), crate::report::sig(w.gap, 3)))
+        .collect();
+    let how = if stands_in {
+        "named in place of the random term that passed, its model being the closest to the record"
+    } else {
+        "the closest to the record among the rivals"
+    };
+    format!(" ({how}; Allan gap with each: {})", gaps.join(", "))
+}
+
 /// The model: stochastic noise terms, the deterministic effects named (as estimated from the
 /// record), and the sensor's low-pass filter where one is known or was named.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -406,6 +424,13 @@ pub struct Step {
     pub gap_after: f64,
     /// Every candidate's evidence at this step (the named one among them).
     pub evidence: Vec<Evidence>,
+    /// The rivals weighed by the Allan gap when several could explain the same excess
+    /// (`model::naming`), the named one among them; empty when none were.
+    pub rivals: Vec<naming::Weighed>,
+    /// Whether the step must shrink the Allan gap to stay: a random term, a filter, or an
+    /// effect named by the gap in place of a random term.
+    #[serde(skip)]
+    pub must_close_gap: bool,
     #[serde(skip)]
     pub model: Model,
     #[serde(skip)]
@@ -660,9 +685,10 @@ pub fn run(
     let (final_evidence, final_open, stop) = loop {
         let round = simulate_round(&data, &model, &removal);
         let round = match steps.last_mut() {
-            Some(s) if s.view.must_close_gap() && round.comparison.gap >= s.gap_before => {
-                // A stochastic term or a filter that does not bring the simulations closer
-                // to the record explains nothing (see `View::must_close_gap`).
+            Some(s) if s.must_close_gap && round.comparison.gap >= s.gap_before => {
+                // A stochastic term or a filter (or an effect standing in for a stochastic
+                // term) that does not bring the simulations closer to the record explains
+                // nothing (see `View::must_close_gap`, `naming`).
                 let undone = steps.pop().expect("matched a last step");
                 last_undone = Some(undone.effect);
                 let Some((before, m, r, probe)) = chosen_in.take() else {
@@ -709,15 +735,19 @@ pub fn run(
         let probe = round.probes[chosen];
         let before = (model, removal);
         (model, removal) = (named.model, named.removal);
+        let view = evidence[chosen].view;
         steps.push(Step {
-            description: described(&effect, &evidence[chosen], channel.unit()),
+            description: described(&effect, &evidence[chosen], channel.unit())
+                + &weighed_words(&named.weighed, named.stands_in),
             effect,
             at_naming: effect,
             standard_errors: evidence[chosen].standard_errors.clone(),
-            view: evidence[chosen].view,
+            view,
             gap_before: round.comparison.gap,
             gap_after: f64::NAN,
             evidence,
+            rivals: named.weighed,
+            must_close_gap: view.must_close_gap() || named.stands_in,
             model: model.clone(),
             comparison: round.comparison.clone(),
         });

@@ -18,8 +18,9 @@
 //! + phi^2)` at `w = pi k / n`.
 //!
 //! Measured (3 h at 50 Hz, seeds 100..110; `--nocapture` prints the table): knowing the
-//! levels, every ramp has a ratio of 18.7 to 133 (chi-square(1) p below 2e-5); searching
-//! them, 5.8 to 32 on block means and 6.1 to 30 on the full transform. So the block means lose little, and the
+//! levels, every ramp has a ratio of 24.8 to 169 (chi-square(1) p below 1e-6); searching
+//! them, 7.2 to 20.5 on block means and 4.7 to 19.4 on the full transform, within 3 of each
+//! other on every record. So the block means lose little, and the
 //! ramps the workflow misses are those whose likelihood ratio collapses once K is free: a
 //! random walk a few times the true one explains them almost as well.
 

@@ -188,6 +188,7 @@ pub fn document(o: &Outcome) -> Value {
                 "gap_before": s.gap_before,
                 "gap_after": s.gap_after,
                 "evidence": s.evidence,
+                "rivals": s.rivals,
                 "disagreeing_after": s.comparison.disagreeing,
             })
         })
@@ -201,7 +202,7 @@ pub fn document(o: &Outcome) -> Value {
         "realisations": o.realisations,
         "temperature_channel": o.temperature,
         "temperature_note": o.temperature_note,
-        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance; for a spectral line, at least the line detector's own family-wise p-value) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations); a ramp or temperature candidate with such a p-value, above every draw or not, is decided by the Monte Carlo p-value (1 + draws at or beyond its statistic) / (draws + 1) of enough bootstrap draws that the threshold lies {MONTE_CARLO_EXCEEDANCES} draws deep in their tail"),
+        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance; for a spectral line, at least the line detector's own family-wise p-value) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; of stochastic terms passing together, and of a passing Gauss-Markov process and the slow line found beside it whatever its own p-value, the one whose model brings the simulations closest to the record (the least Allan gap; steps[].rivals) is named, and a step standing for a stochastic term is taken back unless it shrinks the gap; a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations); a ramp or temperature candidate with such a p-value, above every draw or not, is decided by the Monte Carlo p-value (1 + draws at or beyond its statistic) / (draws + 1) of enough bootstrap draws that the threshold lies {MONTE_CARLO_EXCEEDANCES} draws deep in their tail"),
         "gap_definition": "gap = RMS over the measured oadev taus of z, z = (ln ADEV_measured - mean ln ADEV_simulated) / std ln ADEV_simulated; |z| > 2 marks a disagreeing tau",
         "measured": {"tau": o.measured.tau, "adev": o.measured.dev},
         "baseline": model_keys(&o.baseline),
@@ -253,7 +254,8 @@ fn evidence_rows(evidence: &[Evidence], named: Option<&Step>, u: &str) -> String
         .iter()
         .map(|e| {
             let verdict = match (named, e.passes) {
-                (Some(s), true) if Some(s.at_naming) == e.effect => "named",
+                // An effect named by the gap in place of a random term did not pass its own test.
+                (Some(s), _) if Some(s.at_naming) == e.effect => "named",
                 (_, true) => "passes",
                 _ => "-",
             };
@@ -369,7 +371,7 @@ pub fn table(o: &Outcome) -> String {
     disagreeing(&mut s, &o.initial);
     let _ = writeln!(
         s,
-        "rule: name a candidate whose p-value against the simulations is below {FAMILY_ALPHA} / (candidates) and whose statistic exceeds every simulated one (lines, ramp, temperature first); a verdict near that line is simulated again {REFINE} times as often (a ramp or temperature one decided by the Monte Carlo p-value of enough bootstrap draws)"
+        "rule: name a candidate whose p-value against the simulations is below {FAMILY_ALPHA} / (candidates) and whose statistic exceeds every simulated one (lines, ramp, temperature first; of random terms passing together, and of a passing Gauss-Markov process and the slow line beside it, the one closest to the record by the Allan gap); a verdict near that line is simulated again {REFINE} times as often (a ramp or temperature one decided by the Monte Carlo p-value of enough bootstrap draws)"
     );
     for (i, st) in o.steps.iter().enumerate() {
         let _ = writeln!(
@@ -450,7 +452,7 @@ fn evidence_html(page: &mut String, evidence: &[Evidence], named: Option<&Step>,
     );
     for e in evidence {
         let verdict = match (named, e.passes) {
-            (Some(s), true) if Some(s.at_naming) == e.effect => "<b>named</b>",
+            (Some(s), _) if Some(s.at_naming) == e.effect => "<b>named</b>",
             (_, true) => "passes",
             _ => "",
         };
