@@ -68,14 +68,11 @@ pub(super) fn restate(
                     .collect();
             }
             step.standard_errors = e.standard_errors.clone();
-            // A step named by the gap in place of a random term must close the gap, which
-            // its own view would not require.
-            let stands_in = step.must_close_gap && !step.view.must_close_gap();
             step.description = format!(
                 "{}; estimated with every effect named (at naming, beside those before it: {}){}",
                 described(&effect, e, unit),
                 step.at_naming.describe(unit),
-                weighed_words(&step.rivals, stands_in)
+                weighed_words(&step.rivals, step.stands_in)
             );
         }
     }

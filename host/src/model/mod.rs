@@ -427,14 +427,22 @@ pub struct Step {
     /// The rivals weighed by the Allan gap when several could explain the same excess
     /// (`model::naming`), the named one among them; empty when none were.
     pub rivals: Vec<naming::Weighed>,
-    /// Whether the step must shrink the Allan gap to stay: a random term, a filter, or an
-    /// effect named by the gap in place of a random term.
+    /// Whether it was named by the gap in place of a random term that passed, not by its
+    /// own test (`model::naming`).
     #[serde(skip)]
-    pub must_close_gap: bool,
+    pub stands_in: bool,
     #[serde(skip)]
     pub model: Model,
     #[serde(skip)]
     pub comparison: Comparison,
+}
+
+impl Step {
+    /// Whether the step must shrink the Allan gap to stay: a random term, a filter, or an
+    /// effect standing in for a random term.
+    pub fn must_close_gap(&self) -> bool {
+        self.view.must_close_gap() || self.stands_in
+    }
 }
 
 /// Why the loop stopped.
@@ -685,7 +693,7 @@ pub fn run(
     let (final_evidence, final_open, stop) = loop {
         let round = simulate_round(&data, &model, &removal);
         let round = match steps.last_mut() {
-            Some(s) if s.must_close_gap && round.comparison.gap >= s.gap_before => {
+            Some(s) if s.must_close_gap() && round.comparison.gap >= s.gap_before => {
                 // A stochastic term or a filter (or an effect standing in for a stochastic
                 // term) that does not bring the simulations closer to the record explains
                 // nothing (see `View::must_close_gap`, `naming`).
@@ -735,19 +743,18 @@ pub fn run(
         let probe = round.probes[chosen];
         let before = (model, removal);
         (model, removal) = (named.model, named.removal);
-        let view = evidence[chosen].view;
         steps.push(Step {
             description: described(&effect, &evidence[chosen], channel.unit())
                 + &weighed_words(&named.weighed, named.stands_in),
             effect,
             at_naming: effect,
             standard_errors: evidence[chosen].standard_errors.clone(),
-            view,
+            view: evidence[chosen].view,
             gap_before: round.comparison.gap,
             gap_after: f64::NAN,
             evidence,
             rivals: named.weighed,
-            must_close_gap: view.must_close_gap() || named.stands_in,
+            stands_in: named.stands_in,
             model: model.clone(),
             comparison: round.comparison.clone(),
         });

@@ -407,7 +407,7 @@ fn a_slow_line_beside_a_passing_process_is_named_where_its_model_lies_closer() {
     let (process, line) = process_and_line_gaps(first);
     assert!(line < process && process.is_finite(), "{:?}", first.rivals);
     // Standing in for a random term, it had to bring the simulations closer to stay.
-    assert!(first.must_close_gap && first.gap_after < first.gap_before);
+    assert!(first.must_close_gap() && first.gap_after < first.gap_before);
     assert!(
         first.description.contains("in place of"),
         "{}",
