@@ -281,6 +281,71 @@ pub(super) fn add(
         // or raised B to absorb the effect.
         columns = evidence::with_random_walks(&columns);
     }
+    refitted(data, out, removal, &columns, sd_ln, unnamed)
+}
+
+/// `model` and `removal` without the effect `probe` named ([`super::recheck`]), the random
+/// terms refitted as [`add`] refits them: a random term's column left out (without a
+/// Gauss-Markov term B and K are free again: it may have taken what they held); a ramp or a
+/// coupling no longer regressed out; a line no longer removed (regressed out as a tone or
+/// notched) nor simulated. `effect` locates a line: the model's nearest to its frequency.
+/// None for a filter, or a line the model does not hold.
+pub(super) fn without(
+    data: &Data,
+    (model, removal): (&Model, &Removal),
+    (probe, effect): (Probe, Effect),
+    sd_ln: &[f64],
+    unnamed: Option<&LowPass>,
+) -> Option<(Model, Removal)> {
+    let (mut out, mut removal) = (model.clone(), removal.clone());
+    match (probe, effect) {
+        (Probe::GaussMarkov, _) => out.terms.gauss_markov = None,
+        (Probe::Term(Column::Q), _) => out.terms.q = 0.0,
+        (Probe::Term(Column::B), _) => out.terms.b = 0.0,
+        (Probe::Term(Column::K), _) => out.terms.k = 0.0,
+        (Probe::Ramp, _) => {
+            removal.ramp = false;
+            out.terms.r = 0.0;
+        }
+        (Probe::Temperature, _) => removal.temperature = false,
+        (Probe::Line | Probe::SlowLine, Effect::Sinusoid { freq_hz, .. }) => {
+            let nearest = out
+                .lines
+                .iter()
+                .enumerate()
+                .min_by(|a, b| {
+                    (a.1.freq_hz - freq_hz)
+                        .abs()
+                        .total_cmp(&(b.1.freq_hz - freq_hz).abs())
+                })
+                .map(|(i, _)| i)?;
+            let line = out.lines.remove(nearest);
+            removal.tones.retain(|t| t.freq_hz != line.freq_hz);
+            removal
+                .notches
+                .retain(|n| !(n.lo_hz <= line.freq_hz && line.freq_hz <= n.hi_hz));
+        }
+        _ => return None,
+    }
+    let mut columns = refit::columns_of(&out.stochastic());
+    if probe == Probe::GaussMarkov {
+        columns = evidence::with_random_walks(&columns);
+    }
+    let out = refitted(data, out, &removal, &columns, sd_ln, unnamed);
+    Some((out, removal))
+}
+
+/// `out` with its deterministic coefficients estimated jointly on the record under
+/// `removal`, and its random terms in `columns` refitted to the record's Allan variance
+/// with the named effects removed (weights from `sd_ln`).
+fn refitted(
+    data: &Data,
+    mut out: Model,
+    removal: &Removal,
+    columns: &[Column],
+    sd_ln: &[f64],
+    unnamed: Option<&LowPass>,
+) -> Model {
     // The deterministic coefficients, jointly estimated on the record.
     let (_, c) = removal.apply(data.rate, data.rate_hz, data.temperature.as_ref());
     out.terms.r = c.slope.unwrap_or(0.0);
@@ -313,7 +378,7 @@ pub(super) fn add(
         };
         let shaped = out.clone();
         let white = |tau: f64| shaped.white_shape(tau);
-        let terms = refit::refit_cleaned(curve, &columns, &white, target.loss.as_ref());
+        let terms = refit::refit_cleaned(curve, columns, &white, target.loss.as_ref());
         out.terms = NoiseTerms {
             r: out.terms.r,
             sinusoid: out.terms.sinusoid,

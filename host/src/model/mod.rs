@@ -49,6 +49,11 @@
 //! candidate tried: several random terms can pass one round (a Gauss-Markov bump moves the
 //! fitted N, so quantization passes too), and only one of them is the missing effect.
 //!
+//! **Recheck** ([`recheck`]). After the loop, an effect named before one of the other kind
+//! (deterministic or random) is taken out of the final model and dropped when, tested again
+//! without it, no candidate passes (backward elimination): judged first, a slow line can take
+//! part of a Gauss-Markov plateau that the process, named next, explains.
+//!
 //! **Gap** (reported, not decided on). `z(tau) = (ln ADEV_measured(tau) - mean ln
 //! ADEV_sim(tau)) / std ln ADEV_sim(tau)`, the realisations carrying the named deterministic
 //! effects as estimated from the record; `gap = sqrt(mean z^2)`. Taus with `|z| > 2` are the
@@ -69,6 +74,7 @@ pub mod gauss_markov_fit;
 pub mod gls;
 mod joint;
 mod naming;
+pub mod recheck;
 pub mod refit;
 pub mod regression;
 pub mod report;
@@ -507,6 +513,9 @@ pub struct Outcome {
     /// The candidates' evidence against the baseline.
     pub initial_evidence: Vec<Evidence>,
     pub steps: Vec<Step>,
+    /// The effects named before a later effect of the other kind, tested again against the
+    /// final model without them ([`recheck`]); those dropped are no longer among `steps`.
+    pub rechecked: Vec<recheck::Rechecked>,
     /// The candidates' evidence against the final model (none of which was named).
     pub final_evidence: Vec<Evidence>,
     pub stop: Stop,
@@ -690,7 +699,7 @@ pub fn run(
     // Candidates taken back since the last step that stayed.
     let mut taken_back: Vec<Probe> = Vec::new();
     let mut last_undone: Option<Effect> = None;
-    let (final_evidence, final_open, stop) = loop {
+    let (final_round, stop) = loop {
         let round = simulate_round(&data, &model, &removal);
         let round = match steps.last_mut() {
             Some(s) if s.must_close_gap() && round.comparison.gap >= s.gap_before => {
@@ -720,23 +729,17 @@ pub fn run(
         let Some(chosen) = choose(&round, &taken_back) else {
             if !taken_back.is_empty() {
                 break (
-                    round.evidence,
-                    round.open,
+                    round,
                     Stop::NoCloser {
                         undone: last_undone,
                     },
                 );
             }
-            let best = round
-                .evidence
-                .iter()
-                .filter(|e| e.effect.is_some())
-                .min_by(|a, b| a.p_value.total_cmp(&b.p_value))
-                .cloned();
-            break (round.evidence, round.open, Stop::NothingStandsOut { best });
+            let best = strongest(&round.evidence);
+            break (round, Stop::NothingStandsOut { best });
         };
         if steps.len() == MAX_STEPS {
-            break (round.evidence, round.open, Stop::MaxSteps);
+            break (round, Stop::MaxSteps);
         }
         let named = naming::name(&data, &model, &removal, &round, chosen, &taken_back);
         let (chosen, effect, evidence) = (named.index, named.effect, named.evidence);
@@ -761,12 +764,22 @@ pub fn run(
         chosen_in = Some((round, before.0, before.1, probe));
     };
     let (initial, initial_evidence) = initial.expect("the first round always runs");
+    let (final_round, rechecked) =
+        recheck::named_before(&data, &mut steps, &mut removal, final_round);
+    let stop = if rechecked.iter().any(|r| r.dropped) {
+        Stop::NothingStandsOut {
+            best: strongest(&final_round.evidence),
+        }
+    } else {
+        stop
+    };
+    let model = steps.last().map_or(model, |s| s.model.clone());
     joint::restate(
         &mut steps,
         &data,
         &removal,
         &model,
-        &final_open,
+        &final_round.open,
         channel.unit(),
     );
     Ok(Outcome {
@@ -784,9 +797,19 @@ pub fn run(
         initial,
         initial_evidence,
         steps,
-        final_evidence,
+        rechecked,
+        final_evidence: final_round.evidence,
         stop,
     })
+}
+
+/// The candidate with the least p-value among those that found an effect.
+fn strongest(evidence: &[Evidence]) -> Option<Evidence> {
+    evidence
+        .iter()
+        .filter(|e| e.effect.is_some())
+        .min_by(|a, b| a.p_value.total_cmp(&b.p_value))
+        .cloned()
 }
 
 #[cfg(test)]

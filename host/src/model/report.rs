@@ -202,7 +202,7 @@ pub fn document(o: &Outcome) -> Value {
         "realisations": o.realisations,
         "temperature_channel": o.temperature,
         "temperature_note": o.temperature_note,
-        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance; for a spectral line, at least the line detector's own family-wise p-value) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; of stochastic terms passing together, and of a passing Gauss-Markov process and the slow line found beside it whatever its own p-value, the one whose model brings the simulations closest to the record (the least Allan gap; steps[].rivals) is named, and a step standing for a stochastic term is taken back unless it shrinks the gap; a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations); a ramp or temperature candidate with such a p-value, above every draw or not, is decided by the Monte Carlo p-value (1 + draws at or beyond its statistic) / (draws + 1) of enough bootstrap draws that the threshold lies {MONTE_CARLO_EXCEEDANCES} draws deep in their tail"),
+        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance; for a spectral line, at least the line detector's own family-wise p-value) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; of stochastic terms passing together, and of a passing Gauss-Markov process and the slow line found beside it whatever its own p-value, the one whose model brings the simulations closest to the record (the least Allan gap; steps[].rivals) is named, and a step standing for a stochastic term is taken back unless it shrinks the gap; after the search, each effect named before a later effect of the other kind (deterministic or stochastic) is tested again against the final model without it and dropped when no candidate, itself included, passes there (rechecked[]); a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations); a ramp or temperature candidate with such a p-value, above every draw or not, is decided by the Monte Carlo p-value (1 + draws at or beyond its statistic) / (draws + 1) of enough bootstrap draws that the threshold lies {MONTE_CARLO_EXCEEDANCES} draws deep in their tail"),
         "gap_definition": "gap = RMS over the measured oadev taus of z, z = (ln ADEV_measured - mean ln ADEV_simulated) / std ln ADEV_simulated; |z| > 2 marks a disagreeing tau",
         "measured": {"tau": o.measured.tau, "adev": o.measured.dev},
         "baseline": model_keys(&o.baseline),
@@ -211,6 +211,7 @@ pub fn document(o: &Outcome) -> Value {
         "initial": comparison_json(&o.initial),
         "initial_evidence": o.initial_evidence,
         "steps": steps,
+        "rechecked": o.rechecked,
         "gap_final": o.final_comparison().gap,
         "final": comparison_json(o.final_comparison()),
         "final_evidence": o.final_evidence,
@@ -371,7 +372,7 @@ pub fn table(o: &Outcome) -> String {
     disagreeing(&mut s, &o.initial);
     let _ = writeln!(
         s,
-        "rule: name a candidate whose p-value against the simulations is below {FAMILY_ALPHA} / (candidates) and whose statistic exceeds every simulated one (lines, ramp, temperature first; of random terms passing together, and of a passing Gauss-Markov process and the slow line beside it, the one closest to the record by the Allan gap); a verdict near that line is simulated again {REFINE} times as often (a ramp or temperature one decided by the Monte Carlo p-value of enough bootstrap draws)"
+        "rule: name a candidate whose p-value against the simulations is below {FAMILY_ALPHA} / (candidates) and whose statistic exceeds every simulated one (lines, ramp, temperature first; of random terms passing together, and of a passing Gauss-Markov process and the slow line beside it, the one closest to the record by the Allan gap; an effect named before one of the other kind is dropped when, tested again without it, nothing passes); a verdict near that line is simulated again {REFINE} times as often (a ramp or temperature one decided by the Monte Carlo p-value of enough bootstrap draws)"
     );
     for (i, st) in o.steps.iter().enumerate() {
         let _ = writeln!(
@@ -384,6 +385,15 @@ pub fn table(o: &Outcome) -> String {
             sig(st.gap_after, 3)
         );
         s.push_str(&evidence_rows(&st.evidence, Some(st), u));
+    }
+    if !o.rechecked.is_empty() {
+        let _ = writeln!(
+            s,
+            "\neffects tested again against the final model without them:"
+        );
+        for r in &o.rechecked {
+            let _ = writeln!(s, "  {}", r.describe(u));
+        }
     }
     let _ = writeln!(s, "\nagainst the final model:");
     s.push_str(&evidence_rows(&o.final_evidence, None, u));
@@ -498,7 +508,7 @@ pub fn html(o: &Outcome) -> Result<String, plot::PlotError> {
     );
     let _ = writeln!(
         page,
-        "<p>{} samples at {} Hz ({} s); {} simulated realisations per model. A candidate is named when the p-value of its statistic against the simulations of the current model is below {FAMILY_ALPHA} / (candidates in the round) and the statistic exceeds every simulated one; lines, ramp and temperature are judged before stochastic terms. A verdict near that line is judged again on {REFINE} times as many simulations.</p>",
+        "<p>{} samples at {} Hz ({} s); {} simulated realisations per model. A candidate is named when the p-value of its statistic against the simulations of the current model is below {FAMILY_ALPHA} / (candidates in the round) and the statistic exceeds every simulated one; lines, ramp and temperature are judged before stochastic terms, and an effect named before one of the other kind (deterministic or random) is dropped when, tested again against the final model without it, nothing passes. A verdict near that line is judged again on {REFINE} times as many simulations.</p>",
         o.n,
         sig(o.rate_hz, 6),
         sig(o.n as f64 / o.rate_hz, 4),
@@ -527,6 +537,16 @@ pub fn html(o: &Outcome) -> Result<String, plot::PlotError> {
                 &st.comparison,
             ),
         )?;
+    }
+    if !o.rechecked.is_empty() {
+        let _ = writeln!(
+            page,
+            "<h2>Effects tested again</h2><p>Each against the final model without it:</p><ul>"
+        );
+        for r in &o.rechecked {
+            let _ = writeln!(page, "<li>{}</li>", escape(&r.describe(u)));
+        }
+        let _ = writeln!(page, "</ul>");
     }
     let _ = writeln!(
         page,

@@ -1,0 +1,179 @@
+//! Effects named before an effect of the other kind, tested again once it is in the model
+//! (`named_before`): backward elimination after the forward search, as in stepwise
+//! regression, where a term entered early can become redundant once later ones are in
+//! (Draper & Smith, *Applied Regression Analysis*, 3rd ed., 1998, the chapter on selecting
+//! the best regression equation).
+//!
+//! **Why.** Each round tests a candidate against realisations of the model named so far,
+//! which lacks whatever else the record holds, and deterministic candidates (lines, ramp,
+//! temperature) are judged before random terms. Excess power at slow frequencies is seen by
+//! both: a slow line found in a Gauss-Markov process's plateau passes the line view (judged
+//! against an open noise model without the process) and is named first; the process, named
+//! next, then explains what the line took. The other way round, a process named before a
+//! sinusoid whose own test passed only once the process was in explains what the sinusoid
+//! already explains. The forward rule never asks again whether the earlier effect is needed.
+//!
+//! **The rule.** After the forward search, each effect followed by a later effect of the
+//! other kind (deterministic or random; a line standing in for a random term counts as
+//! random; filters are neither) is taken out of the final model, the random terms refitted
+//! without it (`candidates::without`), and a round is simulated for that model. The
+//! effect goes only if that round is one where the forward search would have stopped: no
+//! candidate passes its naming rule, the effect's own test included. Otherwise it stays, and
+//! the check says what it saw. Effects of one kind are not checked against each other: the
+//! regressors are estimated jointly (`super::joint`) and random terms passing together are
+//! weighed by the Allan gap (`super::naming`).
+
+use super::candidates;
+use super::clean::Removal;
+use super::evidence::{Probe, View};
+use super::refit::Column;
+use super::simulate::{Round, simulate_round};
+use super::{Data, Effect, Step};
+use serde::Serialize;
+
+/// One effect tested again against the final model without it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Rechecked {
+    /// The effect as the model held it.
+    pub effect: Effect,
+    /// Its test's p-value against realisations of the model without it.
+    pub p_value: f64,
+    /// The p-value its naming rule needs in that round.
+    pub p_needed: f64,
+    /// Whether its test still passes there.
+    pub passes: bool,
+    /// Whether another candidate passes there (the effect then stays whatever its own test
+    /// says: the model without it is not one the search would stop at).
+    pub other_passes: bool,
+    /// Allan gap of the final model with the effect, and without it.
+    pub gap_with: f64,
+    pub gap_without: f64,
+    /// Whether it was dropped from the model.
+    pub dropped: bool,
+}
+
+impl Rechecked {
+    /// In words, `u` the channel's unit.
+    pub fn describe(&self, u: &str) -> String {
+        use super::report::p_text;
+        use crate::report::sig;
+        let verdict = if self.dropped {
+            "dropped: with the effects named after it in the model its test no longer passes and nothing else stands out"
+        } else if self.passes {
+            "kept: its test still passes with the effects named after it in the model"
+        } else {
+            "kept: its test no longer passes, but without it another candidate does"
+        };
+        format!(
+            "{} tested again without it: p = {} (needs < {}); Allan gap {} without it, {} with it; {verdict}",
+            self.effect.describe(u),
+            p_text(self.p_value),
+            p_text(self.p_needed),
+            sig(self.gap_without, 3),
+            sig(self.gap_with, 3),
+        )
+    }
+}
+
+/// The probe that tests the effect a step named, and whether that is a deterministic
+/// effect; none for a filter or a line standing in for a random term.
+fn probe_of(step: &Step) -> Option<(Probe, bool)> {
+    let probe = match step.effect {
+        _ if step.stands_in => return None,
+        Effect::GaussMarkov { .. } => Probe::GaussMarkov,
+        Effect::Quantization { .. } => Probe::Term(Column::Q),
+        Effect::BiasInstability { .. } => Probe::Term(Column::B),
+        Effect::RateRandomWalk { .. } => Probe::Term(Column::K),
+        Effect::RateRamp { .. } => Probe::Ramp,
+        Effect::Temperature { .. } => Probe::Temperature,
+        Effect::Sinusoid { .. } if step.view == View::Lines => Probe::Line,
+        Effect::Sinusoid { .. } => Probe::SlowLine,
+        Effect::LowPass { .. } => return None,
+    };
+    Some((probe, probe.view().is_deterministic()))
+}
+
+/// Whether a step's effect is deterministic (a line standing in for a random term is not);
+/// none for a filter.
+fn kind_of(step: &Step) -> Option<bool> {
+    match step.effect {
+        Effect::LowPass { .. } => None,
+        _ => Some(step.view.is_deterministic() && !step.stands_in),
+    }
+}
+
+/// Each effect of `steps` followed by a later effect of the other kind, tested again
+/// against the final model without it (module documentation), in the order they were
+/// named; an effect that goes is removed from `steps` and `removal`, and the last step then
+/// holds the model without it and its comparison. Returns the round of the final model
+/// (`last` when nothing went) and what each check saw.
+pub(super) fn named_before(
+    data: &Data,
+    steps: &mut Vec<Step>,
+    removal: &mut Removal,
+    last: Round,
+) -> (Round, Vec<Rechecked>) {
+    let mut round = last;
+    let mut seen = Vec::new();
+    let mut i = 0;
+    while i + 1 < steps.len() {
+        let later_of_other_kind = |deterministic: bool| {
+            steps[i + 1..]
+                .iter()
+                .any(|s| kind_of(s).is_some_and(|d| d != deterministic))
+        };
+        let Some((probe, _)) = probe_of(&steps[i]).filter(|&(_, d)| later_of_other_kind(d)) else {
+            i += 1;
+            continue;
+        };
+        let Some(model) = steps.last().map(|s| s.model.clone()) else {
+            break;
+        };
+        let unnamed = candidates::unnamed_filter(&round, data.rate_hz);
+        let Some((without, less)) = candidates::without(
+            data,
+            (&model, removal),
+            (probe, steps[i].effect),
+            &round.sd_ln,
+            unnamed.as_ref(),
+        ) else {
+            i += 1;
+            continue;
+        };
+        let again = simulate_round(data, &without, &less);
+        let Some(own) = again.probes.iter().position(|p| *p == probe) else {
+            i += 1;
+            continue;
+        };
+        let passes = again.evidence[own].passes;
+        let other_passes = again
+            .evidence
+            .iter()
+            .enumerate()
+            .any(|(k, e)| k != own && e.passes);
+        let dropped = !passes && !other_passes;
+        seen.push(Rechecked {
+            effect: steps[i].effect,
+            p_value: again.evidence[own].p_value,
+            p_needed: again.evidence[own].p_needed,
+            passes,
+            other_passes,
+            gap_with: round.comparison.gap,
+            gap_without: again.comparison.gap,
+            dropped,
+        });
+        if !dropped {
+            i += 1;
+            continue;
+        }
+        steps.remove(i);
+        *removal = less;
+        if let Some(s) = steps.last_mut() {
+            s.model = without;
+            s.comparison = again.comparison.clone();
+            s.gap_after = again.comparison.gap;
+        }
+        round = again;
+    }
+    (round, seen)
+}
