@@ -285,11 +285,12 @@ pub(super) fn add(
 }
 
 /// `model` and `removal` without the effect `probe` named ([`super::recheck`]), the random
-/// terms refitted as [`add`] refits them: a random term's column left out (without a
-/// Gauss-Markov term B and K are free again: it may have taken what they held); a ramp or a
+/// terms refitted as [`add`] refits them: a random term's column left out; a ramp or a
 /// coupling no longer regressed out; a line no longer removed (regressed out as a tone or
-/// notched) nor simulated. `effect` locates a line: the model's nearest to its frequency.
-/// None for a filter, or a line the model does not hold.
+/// notched) nor simulated. Without a Gauss-Markov term or a deterministic effect, B and K
+/// are free again: the power either held may have gone to them, as it did in the baseline.
+/// `effect` locates a line: the model's nearest to its frequency. None for a filter, or a
+/// line the model does not hold.
 pub(super) fn without(
     data: &Data,
     (model, removal): (&Model, &Removal),
@@ -328,7 +329,7 @@ pub(super) fn without(
         _ => return None,
     }
     let mut columns = refit::columns_of(&out.stochastic());
-    if probe == Probe::GaussMarkov {
+    if probe.view().is_deterministic() || probe == Probe::GaussMarkov {
         columns = evidence::with_random_walks(&columns);
     }
     let out = refitted(data, out, &removal, &columns, sd_ln, unnamed);
