@@ -75,10 +75,10 @@ impl Rechecked {
     }
 }
 
-/// The probe that tests the effect a step named, and whether that is a deterministic
-/// effect; none for a filter or a line standing in for a random term.
-fn probe_of(step: &Step) -> Option<(Probe, bool)> {
-    let probe = match step.effect {
+/// The probe that tests the effect a step named; none for a filter or a line standing in
+/// for a random term.
+fn probe_of(step: &Step) -> Option<Probe> {
+    Some(match step.effect {
         _ if step.stands_in => return None,
         Effect::GaussMarkov { .. } => Probe::GaussMarkov,
         Effect::Quantization { .. } => Probe::Term(Column::Q),
@@ -89,8 +89,7 @@ fn probe_of(step: &Step) -> Option<(Probe, bool)> {
         Effect::Sinusoid { .. } if step.view == View::Lines => Probe::Line,
         Effect::Sinusoid { .. } => Probe::SlowLine,
         Effect::LowPass { .. } => return None,
-    };
-    Some((probe, probe.view().is_deterministic()))
+    })
 }
 
 /// Whether a step's effect is deterministic (a line standing in for a random term is not);
@@ -117,12 +116,12 @@ pub(super) fn named_before(
     let mut seen = Vec::new();
     let mut i = 0;
     while i + 1 < steps.len() {
-        let later_of_other_kind = |deterministic: bool| {
+        let later_of_other_kind = kind_of(&steps[i]).is_some_and(|deterministic| {
             steps[i + 1..]
                 .iter()
                 .any(|s| kind_of(s).is_some_and(|d| d != deterministic))
-        };
-        let Some((probe, _)) = probe_of(&steps[i]).filter(|&(_, d)| later_of_other_kind(d)) else {
+        });
+        let Some(probe) = probe_of(&steps[i]).filter(|_| later_of_other_kind) else {
             i += 1;
             continue;
         };
