@@ -61,6 +61,8 @@ use protocol::mpu6050::SensorSettings;
 use rand::Rng;
 use rand_distr::StandardNormal;
 use rayon::prelude::*;
+use realfft::RealFftPlanner;
+use realfft::num_complex::Complex;
 use serde::Serialize;
 use shape::{Aliases, Cascade, Phasor};
 use statrs::distribution::{ContinuousCDF, Normal};
@@ -377,25 +379,66 @@ impl LowPass {
     }
 
     /// `samples` output samples of white rate noise whose long-tau Allan coefficient is
-    /// `n_density` (u/sqrt(Hz)), through this filter: white noise at the internal rate, the
-    /// filter, every D-th sample, as [`crate::sim::chain`] does it. The filter runs for one
-    /// impulse-response length before the first sample, so the series starts stationary.
+    /// `n_density` (u/sqrt(Hz)), through this filter: the stationary Gaussian series with the
+    /// output autocovariance `n_density^2 r(l)` (module documentation) that white noise at
+    /// the internal rate, the filter and every D-th sample give ([`crate::sim::chain`]'s
+    /// chain), made at the output rate by circulant embedding (Davies & Harte, "Tests for
+    /// Hurst effect", Biometrika 74(1), 1987; Dietrich & Newsam, SIAM J. Sci. Comput. 18(4),
+    /// 1997).
+    ///
+    /// The autocovariance, zero beyond its `L` lags, is wrapped onto a circle of `M >=
+    /// max(samples, L) + L` points; its DFT `P_k` is the folded output spectrum on that grid
+    /// (non-negative up to the truncation at 1e-13 of the impulse response's peak, clipped at
+    /// 0). Independent complex normal `X_k` with `E|X_k|^2 = M P_k` (real at DC and at M / 2)
+    /// and one inverse real DFT give a circular series whose lag-l covariance is `r(l) + r(M -
+    /// l)`; for `l < samples`, `M - l > L`, so the first `samples` values have the exact
+    /// autocovariance. This costs about `M` normal draws and two real DFTs of `M` points,
+    /// where running the filter costs D draws and D filter steps per output sample (D =
+    /// [`OVERSAMPLE`] for the generic shapes), which dominated the simulations of a model
+    /// with a filter.
     pub fn white_through(&self, n_density: f64, samples: usize, rng: &mut impl Rng) -> Vec<f64> {
-        let sigma = n_density / self.gain;
-        let mut filter = self.chain.running();
-        let warmup = self.autocov.len() * self.decimation;
-        let mut next = || filter.process(sigma * rng.sample::<f64, _>(StandardNormal));
-        for _ in 0..warmup {
-            next();
+        if samples == 0 {
+            return Vec::new();
         }
-        let mut out = Vec::with_capacity(samples);
-        for _ in 0..samples {
-            for _ in 1..self.decimation {
-                next();
-            }
-            out.push(next());
+        let lags = self.autocov.len();
+        let m = fft_friendly_len(samples.max(lags) + lags);
+        let mut planner = RealFftPlanner::<f64>::new();
+        // The wrapped autocovariance is even, so its DFT is real: the folded spectrum.
+        let mut wrapped = vec![0.0; m];
+        wrapped[0] = self.autocov[0];
+        for (l, &r) in self.autocov.iter().enumerate().skip(1) {
+            wrapped[l] = r;
+            wrapped[m - l] = r;
         }
-        out
+        let forward = planner.plan_fft_forward(m);
+        let mut spectrum = forward.make_output_vec();
+        forward
+            .process(&mut wrapped, &mut spectrum)
+            .expect("buffers of the plan's sizes");
+        let last = spectrum.len() - 1;
+        let scale = n_density * (m as f64).sqrt();
+        for (k, z) in spectrum.iter_mut().enumerate() {
+            let amplitude = scale * z.re.max(0.0).sqrt();
+            // A real series' DC bin, and its Nyquist bin when M is even, are real.
+            *z = if k == 0 || (k == last && m.is_multiple_of(2)) {
+                Complex::new(amplitude * rng.sample::<f64, _>(StandardNormal), 0.0)
+            } else {
+                let sd = amplitude * std::f64::consts::FRAC_1_SQRT_2;
+                Complex::new(
+                    sd * rng.sample::<f64, _>(StandardNormal),
+                    sd * rng.sample::<f64, _>(StandardNormal),
+                )
+            };
+        }
+        let inverse = planner.plan_fft_inverse(m);
+        let mut series = inverse.make_output_vec();
+        inverse
+            .process(&mut spectrum, &mut series)
+            .expect("buffers of the plan's sizes");
+        series.truncate(samples);
+        // realfft's inverse is unnormalised.
+        series.iter_mut().for_each(|v| *v /= m as f64);
+        series
     }
 
     /// The same filter with a fitted cutoff and its interval.
@@ -521,6 +564,22 @@ fn folded_power(chain: &Chain, decimation: usize, freq_hz: f64) -> f64 {
         .sum()
 }
 
+/// The smallest length at least `len` whose only prime factors are 2, 3 and 5, where a
+/// mixed-radix DFT is fast (a large prime factor would send it to Bluestein's algorithm).
+fn fft_friendly_len(len: usize) -> usize {
+    (len.max(1)..)
+        .find(|&m| {
+            let mut rest = m;
+            for p in [2, 3, 5] {
+                while rest.is_multiple_of(p) {
+                    rest /= p;
+                }
+            }
+            rest == 1
+        })
+        .unwrap_or(len)
+}
+
 /// The low-pass channels of a sensor with these settings: `None` for channels no DLPF
 /// filters (the die temperature). Gyro rows for angular rates and for channels of unknown
 /// quantity, accel rows for accelerations.
@@ -575,11 +634,11 @@ const MIN_BINS: usize = 16;
 /// Points per decade of the cutoff grid before refinement.
 const GRID_PER_DECADE: f64 = 12.0;
 /// Golden-section steps refining a cutoff from the two grid steps around the grid's best:
-/// `0.618^17` of their 0.38 in ln f is 1.1e-4, so the cutoff lies within 6e-5 of the
+/// `0.618^20` of their 0.38 in ln f is 2.5e-5, so the cutoff lies within 1.3e-5 of the
 /// misfit's minimum, below the four digits it is shown with. The narrowest intervals are a
-/// boxcar's on long records (+-0.03 % from 33 min at 200 Hz): 0.2 of that, where the misfit
-/// is within 0.04 of its minimum against the 1 that ends the interval.
-const CUTOFF_GOLDEN_STEPS: usize = 17;
+/// boxcar's on long records (+-0.03 % from 33 min at 200 Hz): 0.04 of that, where the misfit
+/// is within 0.002 of its minimum against the 1 that ends the interval.
+const CUTOFF_GOLDEN_STEPS: usize = 20;
 /// Bisections of a cutoff interval's end from one scan step (7 % of the cutoff): 2^-20 of
 /// it is 7e-8.
 const CROSSING_BISECTIONS: usize = 20;
@@ -1404,6 +1463,40 @@ pub(crate) mod tests {
                     lp.filter
                 );
             }
+        }
+    }
+
+    /// `white_through` is stationary from its first sample, also when the series is shorter
+    /// than the filter's memory: over 4000 series of 3 samples through a moving average at
+    /// the lowest cutoff (about 28 lags at 100 Hz), each sample's variance and the lag-1 and
+    /// lag-2 covariances lie within 4 standard errors of `N^2 r(l)` (the variance of a
+    /// Gaussian sample variance is `2 r(0)^2 / k`, of a sample covariance `(r(0)^2 + r(l)^2)
+    /// / k`).
+    #[test]
+    fn white_through_is_stationary_from_its_first_sample() {
+        let n = 1e-3;
+        let lp =
+            LowPass::generic(Shape::MovingAverage, 100.0 * MIN_CUTOFF_PER_RATE, 100.0).unwrap();
+        assert!(lp.autocov.len() > 3, "{} lags", lp.autocov.len());
+        let k = 4000;
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let draws: Vec<Vec<f64>> = (0..k).map(|_| lp.white_through(n, 3, &mut rng)).collect();
+        let moment = |i: usize, j: usize| draws.iter().map(|d| d[i] * d[j]).sum::<f64>() / k as f64;
+        let r = |l: usize| n * n * lp.autocov[l];
+        for (i, j) in [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)] {
+            let l = j - i;
+            let var = if l == 0 {
+                2.0 * r(0) * r(0)
+            } else {
+                r(0) * r(0) + r(l) * r(l)
+            };
+            let se = (var / k as f64).sqrt();
+            assert!(
+                (moment(i, j) - r(l)).abs() <= 4.0 * se,
+                "samples {i},{j}: {:e} against {:e} +- {se:e}",
+                moment(i, j),
+                r(l)
+            );
         }
     }
 
