@@ -141,13 +141,7 @@ impl Removal {
         rate_hz: f64,
         temperature: Option<&Temperature>,
     ) -> (Vec<f64>, Coefficients) {
-        let mut y = if self.notches.is_empty() {
-            x.to_vec()
-        } else {
-            notch(x, rate_hz, &self.notches)
-        };
-        let coefficients = self.regress_out(&mut y, rate_hz, temperature);
-        (y, coefficients)
+        Cleaner::new(self, x.len(), rate_hz, temperature).apply(x)
     }
 
     /// The regressor columns, each centred, in the order of the regression: the ramp, the
@@ -178,75 +172,108 @@ impl Removal {
         }
         columns
     }
+}
 
-    /// Remove the constant and the chosen regressors from `y` in place.
-    fn regress_out(
-        &self,
-        y: &mut [f64],
+/// A [`Removal`] made ready for series of one length and rate: the regressor columns,
+/// centred and scaled to unit norm (so the normal equations stay well conditioned whatever
+/// the units, seconds against degrees), and their Gram matrix. None of these depends on the
+/// series, and building them (a sine and a cosine per tone and sample, `p^2` products per
+/// sample) cost more than the regression itself; a round applies one removal to every
+/// realisation, so it builds them once.
+pub struct Cleaner<'a> {
+    removal: Removal,
+    len: usize,
+    rate_hz: f64,
+    temperature: Option<&'a Temperature>,
+    columns: Vec<Vec<f64>>,
+    norms: Vec<f64>,
+    gram: Vec<Vec<f64>>,
+}
+
+impl<'a> Cleaner<'a> {
+    pub fn new(
+        removal: &Removal,
+        len: usize,
         rate_hz: f64,
-        temperature: Option<&Temperature>,
-    ) -> Coefficients {
-        // Dense small-matrix algebra reads best with explicit indices.
-        #![allow(clippy::needless_range_loop)]
-        let n = y.len();
-        let columns = self.design(n, rate_hz, temperature);
-        let temp = temperature.filter(|_| self.temperature);
-        let mean_y = y.iter().sum::<f64>() / n.max(1) as f64;
-        y.iter_mut().for_each(|v| *v -= mean_y);
-        if columns.is_empty() {
-            return Coefficients::default();
-        }
-        // Columns scaled to unit norm: the normal equations stay well conditioned whatever
-        // the units (seconds against degrees).
+        temperature: Option<&'a Temperature>,
+    ) -> Cleaner<'a> {
+        let mut columns = removal.design(len, rate_hz, temperature);
         let norms: Vec<f64> = columns
             .iter()
-            .map(|c| {
-                c.iter()
-                    .map(|v| v * v)
-                    .sum::<f64>()
-                    .sqrt()
-                    .max(f64::MIN_POSITIVE)
-            })
+            .map(|c| dot(c, c).sqrt().max(f64::MIN_POSITIVE))
             .collect();
-        let p = columns.len();
-        let scaled = |j: usize, i: usize| columns[j][i] / norms[j];
-        let mut gram = vec![vec![0.0; p]; p];
-        let mut rhs = vec![0.0; p];
-        for i in 0..n {
-            for j in 0..p {
-                let a = scaled(j, i);
-                rhs[j] += a * y[i];
-                for (k, g) in gram[j].iter_mut().enumerate().take(j + 1) {
-                    *g += a * scaled(k, i);
-                }
-            }
+        for (c, norm) in columns.iter_mut().zip(&norms) {
+            c.iter_mut().for_each(|v| *v /= norm);
         }
-        for j in 0..p {
-            for k in j + 1..p {
-                gram[j][k] = gram[k][j];
-            }
+        let gram = columns
+            .iter()
+            .map(|a| columns.iter().map(|b| dot(a, b)).collect())
+            .collect();
+        Cleaner {
+            removal: removal.clone(),
+            len,
+            rate_hz,
+            temperature,
+            columns,
+            norms,
+            gram,
         }
+    }
+
+    /// What this removes.
+    pub fn removal(&self) -> &Removal {
+        &self.removal
+    }
+
+    /// `x` with the notches and the regressors removed, and the regressors' coefficients.
+    /// A series of another length than the cleaner's is cleaned by a cleaner of its own.
+    pub fn apply(&self, x: &[f64]) -> (Vec<f64>, Coefficients) {
+        if x.len() != self.len {
+            return Cleaner::new(&self.removal, x.len(), self.rate_hz, self.temperature).apply(x);
+        }
+        let mut y = if self.removal.notches.is_empty() {
+            x.to_vec()
+        } else {
+            notch(x, self.rate_hz, &self.removal.notches)
+        };
+        let coefficients = self.regress_out(&mut y);
+        (y, coefficients)
+    }
+
+    /// Remove the constant and the chosen regressors from `y` in place.
+    fn regress_out(&self, y: &mut [f64]) -> Coefficients {
+        let mean_y = y.iter().sum::<f64>() / y.len().max(1) as f64;
+        y.iter_mut().for_each(|v| *v -= mean_y);
+        if self.columns.is_empty() {
+            return Coefficients::default();
+        }
+        let mut rhs: Vec<f64> = self.columns.iter().map(|c| dot(c, y)).collect();
+        let mut gram = self.gram.clone();
         let beta = householder_solve(&mut gram, &mut rhs);
-        for (i, v) in y.iter_mut().enumerate() {
-            *v -= (0..p).map(|j| beta[j] * scaled(j, i)).sum::<f64>();
+        for (c, b) in self.columns.iter().zip(&beta) {
+            y.iter_mut().zip(c).for_each(|(v, a)| *v -= b * a);
         }
-        let coeff = |j: usize| beta[j] / norms[j];
+        let coeff = |j: usize| beta[j] / self.norms[j];
         let mut out = Coefficients::default();
         let mut j = 0;
-        if self.ramp {
+        if self.removal.ramp {
             out.slope = Some(coeff(j));
             j += 1;
         }
-        if temp.is_some() {
+        if self.temperature.is_some() && self.removal.temperature {
             out.temp = Some(coeff(j));
             out.temp_rate = Some(coeff(j + 1));
             j += 2;
         }
-        out.tone_amplitudes = (0..self.tones.len())
+        out.tone_amplitudes = (0..self.removal.tones.len())
             .map(|t| coeff(j + 2 * t).hypot(coeff(j + 2 * t + 1)))
             .collect();
         out
     }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// `x` with the real-FFT bins inside any notch set to zero (the record's own resolution,
@@ -306,6 +333,43 @@ mod tests {
         assert!((c.temp.unwrap() - 5e-3).abs() < 1e-9, "{c:?}");
         assert!(c.temp_rate.unwrap().abs() < 1e-6, "{c:?}");
         assert!(y.iter().all(|v| v.abs() < 1e-9));
+    }
+
+    /// One cleaner serves many series of its length, and cleans one of another length as a
+    /// cleaner of its own would: a ramp and a tone regressed out of two series of 4000
+    /// samples through one cleaner, and out of 2500 through the same, give each series'
+    /// coefficients (to 1e-12 of the slope and 1e-9 of the amplitude) and leave nothing.
+    #[test]
+    fn a_cleaner_serves_every_series_of_its_length_and_others_too() {
+        let rate = 10.0;
+        let removal = Removal {
+            ramp: true,
+            tones: vec![Tone {
+                freq_hz: 0.05,
+                guard_hz: 0.01,
+            }],
+            ..Removal::default()
+        };
+        let series = |n: usize, slope: f64, amplitude: f64| -> Vec<f64> {
+            (0..n)
+                .map(|i| {
+                    let t = i as f64 / rate;
+                    0.3 + slope * t
+                        + amplitude * (2.0 * std::f64::consts::PI * 0.05 * t + 0.4).sin()
+                })
+                .collect()
+        };
+        let cleaner = Cleaner::new(&removal, 4000, rate, None);
+        for (n, slope, amplitude) in [(4000, 1e-3, 0.2), (4000, -2e-3, 0.05), (2500, 5e-4, 0.1)] {
+            let (y, c) = cleaner.apply(&series(n, slope, amplitude));
+            assert_eq!(y.len(), n);
+            assert!((c.slope.unwrap() - slope).abs() < 1e-12, "{n}: {c:?}");
+            assert!(
+                (c.tone_amplitudes[0] - amplitude).abs() < 1e-9,
+                "{n}: {c:?}"
+            );
+            assert!(y.iter().all(|v| v.abs() < 1e-9), "{n}");
+        }
     }
 
     /// A slow tone two bins from the temperature's cycle: the joint regression gives both the

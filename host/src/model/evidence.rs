@@ -19,7 +19,7 @@
 //!
 //! **Standardisation.** `z = (statistic_measured - mean_sim) / sd_sim` over the realisations.
 
-use super::clean::{Removal, Temperature};
+use super::clean::{Cleaner, Removal, Temperature};
 use super::refit::{self, Column, Curve, WhiteShape};
 use super::spectrum;
 use super::{Effect, Line};
@@ -196,7 +196,8 @@ pub struct Context<'a> {
     /// Standard deviation of ln AVAR per tau over the realisations (the refits' weights).
     pub sd_ln: &'a [f64],
     pub temperature: Option<&'a Temperature>,
-    pub removal: &'a Removal,
+    /// The named deterministic effects' removal, ready for series of the record's length.
+    pub cleaner: &'a Cleaner<'a>,
     /// The current model's stochastic terms (the columns refitted).
     pub terms: &'a NoiseTerms,
     pub white: WhiteShape<'a>,
@@ -240,7 +241,7 @@ pub fn statistics(
     ctx: &Context,
     effects: bool,
 ) -> Vec<(f64, Option<Effect>)> {
-    let (clean, _) = ctx.removal.apply(series, ctx.rate_hz, ctx.temperature);
+    let (clean, _) = ctx.cleaner.apply(series);
     let base_avar = avar(clean.clone(), ctx);
     let curve = Curve {
         tau: ctx.tau,
@@ -267,7 +268,7 @@ pub fn statistics(
                     .iter()
                     .copied()
                     .filter(|l| {
-                        !ctx.removal.near_removed(l.freq_hz)
+                        !ctx.cleaner.removal().near_removed(l.freq_hz)
                             && !in_named_wings(l, ctx.named_lines, ctx.rate_hz)
                     })
                     .max_by(|a, b| {
@@ -284,7 +285,7 @@ pub fn statistics(
                 let f_hi = spectrum::highest_hz(ctx.rate_hz, ctx.low_pass);
                 let pgram = spectrum::periodogram(&clean, ctx.rate_hz, f_hi);
                 let banded = spectrum::Banded::new(&pgram, ctx.low_pass);
-                match spectrum::slow_line(&banded, &|f| ctx.removal.near_removed(f)) {
+                match spectrum::slow_line(&banded, &|f| ctx.cleaner.removal().near_removed(f)) {
                     Some((ratio, freq_hz)) => {
                         let fitted = effects
                             .then(|| lines::tone_near(&clean, ctx.rate_hz, freq_hz))
@@ -308,7 +309,7 @@ pub fn statistics(
                 match roll_off(
                     &clean,
                     ctx.rate_hz,
-                    ctx.removal,
+                    ctx.cleaner.removal(),
                     (ctx.named_lines, found()),
                     ctx.background,
                     effects,

@@ -91,7 +91,7 @@ fn with_every_regressor(more: &Removal, has_temperature: bool) -> Option<Removal
 /// The likelihood-ratio test of `probe` (a ramp or a temperature coupling) on the record `x`.
 pub fn test(probe: Probe, x: &[f64], s: &Setup) -> Evidence {
     let view = s.view;
-    let more = with_regressor(view.removal, probe);
+    let more = with_regressor(view.cleaner.removal(), probe);
     // Notched once: the least-squares coefficients and the likelihoods both start there.
     let notched = if more.notches.is_empty() {
         x.to_vec()

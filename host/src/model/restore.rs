@@ -28,7 +28,7 @@
 //! instead has a fixed point at K = 0: a weak random walk that the removal pushed below the
 //! white line never comes back.)
 
-use super::clean::{Removal, Temperature};
+use super::clean::{Cleaner, Removal, Temperature};
 use super::evidence::allan_avar;
 use super::refit::Loss;
 use crate::analysis::{fit, numerics};
@@ -92,6 +92,7 @@ pub fn loss(removal: &Removal, record: &Record) -> Option<Loss> {
     let tau0 = 1.0 / record.rate_hz;
     let columns = removal.design(record.len, record.rate_hz, record.temperature);
     let k = random_walk_loss(&columns, tau0, record.m);
+    let cleaner = Cleaner::new(removal, record.len, record.rate_hz, record.temperature);
     // Flicker's loss by paired simulation: each series' Allan variance before and after the
     // same removal, so the scatter of the series themselves cancels.
     let one = |i: usize| -> Vec<f64> {
@@ -102,7 +103,7 @@ pub fn loss(removal: &Removal, record: &Record) -> Option<Loss> {
         };
         let raw =
             AxisNoise::new(unit, record.rate_hz, duration, &mut rng).take(record.len, &mut rng);
-        let (clean, _) = removal.apply(&raw, record.rate_hz, record.temperature);
+        let (clean, _) = cleaner.apply(&raw);
         let before = allan_avar(raw, record.rate_hz, record.m);
         let after = allan_avar(clean, record.rate_hz, record.m);
         before.iter().zip(after).map(|(b, a)| b - a).collect()

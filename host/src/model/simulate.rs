@@ -180,13 +180,16 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
     let white = |tau: f64| model.white_shape(tau);
     let filter_alternatives = filter_alternatives(model.low_pass.as_ref());
     let background = |f: f64| model.one_sided_psd(f, tau0);
+    let n = data.rate.len();
+    let temperature = data.temperature.as_ref();
+    let cleaner = clean::Cleaner::new(removal, n, data.rate_hz, temperature);
     let ctx = Context {
         rate_hz: data.rate_hz,
         m,
         tau: &data.measured.tau,
         sd_ln: &sd_ln,
-        temperature: data.temperature.as_ref(),
-        removal,
+        temperature,
+        cleaner: &cleaner,
         terms: &stochastic,
         white: &white,
         low_pass: model.low_pass.as_ref(),
@@ -227,8 +230,9 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
     // the open noise model: a temperature cycle is not a slow line, and neither effect's
     // power, absorbed into the baseline's K, widens the spread the other is judged against.
     let regressors_out = regressors_out(data, removal);
+    let open_cleaner = clean::Cleaner::new(&regressors_out, n, data.rate_hz, temperature);
     let open_ctx = Context {
-        removal: &regressors_out,
+        cleaner: &open_cleaner,
         ..ctx
     };
     let slow = evidence::statistics(data.rate, &[Probe::SlowLine], &open_ctx, true)[0];
