@@ -155,9 +155,16 @@ fn made(data: &Data, model: &Model, removal: &Removal, round: &Round, chosen: us
             );
         }
         // A Gauss-Markov term's: its maximum-likelihood parameters in the cosine view,
-        // whichever view named it, with their profile intervals.
+        // whichever view named it, with their profile intervals. Where that view's profile
+        // leaves sigma unbounded below (it gives the term's power to flicker and the random
+        // walk, free beside it), it does not resolve the term, and the estimate of the view
+        // that named it stands, without intervals: a process named by its Allan misfit drop
+        // on a filtered 3 h record was otherwise named at sigma = 3.6e-9 (interval [0,
+        // 1.8e-5]), and the model refitted with it put sigma at 1.7e-5.
         (Probe::GaussMarkov, Effect::GaussMarkov { .. }) => {
-            if let Some(fit) = simulate::gauss_markov_fit(data, model, removal) {
+            let resolved = simulate::gauss_markov_fit(data, model, removal)
+                .filter(|fit| fit.sigma_interval.0.is_some_and(|low| low > 0.0));
+            if let Some(fit) = resolved {
                 effect = Effect::GaussMarkov {
                     tau_c: fit.tau_c,
                     sigma: fit.sigma,
