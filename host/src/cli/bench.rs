@@ -329,7 +329,7 @@ fn resident(key: &str) -> Option<f64> {
 
 /// The model workflow end to end on three 3-hour 100 Hz records (target: each under 30 s on
 /// 2 cores): a hidden Gauss-Markov process; the same beside a sensor low-pass, whose white
-/// noise every realisation must pass through the filter; a slow sinusoid beside a slower
+/// noise every realisation must pass through the filter; a slow sinusoid beside a
 /// process, which takes a round per effect and tests the first again without it.
 fn model_workflow() -> Result<()> {
     use imunoise::analysis::low_pass::LowPass;
