@@ -176,6 +176,11 @@ fn lstsq_columns(g: &[Vec<f64>], b: &[f64], cols: &[usize], p: usize) -> Vec<f64
     x
 }
 
+/// The dot product of two equally long slices (the shorter one's length otherwise).
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(u, v)| u * v).sum()
+}
+
 /// Least-squares solution of `a x = rhs` by Householder QR (a is m x k, m >= k, row-major;
 /// both are overwritten). Columns that are numerically dependent get 0.
 // Dense small-matrix algebra reads best with explicit indices.

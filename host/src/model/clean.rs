@@ -21,7 +21,7 @@
 //! the temperature cycle stays confounded with the coupling to the temperature's rate of
 //! change (their columns are nearly collinear over the record), which no method separates.
 
-use crate::analysis::numerics::householder_solve;
+use crate::analysis::numerics::{dot, householder_solve};
 use realfft::RealFftPlanner;
 
 /// The temperature channel as regressors: centred, and its time derivative.
@@ -270,10 +270,6 @@ impl<'a> Cleaner<'a> {
             .collect();
         out
     }
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// `x` with the real-FFT bins inside any notch set to zero (the record's own resolution,

@@ -59,6 +59,7 @@
 //! shortest taus fix them far better than block means can); B and K are searched. The
 //! sensor's low-pass filter has unit gain at the regressors' frequencies and is left out.
 
+use crate::analysis::numerics::dot;
 use crate::sim::noise::{NoiseTerms, flicker_poles, flicker_tau_max, flicker_white_density};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -673,10 +674,6 @@ fn whitened(whitener: &Whitener, columns: &[Vec<f64>]) -> Option<Whitened> {
         norms,
         normal,
     })
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(u, v)| u * v).sum()
 }
 
 /// GLS of the block means `y` on the block-mean `columns` under the factored covariance
