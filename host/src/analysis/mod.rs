@@ -25,6 +25,7 @@ pub mod pipeline;
 pub mod power_fft;
 pub mod precision;
 pub mod psd;
+pub mod shared_plans;
 pub mod square_fft;
 pub mod streaming;
 pub mod taus;

@@ -19,8 +19,9 @@
 //! two-sided density.
 
 use crate::analysis::power_fft::PowerFft;
+use crate::analysis::shared_plans;
 use rayon::prelude::*;
-use realfft::{RealFftPlanner, RealToComplex};
+use realfft::RealToComplex;
 use serde::Serialize;
 use std::borrow::Cow;
 use std::f64::consts::PI;
@@ -419,7 +420,7 @@ impl SegmentTransform {
             window: Taper::new(kind, len),
             fft: match powers {
                 Some(p) => SegmentFft::Powers(Arc::new(p)),
-                None => SegmentFft::Plan(RealFftPlanner::<f64>::new().plan_fft_forward(len)),
+                None => SegmentFft::Plan(shared_plans::forward(len)),
             },
         }
     }
@@ -653,7 +654,7 @@ impl WelchStream {
             rate_hz,
             detrend: opts.detrend_mean,
             window: Arc::new(Taper::new(opts.window, plan.len)),
-            fft: RealFftPlanner::<f64>::new().plan_fft_forward(plan.len),
+            fft: shared_plans::forward(plan.len),
             step: plan.step,
             pending: Vec::with_capacity(plan.len),
             count: 0,
@@ -894,6 +895,7 @@ mod tests {
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, StandardNormal};
+    use realfft::RealFftPlanner;
 
     const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/psd/");
 

@@ -22,7 +22,7 @@
 //! change (their columns are nearly collinear over the record), which no method separates.
 
 use crate::analysis::numerics::{dot, householder_solve};
-use realfft::RealFftPlanner;
+use crate::analysis::shared_plans;
 
 /// The temperature channel as regressors: centred, and its time derivative.
 #[derive(Debug, Clone)]
@@ -279,9 +279,8 @@ pub fn notch(x: &[f64], rate_hz: f64, notches: &[Notch]) -> Vec<f64> {
     if n < 4 {
         return x.to_vec();
     }
-    let mut planner = RealFftPlanner::<f64>::new();
-    let forward = planner.plan_fft_forward(n);
-    let inverse = planner.plan_fft_inverse(n);
+    let forward = shared_plans::forward(n);
+    let inverse = shared_plans::inverse(n);
     let mut input = x.to_vec();
     let mut spectrum = forward.make_output_vec();
     if forward.process(&mut input, &mut spectrum).is_err() {

@@ -42,13 +42,13 @@
 
 use super::gls::nelder_mead_n;
 use crate::analysis::low_pass::LowPass;
-use crate::analysis::numerics::invert_spd;
+use crate::analysis::numerics::{dot, invert_spd};
+use crate::analysis::shared_plans;
 use crate::sim::noise::{NoiseTerms, flicker_poles, flicker_tau_max, flicker_white_density};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{ChiSquared, StandardNormal};
 use rayon::prelude::*;
-use realfft::RealFftPlanner;
 use std::f64::consts::PI;
 
 /// Highest frequency whose coefficients the view reads, Hz: a process of minutes and the
@@ -83,7 +83,7 @@ pub fn dct2(x: &[f64], kmax: usize) -> Vec<f64> {
             }
         })
         .collect();
-    let r2c = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+    let r2c = shared_plans::forward(n);
     let mut out = r2c.make_output_vec();
     r2c.process(&mut v, &mut out)
         .expect("buffers of the plan's sizes");
@@ -359,19 +359,19 @@ impl CosineLikelihood {
         if self.regressors.is_empty() {
             return 0.0;
         }
-        let weighted = |a: &[f64], b: &[f64]| -> f64 {
-            a.iter().zip(b).zip(v).map(|((x, y), v)| x * y / v).sum()
-        };
-        let a: Vec<Vec<f64>> = self
+        // Each regressor weighted by 1 / v once (a division per coefficient, not one per
+        // product), then its products with the others and with the coefficients.
+        let weights: Vec<f64> = v.iter().map(|v| 1.0 / v).collect();
+        let weighted: Vec<Vec<f64>> = self
             .regressors
             .iter()
-            .map(|r| self.regressors.iter().map(|s| weighted(r, s)).collect())
+            .map(|r| r.iter().zip(&weights).map(|(x, w)| x * w).collect())
             .collect();
-        let b: Vec<f64> = self
-            .regressors
+        let a: Vec<Vec<f64>> = weighted
             .iter()
-            .map(|r| weighted(r, &self.single))
+            .map(|r| self.regressors.iter().map(|s| dot(r, s)).collect())
             .collect();
+        let b: Vec<f64> = weighted.iter().map(|r| dot(r, &self.single)).collect();
         match invert_spd(&a) {
             Some(inv) => inv
                 .iter()
@@ -419,15 +419,22 @@ impl CosineLikelihood {
                 })
                 .collect()
         };
-        let starts = [from(0.0), from(-7.0), vec![0.0; columns.len()]];
-        starts
-            .iter()
-            .chain(more)
+        let starts: Vec<Vec<f64>> = [from(0.0), from(-7.0), vec![0.0; columns.len()]]
+            .into_iter()
+            .chain(more.iter().cloned())
+            .collect();
+        // The searches run side by side; the least is taken in the starts' order, so a tie
+        // goes to the earlier start as in a sequential search.
+        let found: Vec<(f64, Vec<f64>)> = starts
+            .par_iter()
             .map(|u0| {
                 let coarse = nelder_mead_n(&f, u0, 2.0);
                 let u = nelder_mead_n(&f, &coarse, 0.5);
                 (f(&u), levels(&u))
             })
+            .collect();
+        found
+            .into_iter()
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .unwrap_or((f64::INFINITY, Vec::new()))
     }
@@ -452,13 +459,16 @@ impl CosineLikelihood {
 
     /// With the term: the least nll over the grid, its correlation time and variance.
     fn with(&self, from: &[f64]) -> (f64, f64, f64) {
-        self.grid
-            .iter()
+        let fits: Vec<(f64, f64, f64)> = self
+            .grid
+            .par_iter()
             .map(|(tau_c, gm)| {
                 let start = [from[0], from[1], self.fixed[0] / gm[0]];
                 let (nll, levels) = self.likeliest(&[&self.flicker, &self.walk, gm], &start, &[]);
                 (nll, *tau_c, levels.get(2).copied().unwrap_or(0.0))
             })
+            .collect();
+        fits.into_iter()
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .unwrap_or((f64::INFINITY, 0.0, 0.0))
     }

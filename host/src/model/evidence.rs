@@ -242,14 +242,17 @@ pub fn statistics(
     effects: bool,
 ) -> Vec<(f64, Option<Effect>)> {
     let (clean, _) = ctx.cleaner.apply(series);
-    let base_avar = avar(clean.clone(), ctx);
-    let curve = Curve {
+    // The cleaned series' Allan curve, computed when a probe of the Allan view asks for it
+    // (the slow line's and the lines' probes read the spectrum alone).
+    let base_avar = std::cell::OnceCell::new();
+    let curve = || Curve {
         tau: ctx.tau,
-        avar: &base_avar,
+        avar: base_avar.get_or_init(|| avar(clean.clone(), ctx)),
         sd_ln: ctx.sd_ln,
     };
     let base_columns = refit::columns_of(ctx.terms);
     let refit_misfit = |columns: &[Column]| {
+        let curve = curve();
         profiled(ctx, |white| {
             let terms = refit::refit(curve, columns, white);
             Some((terms, refit::misfit(curve, &terms, white)))
@@ -332,6 +335,7 @@ pub fn statistics(
                 // Gauss-Markov bump into B, with K at 0, needs K back to leave room for it.
                 let free = with_random_walks(&base_columns);
                 let (lo, hi) = ctx.gauss_markov_range;
+                let curve = curve();
                 let with = profiled(ctx, |white| {
                     refit::best_gauss_markov(curve, &free, lo, hi, white)
                 });

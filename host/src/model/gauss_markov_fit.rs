@@ -19,6 +19,7 @@
 
 use super::cosine::CosineLikelihood;
 use super::gls::nelder_mead_n;
+use rayon::prelude::*;
 
 /// The rise of `-2 ln L` over its minimum that bounds a 68.3 % profile interval.
 pub const PROFILE_RISE: f64 = 1.0;
@@ -50,18 +51,25 @@ struct Space<'a> {
 
 impl Space<'_> {
     fn nll(&self, u: &[f64]) -> f64 {
-        let levels = [0, 1, 3];
-        if levels
-            .iter()
-            .any(|&i| !(LOG_RANGE.0..=LOG_RANGE.1).contains(&u[i]))
-            || !(self.tau_range.0..=self.tau_range.1).contains(&u[2])
-        {
+        if !self.within(u) {
             return f64::INFINITY;
         }
+        self.nll_with(u, &self.view.gauss_markov_column(u[2].exp()))
+    }
+
+    /// Whether `u` lies in the searched box.
+    fn within(&self, u: &[f64]) -> bool {
+        [0, 1, 3]
+            .iter()
+            .all(|&i| (LOG_RANGE.0..=LOG_RANGE.1).contains(&u[i]))
+            && (self.tau_range.0..=self.tau_range.1).contains(&u[2])
+    }
+
+    /// [`Space::nll`] with the term's unit column of correlation time `exp(u[2])` given.
+    fn nll_with(&self, u: &[f64], column: &[f64]) -> f64 {
         let v = self.view;
-        let column = v.gauss_markov_column(u[2].exp());
         v.nll(
-            &[&v.flicker, &v.walk, &column],
+            &[&v.flicker, &v.walk, column],
             &[
                 self.scale[0] * u[0].exp(),
                 self.scale[1] * u[1].exp(),
@@ -79,7 +87,17 @@ impl Space<'_> {
             u
         };
         let others: Vec<f64> = (0..4).filter(|&j| j != i).map(|j| warm[j]).collect();
-        let f = |w: &[f64]| self.nll(&put(w));
+        // With the correlation time held, its column is the same at every evaluation: the
+        // column (a sum over every coefficient up to 1 Hz) costs far more than the rest.
+        let held = (i == 2).then(|| self.view.gauss_markov_column(x.exp()));
+        let f = |w: &[f64]| {
+            let u = put(w);
+            match &held {
+                Some(column) if self.within(&u) => self.nll_with(&u, column),
+                Some(_) => f64::INFINITY,
+                None => self.nll(&u),
+            }
+        };
         let coarse = nelder_mead_n(&f, &others, 0.3);
         let fine = nelder_mead_n(&f, &coarse, 0.05);
         let u = put(&fine);
@@ -148,16 +166,17 @@ impl CosineLikelihood {
             levels.get(1).copied().unwrap_or(start[1]),
         ];
         // The grid's likeliest correlation time, with its levels.
-        let (least, tau_c, best_levels) = self
+        let fits: Vec<(f64, f64, Vec<f64>)> = self
             .grid
-            .iter()
+            .par_iter()
             .map(|(tau_c, column)| {
                 let start = [from[0], from[1], self.fixed[0] / column[0]];
                 let (nll, levels) =
                     self.likeliest(&[&self.flicker, &self.walk, column], &start, &[]);
                 (nll, *tau_c, levels)
             })
-            .min_by(|a, b| a.0.total_cmp(&b.0))?;
+            .collect();
+        let (least, tau_c, best_levels) = fits.into_iter().min_by(|a, b| a.0.total_cmp(&b.0))?;
         if !least.is_finite() || best_levels.len() < 3 {
             return None;
         }
@@ -193,14 +212,17 @@ impl CosineLikelihood {
         };
         let best: [f64; 4] = [best[0], best[1], best[2], best[3]];
         // Steps of 0.15 decades in tau_c and a factor 1.3 in sigma (0.5 in the variance's log).
-        let tau_ends = [
-            space.crossing(2, &best, least, 0.35, space.tau_range.0),
-            space.crossing(2, &best, least, 0.35, space.tau_range.1),
-        ];
-        let variance_ends = [
-            space.crossing(3, &best, least, 0.5, LOG_RANGE.0),
-            space.crossing(3, &best, least, 0.5, LOG_RANGE.1),
-        ];
+        // The four ends are searched independently, side by side.
+        let ends: Vec<Option<f64>> = [
+            (2, 0.35, space.tau_range.0),
+            (2, 0.35, space.tau_range.1),
+            (3, 0.5, LOG_RANGE.0),
+            (3, 0.5, LOG_RANGE.1),
+        ]
+        .par_iter()
+        .map(|&(i, step, limit)| space.crossing(i, &best, least, step, limit))
+        .collect();
+        let (tau_ends, variance_ends) = ([ends[0], ends[1]], [ends[2], ends[3]]);
         let sigma_of = |u: f64| (scale[2] * u.exp()).sqrt();
         // A variance the profile never bounds from below is one the data cannot tell from none.
         let sigma_low = variance_ends[0].map_or(0.0, sigma_of);

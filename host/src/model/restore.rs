@@ -44,6 +44,8 @@ pub const LOSS_REALISATIONS: usize = 16;
 /// Largest share of flicker's basis a removal is taken to remove, so the B column stays
 /// positive where the longest taus' few clusters make a mean of 16 pairs heavy-tailed.
 const MAX_SHARE: f64 = 0.95;
+/// Samples per block of [`random_walk_loss`]'s sums.
+const LOSS_BLOCK: usize = 4096;
 /// Seeds of the loss simulations, apart from the model's realisations.
 const LOSS_SEED: u64 = 0x1055;
 
@@ -202,19 +204,29 @@ fn random_walk_loss(columns: &[Vec<f64>], tau0: f64, m: &[usize]) -> Vec<f64> {
                 return 0.0;
             }
             let l = n + 1 - 2 * m;
+            // Each column's (and Sigma column's) second differences at lag m, a block at a
+            // time, then their products summed pair by pair: short contiguous runs the
+            // processor streams through, in memory that does not grow with the record.
             let mut utu = vec![vec![0.0; p]; p];
             let mut wtu = vec![vec![0.0; p]; p];
-            let mut u = vec![0.0; p];
-            let mut w = vec![0.0; p];
-            for i in 0..l {
+            let mut u = vec![vec![0.0; LOSS_BLOCK]; p];
+            let mut w = vec![vec![0.0; LOSS_BLOCK]; p];
+            for start in (0..l).step_by(LOSS_BLOCK) {
+                let len = LOSS_BLOCK.min(l - start);
+                let second = |c: &[f64], out: &mut [f64]| {
+                    for (t, o) in out[..len].iter_mut().enumerate() {
+                        let i = start + t;
+                        *o = c[i + 2 * m] - 2.0 * c[i + m] + c[i];
+                    }
+                };
                 for j in 0..p {
-                    u[j] = px[j][i + 2 * m] - 2.0 * px[j][i + m] + px[j][i];
-                    w[j] = psx[j][i + 2 * m] - 2.0 * psx[j][i + m] + psx[j][i];
+                    second(&px[j], &mut u[j]);
+                    second(&psx[j], &mut w[j]);
                 }
                 for j in 0..p {
                     for k in 0..p {
-                        utu[j][k] += u[j] * u[k];
-                        wtu[j][k] += w[j] * u[k];
+                        utu[j][k] += sum_of_products(&u[j][..len], &u[k][..len]);
+                        wtu[j][k] += sum_of_products(&w[j][..len], &u[k][..len]);
                     }
                 }
             }
@@ -225,6 +237,20 @@ fn random_walk_loss(columns: &[Vec<f64>], tau0: f64, m: &[usize]) -> Vec<f64> {
             (tau0 * c * (2.0 * term1 - term2)).max(0.0)
         })
         .collect()
+}
+
+/// `sum_i a_i b_i` in four interleaved partial sums, which the processor keeps in one
+/// vector register (a single running sum would serialise every addition).
+fn sum_of_products(a: &[f64], b: &[f64]) -> f64 {
+    let mut lanes = [0.0; 4];
+    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = numerics::dot(a4.remainder(), b4.remainder());
+    for (x, y) in a4.zip(b4) {
+        for k in 0..4 {
+            lanes[k] += x[k] * y[k];
+        }
+    }
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) + tail
 }
 
 #[cfg(test)]

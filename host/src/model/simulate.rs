@@ -296,13 +296,25 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
         .map(|&p| judge(p, &simulated_of(p), REGRESSION_DRAWS))
         .collect();
     // Verdicts that rest on the tail of a few simulations are simulated again, REFINE times
-    // as often (the same seeds first, so the first simulations are kept); the regressors'
-    // below.
+    // as often (the same seeds first, so the first simulations are kept), when they can
+    // change what the round names: the deterministic candidates' first. A line or a
+    // regressor that passes is named before any random term and stays whatever the gap
+    // does (`View::must_close_gap`), so the random terms' verdicts are then left on the
+    // round's own simulations (their `simulations` say so).
     let regressor = |p: Probe| matches!(p, Probe::Ramp | Probe::Temperature);
-    let unsure: Vec<usize> = (0..probes.len())
-        .filter(|&j| !regressor(probes[j]) && unsure(&evidence[j]))
-        .collect();
-    if !unsure.is_empty() {
+    let unsure_of = |evidence: &[Evidence], deterministic: bool| -> Vec<usize> {
+        (0..probes.len())
+            .filter(|&j| {
+                !regressor(probes[j])
+                    && probes[j].view().is_deterministic() == deterministic
+                    && unsure(&evidence[j])
+            })
+            .collect()
+    };
+    let refine = |evidence: &mut [Evidence], unsure: Vec<usize>| {
+        if unsure.is_empty() {
+            return;
+        }
         let more = r..REFINE * r;
         let again: Vec<Probe> = unsure
             .iter()
@@ -328,7 +340,9 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
             }
             evidence[j] = judge(p, &simulated, REFINE * REGRESSION_DRAWS);
         }
-    }
+    };
+    let deterministic = unsure_of(&evidence, true);
+    refine(&mut evidence, deterministic);
     // The regressors' draws are cheap: a verdict still near the line is decided on enough of
     // them for an exact Monte Carlo p-value (see `MONTE_CARLO_EXCEEDANCES`).
     for (j, &p) in probes.iter().enumerate() {
@@ -342,9 +356,16 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
             evidence[j] = regression::test(p, data.rate, &decisive);
         }
     }
+    let signal_named = evidence
+        .iter()
+        .any(|e| e.passes && e.view.is_deterministic() && !e.view.must_close_gap());
+    if !signal_named {
+        let random = unsure_of(&evidence, false);
+        refine(&mut evidence, random);
+    }
     if let Some(j) = probes.iter().position(|p| *p == Probe::GaussMarkov) {
         let allan = evidence[j].clone();
-        if let Some(cosine) = cosine_evidence(data, model, removal, probes.len()) {
+        if let Some(cosine) = cosine_evidence(data, model, removal, probes.len(), !signal_named) {
             evidence[j] = evidence::stronger_of_two(allan, cosine);
         }
     }
@@ -360,12 +381,13 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
 /// The Gauss-Markov candidate's evidence in the cosine-transform view ([`cosine`]): the
 /// record with the named lines notched, the named regressors as fixed effects, under the
 /// model's white noise, quantization and filter; judged again on [`REFINE`] times as many
-/// draws when unsure.
+/// draws when unsure and `refined`.
 fn cosine_evidence(
     data: &Data,
     model: &Model,
     removal: &Removal,
     candidates: usize,
+    refined: bool,
 ) -> Option<Evidence> {
     let (view, start) = cosine_view(data, model, removal)?;
     let judged = |draws: usize| {
@@ -383,7 +405,7 @@ fn cosine_evidence(
         )
     };
     let first = judged(REGRESSION_DRAWS);
-    Some(if unsure(&first) {
+    Some(if refined && unsure(&first) {
         judged(REFINE * REGRESSION_DRAWS)
     } else {
         first

@@ -43,8 +43,8 @@
 //! curve's misfit drop, which judges it ([`super::evidence`]).
 
 use crate::analysis::low_pass::LowPass;
+use crate::analysis::shared_plans;
 use crate::analysis::{lines, numerics};
-use realfft::RealFftPlanner;
 use std::f64::consts::PI;
 
 /// Bins 1 and 2 share their power with the removed line (and the window's DC lobe).
@@ -95,10 +95,10 @@ pub fn periodogram(series: &[f64], rate_hz: f64, f_hi: f64) -> Periodogram {
         };
     }
     let (_, mut x) = lines::detrend(series);
-    x.iter_mut().enumerate().for_each(|(t, v)| {
-        *v *= 0.5 - 0.5 * (2.0 * PI * t as f64 / n as f64).cos();
-    });
-    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+    x.iter_mut()
+        .zip(shared_plans::hann(n).iter())
+        .for_each(|(v, w)| *v *= w);
+    let fft = shared_plans::forward(n);
     let mut spectrum = fft.make_output_vec();
     if fft.process(&mut x, &mut spectrum).is_err() {
         return Periodogram {
@@ -375,7 +375,7 @@ pub fn line_power(
     }
     let mean = series.iter().sum::<f64>() / n as f64;
     let mut x: Vec<f64> = series.iter().map(|v| v - mean).collect();
-    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+    let fft = shared_plans::forward(n);
     let mut spectrum = fft.make_output_vec();
     fft.process(&mut x, &mut spectrum).ok()?;
     let df = rate_hz / n as f64;

@@ -12,9 +12,10 @@
 //! record's end.
 
 use super::{Trend, detrend};
+use crate::analysis::shared_plans;
 use crate::analysis::square_fft::SquareRealFft;
+use realfft::RealToComplex;
 use realfft::num_complex::Complex;
-use realfft::{RealFftPlanner, RealToComplex};
 use std::sync::Arc;
 
 /// Records from this length on are transformed by the square in-place DFT. Below it the
@@ -45,7 +46,7 @@ impl Transform {
     /// The transform for a record of `n` samples.
     pub(super) fn for_record(n: usize) -> Transform {
         if n < SQUARE_MIN_SAMPLES {
-            Transform::Plan(RealFftPlanner::<f64>::new().plan_fft_forward(n))
+            Transform::Plan(shared_plans::forward(n))
         } else {
             Transform::Square(SquareRealFft::fitting(n))
         }
@@ -143,7 +144,7 @@ impl Transform {
         let n = self.len();
         let mut y = match self {
             Transform::Plan(_) => {
-                let inverse = RealFftPlanner::<f64>::new().plan_fft_inverse(n);
+                let inverse = shared_plans::inverse(n);
                 let mut y = inverse.make_output_vec();
                 inverse
                     .process(&mut dft, &mut y)

@@ -56,12 +56,12 @@ pub use shape::Shape;
 
 use crate::analysis::numerics;
 use crate::analysis::psd::{self, WelchOptions, Window};
+use crate::analysis::shared_plans;
 use crate::sim::dlpf::{DlpfDesign, Sensor};
 use protocol::mpu6050::SensorSettings;
 use rand::Rng;
 use rand_distr::StandardNormal;
 use rayon::prelude::*;
-use realfft::RealFftPlanner;
 use realfft::num_complex::Complex;
 use serde::Serialize;
 use shape::{Aliases, Cascade, Phasor};
@@ -402,7 +402,6 @@ impl LowPass {
         }
         let lags = self.autocov.len();
         let m = fft_friendly_len(samples.max(lags) + lags);
-        let mut planner = RealFftPlanner::<f64>::new();
         // The wrapped autocovariance is even, so its DFT is real: the folded spectrum.
         let mut wrapped = vec![0.0; m];
         wrapped[0] = self.autocov[0];
@@ -410,7 +409,7 @@ impl LowPass {
             wrapped[l] = r;
             wrapped[m - l] = r;
         }
-        let forward = planner.plan_fft_forward(m);
+        let forward = shared_plans::forward(m);
         let mut spectrum = forward.make_output_vec();
         forward
             .process(&mut wrapped, &mut spectrum)
@@ -430,7 +429,7 @@ impl LowPass {
                 )
             };
         }
-        let inverse = planner.plan_fft_inverse(m);
+        let inverse = shared_plans::inverse(m);
         let mut series = inverse.make_output_vec();
         inverse
             .process(&mut spectrum, &mut series)
