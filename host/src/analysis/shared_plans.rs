@@ -11,6 +11,7 @@
 //! The cache holds the [`KEPT`] most recently used entries of each kind, so a long-lived
 //! process (the Python module, `bench`) that meets many lengths stays bounded in memory.
 
+use crate::analysis::psd::Window;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -61,14 +62,9 @@ pub fn inverse(len: usize) -> Arc<dyn ComplexToReal<f64>> {
     INVERSE.get(len, || RealFftPlanner::<f64>::new().plan_fft_inverse(len))
 }
 
-/// The periodic Hann window of `len` points, `0.5 - 0.5 cos(2 pi t / len)` (Harris, Proc.
-/// IEEE 66, 1978, eq. 27 with the DFT-even convention).
+/// The periodic Hann window of `len` points ([`Window::Hann`]'s coefficients).
 pub fn hann(len: usize) -> Arc<[f64]> {
-    HANN.get(len, || {
-        (0..len)
-            .map(|t| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * t as f64 / len as f64).cos())
-            .collect()
-    })
+    HANN.get(len, || Window::Hann.coefficients(len).into())
 }
 
 #[cfg(test)]

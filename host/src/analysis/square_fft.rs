@@ -41,7 +41,7 @@ type C = Complex<f64>;
 const SMOOTH_SIDE_LOSS: f64 = 0.005;
 
 /// The largest prime factor of `m >= 1` (1 for 1).
-fn largest_prime_factor(mut m: usize) -> usize {
+pub(crate) fn largest_prime_factor(mut m: usize) -> usize {
     let mut largest = 1;
     let mut p = 2;
     while p * p <= m {

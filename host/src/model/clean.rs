@@ -225,6 +225,16 @@ impl<'a> Cleaner<'a> {
         &self.removal
     }
 
+    /// The regressor columns, centred and at unit norm.
+    pub fn columns(&self) -> &[Vec<f64>] {
+        &self.columns
+    }
+
+    /// The columns' Gram matrix.
+    pub fn gram(&self) -> &[Vec<f64>] {
+        &self.gram
+    }
+
     /// `x` with the notches and the regressors removed, and the regressors' coefficients.
     /// A series of another length than the cleaner's is cleaned by a cleaner of its own.
     pub fn apply(&self, x: &[f64]) -> (Vec<f64>, Coefficients) {

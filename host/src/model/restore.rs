@@ -92,9 +92,8 @@ pub fn loss(removal: &Removal, record: &Record) -> Option<Loss> {
     }
     let duration = record.len as f64 / record.rate_hz;
     let tau0 = 1.0 / record.rate_hz;
-    let columns = removal.design(record.len, record.rate_hz, record.temperature);
-    let k = random_walk_loss(&columns, tau0, record.m);
     let cleaner = Cleaner::new(removal, record.len, record.rate_hz, record.temperature);
+    let k = random_walk_loss(&cleaner, tau0, record.m);
     // Flicker's loss by paired simulation: each series' Allan variance before and after the
     // same removal, so the scatter of the series themselves cancels.
     let one = |i: usize| -> Vec<f64> {
@@ -122,7 +121,8 @@ pub fn loss(removal: &Removal, record: &Record) -> Option<Loss> {
     Some(Loss { k, b })
 }
 
-/// The expected overlapping Allan variance that regressing out the centred `columns` takes
+/// The expected overlapping Allan variance that regressing out the `cleaner`'s centred,
+/// unit-norm columns (H does not depend on their scale, and G stays well conditioned) takes
 /// from a unit random walk (K = 1, `y_k = sqrt(tau0) sum_{j<k} w_j`, so `Cov(y_a, y_b) =
 /// tau0 min(a, b)`), at each averaging factor in `m`, u^2 per K^2: exact, not simulated.
 ///
@@ -133,25 +133,13 @@ pub fn loss(removal: &Removal, record: &Record) -> Option<Loss> {
 /// = c (2 tr(G W^T U) - tr(G S G U^T U))` with `U = D X`, `W = D Sigma X` and `S = X^T Sigma
 /// X` (expectations of quadratic forms, `E[y^T A y] = tr(A Sigma)`). Sigma times a vector
 /// is two running sums, so each averaging factor costs O(n p^2).
-fn random_walk_loss(columns: &[Vec<f64>], tau0: f64, m: &[usize]) -> Vec<f64> {
-    let p = columns.len();
-    let n = columns.first().map_or(0, Vec::len);
+fn random_walk_loss(cleaner: &Cleaner, tau0: f64, m: &[usize]) -> Vec<f64> {
+    let x = cleaner.columns();
+    let p = x.len();
+    let n = x.first().map_or(0, Vec::len);
     if p == 0 || n < 4 {
         return vec![0.0; m.len()];
     }
-    // Unit-norm columns: H does not depend on their scale, and G stays well conditioned.
-    let x: Vec<Vec<f64>> = columns
-        .iter()
-        .map(|c| {
-            let norm = c
-                .iter()
-                .map(|v| v * v)
-                .sum::<f64>()
-                .sqrt()
-                .max(f64::MIN_POSITIVE);
-            c.iter().map(|v| v / norm).collect()
-        })
-        .collect();
     // Sigma v with Sigma_ab = min(a, b) (the factor tau0 is applied to the result).
     let sigma_times = |v: &[f64]| -> Vec<f64> {
         let mut out = vec![0.0; n];
@@ -165,14 +153,10 @@ fn random_walk_loss(columns: &[Vec<f64>], tau0: f64, m: &[usize]) -> Vec<f64> {
         out
     };
     let sx: Vec<Vec<f64>> = x.iter().map(|c| sigma_times(c)).collect();
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
-    let gram: Vec<Vec<f64>> = (0..p)
-        .map(|j| (0..p).map(|k| dot(&x[j], &x[k])).collect())
-        .collect();
     let s: Vec<Vec<f64>> = (0..p)
-        .map(|j| (0..p).map(|k| dot(&x[j], &sx[k])).collect())
+        .map(|j| (0..p).map(|k| numerics::dot(&x[j], &sx[k])).collect())
         .collect();
-    let Some(g) = numerics::invert_spd(&gram) else {
+    let Some(g) = numerics::invert_spd(cleaner.gram()) else {
         return vec![0.0; m.len()];
     };
     let prefix = |c: &[f64]| -> Vec<f64> {
@@ -273,7 +257,8 @@ mod tests {
             }],
             ..Removal::default()
         };
-        let exact = random_walk_loss(&removal.design(len, rate_hz, None), 1.0 / rate_hz, &m);
+        let cleaner = Cleaner::new(&removal, len, rate_hz, None);
+        let exact = random_walk_loss(&cleaner, 1.0 / rate_hz, &m);
         let pairs = 3000;
         let diffs: Vec<Vec<f64>> = (0..pairs)
             .map(|i| {

@@ -56,7 +56,7 @@ pub use shape::Shape;
 
 use crate::analysis::numerics;
 use crate::analysis::psd::{self, WelchOptions, Window};
-use crate::analysis::shared_plans;
+use crate::analysis::{shared_plans, square_fft};
 use crate::sim::dlpf::{DlpfDesign, Sensor};
 use protocol::mpu6050::SensorSettings;
 use rand::Rng;
@@ -567,15 +567,7 @@ fn folded_power(chain: &Chain, decimation: usize, freq_hz: f64) -> f64 {
 /// mixed-radix DFT is fast (a large prime factor would send it to Bluestein's algorithm).
 fn fft_friendly_len(len: usize) -> usize {
     (len.max(1)..)
-        .find(|&m| {
-            let mut rest = m;
-            for p in [2, 3, 5] {
-                while rest.is_multiple_of(p) {
-                    rest /= p;
-                }
-            }
-            rest == 1
-        })
+        .find(|&m| square_fft::largest_prime_factor(m) <= 5)
         .unwrap_or(len)
 }
 
