@@ -237,6 +237,9 @@ pub struct Verdict {
     pub statistic: f64,
     /// The statistic on the bootstrap's draws.
     pub null: Vec<f64>,
+    /// The flicker and random-walk levels (B^2, K^2) the record shows without the term,
+    /// from which the bootstrap draws.
+    pub levels: Vec<f64>,
     /// The term's correlation time (s) and standard deviation (u) where the record is likeliest.
     pub tau_c: f64,
     pub sigma: f64,
@@ -536,19 +539,64 @@ impl CosineLikelihood {
     pub fn test(&self, start: [f64; 2], draws: usize, seed: u64) -> Verdict {
         let (without, levels) = self.without(start);
         let (with, tau_c, variance) = self.with(&levels);
-        let null = (0..draws)
-            .into_par_iter()
-            .map(|i| {
-                self.drawn(&levels, seed.wrapping_add(i as u64))
-                    .ratio([levels[0], levels[1]])
-                    .0
-            })
-            .collect();
         Verdict {
             statistic: (without - with).max(0.0),
-            null,
+            null: self.null(&levels, 0..draws, seed),
+            levels,
             tau_c,
             sigma: variance.max(0.0).sqrt(),
         }
+    }
+
+    /// `verdict` with its bootstrap carried on to `draws` draws: those it has are kept (draw
+    /// i is the same whenever it is made), only the rest are drawn.
+    pub fn extend(&self, verdict: Verdict, draws: usize, seed: u64) -> Verdict {
+        let mut null = verdict.null;
+        let more = self.null(&verdict.levels, null.len()..draws.max(null.len()), seed);
+        null.extend(more);
+        Verdict { null, ..verdict }
+    }
+
+    /// The statistic on bootstrap draws `draws` from `levels` (B^2, K^2), draw i from seed
+    /// `seed + i`.
+    fn null(&self, levels: &[f64], draws: std::ops::Range<usize>, seed: u64) -> Vec<f64> {
+        draws
+            .into_par_iter()
+            .map(|i| {
+                self.drawn(levels, seed.wrapping_add(i as u64))
+                    .ratio([levels[0], levels[1]])
+                    .0
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::noise::AxisNoise;
+
+    /// A bootstrap carried on from fewer draws is the bootstrap made at once: the draws it
+    /// had are kept and the rest come from the same seeds.
+    #[test]
+    fn an_extended_bootstrap_is_the_one_made_at_once() {
+        let terms = NoiseTerms {
+            n: 1e-3,
+            k: 1e-5,
+            ..NoiseTerms::default()
+        };
+        let (rate_hz, seconds) = (10.0, 1200.0);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let x = AxisNoise::new(terms, rate_hz, seconds, &mut rng).take(12_000, &mut rng);
+        let view = CosineLikelihood::new(&x, rate_hz, &terms, None, &[]).expect("a view");
+        let start = [0.0, terms.k * terms.k];
+        let at_once = view.test(start, 6, 11);
+        let extended = view.extend(view.test(start, 2, 11), 6, 11);
+        assert_eq!(extended.null.len(), 6);
+        assert_eq!(extended.null, at_once.null);
+        assert_eq!(extended.statistic, at_once.statistic);
+        assert_eq!(extended.levels, at_once.levels);
+        // Fewer draws than it has: nothing is drawn or lost.
+        assert_eq!(view.extend(at_once.clone(), 3, 11).null, at_once.null);
     }
 }

@@ -580,6 +580,19 @@ impl Evidence {
     }
 }
 
+/// Whether `e` passes as one of two views' evidence ([`stronger_of_two`], its p-value
+/// doubled). The candidate then passes whatever the other view shows: were the other's
+/// p-value smaller, it would be below the same threshold, and a verdict near the line is
+/// refined only when its statistic lies above every simulation's, as [`super::names`] asks.
+pub fn passes_as_one_of_two(e: &Evidence) -> bool {
+    super::names(
+        e.statistic,
+        (2.0 * e.p_value).min(1.0),
+        e.p_needed,
+        e.sim_max,
+    ) && e.effect.is_some()
+}
+
 /// The stronger of two views' evidence for one candidate, its p-value doubled (Bonferroni
 /// over the two views): a candidate judged in two views must not pass twice as often on
 /// pure noise.

@@ -27,7 +27,7 @@ use super::candidates;
 use super::clean::Removal;
 use super::evidence::{Probe, View};
 use super::refit::Column;
-use super::simulate::{Round, simulate_round};
+use super::simulate::{Round, simulate_probe, simulate_round};
 use super::{Data, Effect, Step};
 use serde::Serialize;
 
@@ -43,8 +43,9 @@ pub struct Rechecked {
     /// Whether its test still passes there.
     pub passes: bool,
     /// Whether another candidate passes there (the effect then stays whatever its own test
-    /// says: the model without it is not one the search would stop at).
-    pub other_passes: bool,
+    /// says: the model without it is not one the search would stop at); `None` when its own
+    /// test passes, which decides alone, and the others were not judged.
+    pub other_passes: Option<bool>,
     /// Allan gap of the final model with the effect, and without it.
     pub gap_with: f64,
     pub gap_without: f64,
@@ -139,28 +140,45 @@ pub(super) fn named_before(
             i += 1;
             continue;
         };
+        // The effect's own test first: when it passes the effect stays, and the round's
+        // other candidates are not needed.
+        let Some(alone) = simulate_probe(data, &without, &less, probe) else {
+            i += 1;
+            continue;
+        };
+        let own = &alone.evidence[0];
+        let mut check = Rechecked {
+            effect: steps[i].effect,
+            p_value: own.p_value,
+            p_needed: own.p_needed,
+            passes: own.passes,
+            other_passes: None,
+            gap_with: round.comparison.gap,
+            gap_without: alone.comparison.gap,
+            dropped: false,
+        };
+        if check.passes {
+            seen.push(check);
+            i += 1;
+            continue;
+        }
         let again = simulate_round(data, &without, &less);
         let Some(own) = again.probes.iter().position(|p| *p == probe) else {
             i += 1;
             continue;
         };
-        let passes = again.evidence[own].passes;
+        check.passes = again.evidence[own].passes;
         let other_passes = again
             .evidence
             .iter()
             .enumerate()
             .any(|(k, e)| k != own && e.passes);
-        let dropped = !passes && !other_passes;
-        seen.push(Rechecked {
-            effect: steps[i].effect,
-            p_value: again.evidence[own].p_value,
-            p_needed: again.evidence[own].p_needed,
-            passes,
-            other_passes,
-            gap_with: round.comparison.gap,
-            gap_without: again.comparison.gap,
-            dropped,
-        });
+        check.other_passes = Some(other_passes);
+        check.p_value = again.evidence[own].p_value;
+        check.p_needed = again.evidence[own].p_needed;
+        check.dropped = !check.passes && !other_passes;
+        let dropped = check.dropped;
+        seen.push(check);
         if !dropped {
             i += 1;
             continue;

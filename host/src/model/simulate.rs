@@ -164,7 +164,33 @@ pub(super) fn comparison_of(data: &Data, model: &Model, removal: &Removal) -> Co
 /// weights the refits; then every candidate's statistic, on the record and on each
 /// realisation (kept from the first pass up to [`KEPT_REALISATION_SAMPLES`]).
 pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
-    let probes = probes(data, model, removal);
+    simulate(data, model, removal, None)
+}
+
+/// The round of [`simulate_round`] with `probe` alone judged, at the threshold it has among
+/// all the round's candidates; `None` when it is not one of them. What it shows of `probe`
+/// is what the whole round shows, except where the whole round names a deterministic effect
+/// and so leaves a random term's unsure verdict unrefined (a recheck keeps the effect then
+/// either way: another candidate passes).
+pub(super) fn simulate_probe(
+    data: &Data,
+    model: &Model,
+    removal: &Removal,
+    probe: Probe,
+) -> Option<Round> {
+    probes(data, model, removal)
+        .contains(&probe)
+        .then(|| simulate(data, model, removal, Some(probe)))
+}
+
+/// A round judging every candidate, or `only` that one at the threshold it has among all.
+fn simulate(data: &Data, model: &Model, removal: &Removal, only: Option<Probe>) -> Round {
+    let every = probes(data, model, removal);
+    let candidates = every.len();
+    let probes: Vec<Probe> = match only {
+        Some(p) => every.into_iter().filter(|q| *q == p).collect(),
+        None => every,
+    };
     let tau0 = 1.0 / data.rate_hz;
     let longest = data.measured.tau.last().copied().unwrap_or(tau0);
     let m = &data.measured.m;
@@ -222,7 +248,11 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
             })
             .collect()
     };
-    let sims = on_realisations(0..r, &on_sims);
+    let sims = if on_sims.is_empty() {
+        vec![Vec::new(); r]
+    } else {
+        on_realisations(0..r, &on_sims)
+    };
     // The alternative's noise model has every IEEE-952 random term free: a baseline that put
     // K at 0 (a short record, an absorbed effect) must not make the test's noise too small.
     let columns = evidence::with_random_walks(&refit::columns_of(&stochastic));
@@ -250,14 +280,18 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
             })
             .collect()
     };
-    let slow_sims = slow_on(0..r);
+    let slow_sims = if probes.contains(&Probe::SlowLine) {
+        slow_on(0..r)
+    } else {
+        Vec::new()
+    };
     let gls = gls::Estimator::new(&open, data.rate_hz, data.rate.len());
     let setup = regression::Setup {
         view: &ctx,
         gls: &gls,
         draws: REGRESSION_DRAWS,
         seed: data.settings.seed,
-        candidates: probes.len(),
+        candidates,
         monte_carlo: false,
     };
     // A candidate's evidence from its simulated values (`on_sims` probes and the slow line)
@@ -270,9 +304,9 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
                 measured[j],
                 simulated,
                 evidence::line_p_value(measured[j].0, simulated),
-                probes.len(),
+                candidates,
             ),
-            Some(j) => Evidence::new(p.name(), p.view(), measured[j], simulated, probes.len()),
+            Some(j) => Evidence::new(p.name(), p.view(), measured[j], simulated, candidates),
             // A maximum over bins: its tail is Gumbel, not a scaled chi-square.
             None if p == Probe::SlowLine => Evidence::with_p(
                 p.name(),
@@ -280,7 +314,7 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
                 slow,
                 simulated,
                 spectrum::gumbel_p_value(slow.0, simulated),
-                probes.len(),
+                candidates,
             ),
             None => regression::test(p, data.rate, &regression::Setup { draws, ..setup }),
         };
@@ -365,7 +399,10 @@ pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> R
     }
     if let Some(j) = probes.iter().position(|p| *p == Probe::GaussMarkov) {
         let allan = evidence[j].clone();
-        if let Some(cosine) = cosine_evidence(data, model, removal, probes.len(), !signal_named) {
+        // The cosine view's unsure verdict is refined only where it can decide the
+        // candidate: not when the Allan view passes on its own.
+        let refined = !signal_named && !evidence::passes_as_one_of_two(&allan);
+        if let Some(cosine) = cosine_evidence(data, model, removal, candidates, refined) {
             evidence[j] = evidence::stronger_of_two(allan, cosine);
         }
     }
@@ -390,8 +427,8 @@ fn cosine_evidence(
     refined: bool,
 ) -> Option<Evidence> {
     let (view, start) = cosine_view(data, model, removal)?;
-    let judged = |draws: usize| {
-        let verdict = view.test(start, draws, data.settings.seed);
+    let seed = data.settings.seed;
+    let judged = |verdict: &cosine::Verdict| {
         let effect = (verdict.sigma > 0.0).then_some(Effect::GaussMarkov {
             tau_c: verdict.tau_c,
             sigma: verdict.sigma,
@@ -404,9 +441,10 @@ fn cosine_evidence(
             candidates,
         )
     };
-    let first = judged(REGRESSION_DRAWS);
+    let verdict = view.test(start, REGRESSION_DRAWS, seed);
+    let first = judged(&verdict);
     Some(if refined && unsure(&first) {
-        judged(REFINE * REGRESSION_DRAWS)
+        judged(&view.extend(verdict, REFINE * REGRESSION_DRAWS, seed))
     } else {
         first
     })
