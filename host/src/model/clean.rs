@@ -95,7 +95,7 @@ pub struct Tone {
 }
 
 /// What to remove from a series.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Removal {
     pub ramp: bool,
     pub temperature: bool,

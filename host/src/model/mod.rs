@@ -699,8 +699,10 @@ pub fn run(
     // Candidates taken back since the last step that stayed.
     let mut taken_back: Vec<Probe> = Vec::new();
     let mut last_undone: Option<Effect> = None;
+    // The band the last naming weighed its rivals on, made for the model it named.
+    let mut named_band = None;
     let (final_round, stop) = loop {
-        let round = simulate_round(&data, &model, &removal);
+        let round = simulate_round(&data, &model, &removal, named_band.take());
         let round = match steps.last_mut() {
             Some(s) if s.must_close_gap() && round.comparison.gap >= s.gap_before => {
                 // A stochastic term or a filter (or an effect standing in for a stochastic
@@ -743,6 +745,7 @@ pub fn run(
         }
         let named = naming::name(&data, &model, &removal, &round, chosen, &taken_back);
         let (chosen, effect, evidence) = (named.index, named.effect, named.evidence);
+        named_band = named.band;
         let probe = round.probes[chosen];
         let before = (model, removal);
         (model, removal) = (named.model, named.removal);

@@ -11,7 +11,7 @@
 //! first on two, once in the process's place (the process, tried next, was taken back because
 //! the gap no longer shrank) and once beside it. Which term explains the record is what the
 //! Allan gap measures: each passing term is added in turn, the model realised
-//! ([`super::simulate::comparison_of`]), and the term whose gap is least is named. Only the
+//! ([`super::simulate::Realised`]), and the term whose gap is least is named. Only the
 //! Allan comparison is simulated for the terms not chosen (a fraction of a round: no
 //! candidate's statistic is computed), and only when two or more stochastic terms pass.
 //!
@@ -38,7 +38,7 @@
 use super::candidates::{self, add};
 use super::clean::Removal;
 use super::evidence::{Evidence, Probe};
-use super::simulate::{self, Round};
+use super::simulate::{self, Realised, Round};
 use super::{Data, Effect, Model, sinusoid_errors};
 use serde::Serialize;
 
@@ -58,6 +58,8 @@ pub(super) struct Named {
     /// Whether it was named by the gap in place of a passing random term, not by its own
     /// test: it must then shrink the gap to stay, as that term must.
     pub stands_in: bool,
+    /// The Allan band the gap was weighed on, when rivals were: the next round's band.
+    pub band: Option<Realised>,
 }
 
 /// A rival weighed by the Allan gap: its effect and the gap of the model with it added.
@@ -98,22 +100,26 @@ pub(super) fn name(
     if !stochastic(chosen) || rivals.len() < 2 {
         return made(data, model, removal, round, chosen);
     }
-    let weighed: Vec<(f64, Named)> = rivals
-        .into_iter()
-        .map(|i| {
-            let named = made(data, model, removal, round, i);
-            let gap = simulate::comparison_of(data, &named.model, &named.removal).gap;
-            (gap, named)
-        })
-        .collect();
-    let gaps: Vec<Weighed> = weighed
-        .iter()
-        .map(|(gap, named)| Weighed {
+    // Each rival's band is made and weighed in turn; only the closest so far is kept (the
+    // first of equals), for the next round: a band's realisations are 24 records' worth.
+    let mut gaps: Vec<Weighed> = Vec::new();
+    let mut closest: Option<(f64, Named)> = None;
+    for i in rivals {
+        let mut named = made(data, model, removal, round, i);
+        let band = Realised::of(data, &named.model, &named.removal);
+        let gap = band.comparison(data).gap;
+        gaps.push(Weighed {
             effect: named.effect,
-            gap: *gap,
-        })
-        .collect();
-    let closest = weighed.into_iter().min_by(|a, b| a.0.total_cmp(&b.0));
+            gap,
+        });
+        if closest
+            .as_ref()
+            .is_none_or(|(least, _)| gap.total_cmp(least).is_lt())
+        {
+            named.band = Some(band);
+            closest = Some((gap, named));
+        }
+    }
     let Some((_, mut named)) = closest else {
         unreachable!("two or more rivals were weighed")
     };
@@ -196,5 +202,6 @@ fn made(data: &Data, model: &Model, removal: &Removal, round: &Round, chosen: us
         removal,
         weighed: Vec::new(),
         stands_in: false,
+        band: None,
     }
 }

@@ -162,7 +162,7 @@ pub(super) fn named_before(
             i += 1;
             continue;
         }
-        let again = simulate_round(data, &without, &less);
+        let again = simulate_round(data, &without, &less, None);
         let Some(own) = again.probes.iter().position(|p| *p == probe) else {
             i += 1;
             continue;

@@ -151,20 +151,49 @@ impl<'a> Realisations<'a> {
     }
 }
 
-/// The record against realisations of `model` (the Allan comparison of a round, without the
-/// candidates' statistics): what choosing among stochastic candidates compares.
-pub(super) fn comparison_of(data: &Data, model: &Model, removal: &Removal) -> Comparison {
-    let r = data.settings.realisations.max(2);
-    let (logs, _) = Realisations::of(data, model, removal).band(r, false);
-    compare(&data.measured, &logs)
+/// A model's Allan band: the ln ADEV of its realisations `0..r` (each carrying the named
+/// deterministic effects as estimated from the record) on the record's averaging factors,
+/// and the realisations themselves up to [`KEPT_REALISATION_SAMPLES`], for the model and
+/// removal they were made with.
+pub(super) struct Realised {
+    model: Model,
+    removal: Removal,
+    logs: Vec<Vec<f64>>,
+    kept: Vec<Option<Vec<f64>>>,
 }
 
-/// Simulate the model twice over the same seeds: first its Allan band (each realisation
-/// carrying the named deterministic effects as estimated from the record), whose spread
-/// weights the refits; then every candidate's statistic, on the record and on each
-/// realisation (kept from the first pass up to [`KEPT_REALISATION_SAMPLES`]).
-pub(super) fn simulate_round(data: &Data, model: &Model, removal: &Removal) -> Round {
-    simulate(data, model, removal, None)
+impl Realised {
+    pub(super) fn of(data: &Data, model: &Model, removal: &Removal) -> Realised {
+        let r = data.settings.realisations.max(2);
+        let keep = r.saturating_mul(data.rate.len()) <= KEPT_REALISATION_SAMPLES;
+        let (logs, kept) = Realisations::of(data, model, removal).band(r, keep);
+        Realised {
+            model: model.clone(),
+            removal: removal.clone(),
+            logs,
+            kept,
+        }
+    }
+
+    /// The record against the band (the Allan comparison of a round, without the
+    /// candidates' statistics): what choosing among stochastic candidates compares.
+    pub(super) fn comparison(&self, data: &Data) -> Comparison {
+        compare(&data.measured, &self.logs)
+    }
+}
+
+/// Simulate the model twice over the same seeds: first its Allan band ([`Realised`]), whose
+/// spread weights the refits, taken from `band` when that was made for this model and
+/// removal (the rival the naming chose: the same seeds give the same realisations); then
+/// every candidate's statistic, on the record and on each realisation (kept from the first
+/// pass up to [`KEPT_REALISATION_SAMPLES`]).
+pub(super) fn simulate_round(
+    data: &Data,
+    model: &Model,
+    removal: &Removal,
+    band: Option<Realised>,
+) -> Round {
+    simulate(data, model, removal, None, band)
 }
 
 /// The round of [`simulate_round`] with `probe` alone judged, at the threshold it has among
@@ -180,11 +209,17 @@ pub(super) fn simulate_probe(
 ) -> Option<Round> {
     probes(data, model, removal)
         .contains(&probe)
-        .then(|| simulate(data, model, removal, Some(probe)))
+        .then(|| simulate(data, model, removal, Some(probe), None))
 }
 
 /// A round judging every candidate, or `only` that one at the threshold it has among all.
-fn simulate(data: &Data, model: &Model, removal: &Removal, only: Option<Probe>) -> Round {
+fn simulate(
+    data: &Data,
+    model: &Model,
+    removal: &Removal,
+    only: Option<Probe>,
+    band: Option<Realised>,
+) -> Round {
     let every = probes(data, model, removal);
     let candidates = every.len();
     let probes: Vec<Probe> = match only {
@@ -196,10 +231,12 @@ fn simulate(data: &Data, model: &Model, removal: &Removal, only: Option<Probe>) 
     let m = &data.measured.m;
     let r = data.settings.realisations.max(2);
     let realisations = Realisations::of(data, model, removal);
-    let keep = r.saturating_mul(data.rate.len()) <= KEPT_REALISATION_SAMPLES;
-    let (logs, kept) = realisations.band(r, keep);
+    let band = band
+        .filter(|b| b.model == *model && b.removal == *removal && b.logs.len() == r)
+        .unwrap_or_else(|| Realised::of(data, model, removal));
+    let comparison = band.comparison(data);
+    let kept = band.kept;
     let realise = |terms: &NoiseTerms, i: usize| realisations.series(terms, i);
-    let comparison = compare(&data.measured, &logs);
     let sd_ln: Vec<f64> = comparison.band.std_log.iter().map(|s| 2.0 * s).collect();
     let sd_ln = refit::beyond_fitted_filter(&sd_ln, &data.measured.tau, model.low_pass.as_ref());
     let stochastic = model.stochastic();

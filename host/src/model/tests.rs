@@ -450,7 +450,7 @@ fn a_slow_line_named_before_the_process_that_explains_it_is_dropped() {
         losses: restore::Losses::default(),
     };
     let mut removal = Removal::default();
-    let sd_ln = simulate_round(&data, &process.model, &removal).sd_ln;
+    let sd_ln = simulate_round(&data, &process.model, &removal, None).sd_ln;
     let with_line = candidates::add(
         &data,
         &process.model,
@@ -474,7 +474,7 @@ fn a_slow_line_named_before_the_process_that_explains_it_is_dropped() {
             ..process
         },
     ];
-    let round = simulate_round(&data, &with_line, &removal);
+    let round = simulate_round(&data, &with_line, &removal, None);
     let (last, seen) = super::recheck::named_before(&data, &mut steps, &mut removal, round);
     assert_eq!(seen.len(), 1, "{seen:?}");
     let r = seen[0];
