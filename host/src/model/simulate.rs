@@ -164,11 +164,17 @@ pub(super) struct Realised {
 
 impl Realised {
     pub(super) fn of(data: &Data, model: &Model, removal: &Removal) -> Realised {
+        Realised::by(&Realisations::of(data, model, removal), removal)
+    }
+
+    /// The band `realisations` make, they having been made for `removal`.
+    fn by(realisations: &Realisations, removal: &Removal) -> Realised {
+        let data = realisations.data;
         let r = data.settings.realisations.max(2);
         let keep = r.saturating_mul(data.rate.len()) <= KEPT_REALISATION_SAMPLES;
-        let (logs, kept) = Realisations::of(data, model, removal).band(r, keep);
+        let (logs, kept) = realisations.band(r, keep);
         Realised {
-            model: model.clone(),
+            model: realisations.model.clone(),
             removal: removal.clone(),
             logs,
             kept,
@@ -233,7 +239,7 @@ fn simulate(
     let realisations = Realisations::of(data, model, removal);
     let band = band
         .filter(|b| b.model == *model && b.removal == *removal && b.logs.len() == r)
-        .unwrap_or_else(|| Realised::of(data, model, removal));
+        .unwrap_or_else(|| Realised::by(&realisations, removal));
     let comparison = band.comparison(data);
     let kept = band.kept;
     let realise = |terms: &NoiseTerms, i: usize| realisations.series(terms, i);
