@@ -23,6 +23,7 @@
 
 use crate::analysis::numerics::{dot, householder_solve};
 use crate::analysis::shared_plans;
+use rayon::prelude::*;
 
 /// The temperature channel as regressors: centred, and its time derivative.
 #[derive(Debug, Clone)]
@@ -153,24 +154,41 @@ impl Removal {
         rate_hz: f64,
         temperature: Option<&Temperature>,
     ) -> Vec<Vec<f64>> {
-        let mut columns: Vec<Vec<f64>> = Vec::new();
+        /// One column, made on its own thread: a tone's sine and cosine cost far more per
+        /// sample than the regression.
+        enum Regressor<'t> {
+            Time,
+            Given(&'t [f64]),
+            Sine(f64),
+            Cosine(f64),
+        }
+        let mut regressors = Vec::new();
         if self.ramp {
-            columns.push((0..n).map(|i| i as f64 / rate_hz).collect());
+            regressors.push(Regressor::Time);
         }
         if let Some(t) = temperature.filter(|_| self.temperature) {
-            columns.push(t.centred.clone());
-            columns.push(t.derivative.clone());
+            regressors.push(Regressor::Given(&t.centred));
+            regressors.push(Regressor::Given(&t.derivative));
         }
         for tone in &self.tones {
             let omega = 2.0 * std::f64::consts::PI * tone.freq_hz / rate_hz;
-            columns.push((0..n).map(|i| (omega * i as f64).sin()).collect());
-            columns.push((0..n).map(|i| (omega * i as f64).cos()).collect());
+            regressors.push(Regressor::Sine(omega));
+            regressors.push(Regressor::Cosine(omega));
         }
-        for c in &mut columns {
-            let mean = c.iter().sum::<f64>() / n.max(1) as f64;
-            c.iter_mut().for_each(|v| *v -= mean);
-        }
-        columns
+        regressors
+            .par_iter()
+            .map(|r| {
+                let mut c: Vec<f64> = match *r {
+                    Regressor::Time => (0..n).map(|i| i as f64 / rate_hz).collect(),
+                    Regressor::Given(v) => v.to_vec(),
+                    Regressor::Sine(omega) => (0..n).map(|i| (omega * i as f64).sin()).collect(),
+                    Regressor::Cosine(omega) => (0..n).map(|i| (omega * i as f64).cos()).collect(),
+                };
+                let mean = c.iter().sum::<f64>() / n.max(1) as f64;
+                c.iter_mut().for_each(|v| *v -= mean);
+                c
+            })
+            .collect()
     }
 }
 
@@ -199,14 +217,15 @@ impl<'a> Cleaner<'a> {
     ) -> Cleaner<'a> {
         let mut columns = removal.design(len, rate_hz, temperature);
         let norms: Vec<f64> = columns
-            .iter()
-            .map(|c| dot(c, c).sqrt().max(f64::MIN_POSITIVE))
+            .par_iter_mut()
+            .map(|c| {
+                let norm = dot(c, c).sqrt().max(f64::MIN_POSITIVE);
+                c.iter_mut().for_each(|v| *v /= norm);
+                norm
+            })
             .collect();
-        for (c, norm) in columns.iter_mut().zip(&norms) {
-            c.iter_mut().for_each(|v| *v /= norm);
-        }
         let gram = columns
-            .iter()
+            .par_iter()
             .map(|a| columns.iter().map(|b| dot(a, b)).collect())
             .collect();
         Cleaner {

@@ -36,7 +36,7 @@ use crate::sim::noise::{AxisNoise, NoiseTerms};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// Paired simulations of flicker's loss: a mean difference whose relative scatter is about
 /// `1 / sqrt(LOSS_REALISATIONS)` of the (already minor) correction.
@@ -48,6 +48,10 @@ const MAX_SHARE: f64 = 0.95;
 const LOSS_BLOCK: usize = 4096;
 /// Seeds of the loss simulations, apart from the model's realisations.
 const LOSS_SEED: u64 = 0x1055;
+/// The most samples of unit flicker [`Losses`] keeps for the next removal's loss (256 MiB;
+/// the [`LOSS_REALISATIONS`] series of 3 h at 100 Hz take 132 MiB). Longer records
+/// synthesise them again for each removal rather than hold them.
+const KEPT_LOSS_SAMPLES: usize = 1 << 25;
 
 /// The series and the curve's averaging factors a loss is measured on.
 pub struct Record<'a> {
@@ -61,16 +65,52 @@ pub struct Record<'a> {
 
 /// The losses measured on one record, by removal and averaging factors: the open noise
 /// model and the candidates' refits ask for the same removal's loss round after round, and
-/// each costs [`LOSS_REALISATIONS`] simulated flicker series as long as the record.
+/// each costs [`LOSS_REALISATIONS`] simulated flicker series as long as the record. The
+/// series themselves do not depend on the removal, so they are kept too, with their Allan
+/// variances before it (up to [`KEPT_LOSS_SAMPLES`]).
 #[derive(Default)]
-pub struct Losses(Mutex<Vec<(String, Option<Loss>)>>);
+pub struct Losses {
+    measured: Mutex<Vec<(String, Option<Loss>)>>,
+    flicker: Mutex<Option<Arc<UnitFlicker>>>,
+}
+
+/// The unit flicker series of [`loss`]'s paired simulations for one record shape, each with
+/// its Allan variance before any removal.
+struct UnitFlicker {
+    len: usize,
+    rate_hz: f64,
+    m: Vec<usize>,
+    /// `(series, its Allan variance at m)`, by seed.
+    pairs: Vec<(Vec<f64>, Vec<f64>)>,
+}
+
+impl UnitFlicker {
+    fn new(record: &Record) -> UnitFlicker {
+        let pairs = (0..LOSS_REALISATIONS)
+            .into_par_iter()
+            .map(|i| {
+                let raw = unit_flicker(record, i);
+                let before = allan_avar(raw.clone(), record.rate_hz, record.m);
+                (raw, before)
+            })
+            .collect();
+        UnitFlicker {
+            len: record.len,
+            rate_hz: record.rate_hz,
+            m: record.m.to_vec(),
+            pairs,
+        }
+    }
+
+    fn fits(&self, record: &Record) -> bool {
+        self.len == record.len && self.rate_hz == record.rate_hz && self.m == record.m
+    }
+}
 
 impl Losses {
     /// [`loss`] of `removal` on `record`, measured once.
     pub fn of(&self, removal: &Removal, record: &Record) -> Option<Loss> {
         let key = format!("{removal:?} {:?}", record.m);
-        // A thread that panicked while holding the list left it whole: entries are pushed
-        // complete.
         if let Some((_, found)) = self.held().iter().find(|(k, _)| *k == key) {
             return found.clone();
         }
@@ -79,33 +119,68 @@ impl Losses {
         measured
     }
 
+    // A thread that panicked while holding a lock left its value whole: entries are
+    // pushed and set complete.
     fn held(&self) -> std::sync::MutexGuard<'_, Vec<(String, Option<Loss>)>> {
-        self.0.lock().unwrap_or_else(|e| e.into_inner())
+        self.measured.lock().unwrap_or_else(|e| e.into_inner())
     }
+
+    /// The unit flicker series for `record`, made once per record shape; `None` beyond
+    /// [`KEPT_LOSS_SAMPLES`].
+    fn unit_flicker(&self, record: &Record) -> Option<Arc<UnitFlicker>> {
+        if LOSS_REALISATIONS.saturating_mul(record.len) > KEPT_LOSS_SAMPLES {
+            return None;
+        }
+        let kept = || self.flicker.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(f) = kept().as_ref().filter(|f| f.fits(record)) {
+            return Some(Arc::clone(f));
+        }
+        let made = Arc::new(UnitFlicker::new(record));
+        *kept() = Some(Arc::clone(&made));
+        Some(made)
+    }
+}
+
+/// Unit flicker (B = 1) as long as `record`, loss simulation `i`.
+fn unit_flicker(record: &Record, i: usize) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(LOSS_SEED + i as u64);
+    let unit = NoiseTerms {
+        b: 1.0,
+        ..NoiseTerms::default()
+    };
+    let duration = record.len as f64 / record.rate_hz;
+    AxisNoise::new(unit, record.rate_hz, duration, &mut rng).take(record.len, &mut rng)
 }
 
 /// The removal's loss on unit noise of `record`'s shape; `None` when it removes no regressor
 /// (a constant and narrow notches take nothing that matters).
 pub fn loss(removal: &Removal, record: &Record) -> Option<Loss> {
+    loss_on(removal, record, record.known.unit_flicker(record))
+}
+
+/// [`loss`] with the unit flicker `kept` from an earlier removal, or synthesised here when
+/// `None`.
+fn loss_on(removal: &Removal, record: &Record, kept: Option<Arc<UnitFlicker>>) -> Option<Loss> {
     if !(removal.ramp || removal.temperature || !removal.tones.is_empty()) {
         return None;
     }
-    let duration = record.len as f64 / record.rate_hz;
     let tau0 = 1.0 / record.rate_hz;
     let cleaner = Cleaner::new(removal, record.len, record.rate_hz, record.temperature);
     let k = random_walk_loss(&cleaner, tau0, record.m);
     // Flicker's loss by paired simulation: each series' Allan variance before and after the
     // same removal, so the scatter of the series themselves cancels.
     let one = |i: usize| -> Vec<f64> {
-        let mut rng = ChaCha8Rng::seed_from_u64(LOSS_SEED + i as u64);
-        let unit = NoiseTerms {
-            b: 1.0,
-            ..NoiseTerms::default()
+        let made;
+        let (raw, before) = match &kept {
+            Some(f) => (&f.pairs[i].0, &f.pairs[i].1),
+            None => {
+                let raw = unit_flicker(record, i);
+                let before = allan_avar(raw.clone(), record.rate_hz, record.m);
+                made = (raw, before);
+                (&made.0, &made.1)
+            }
         };
-        let raw =
-            AxisNoise::new(unit, record.rate_hz, duration, &mut rng).take(record.len, &mut rng);
-        let (clean, _) = cleaner.apply(&raw);
-        let before = allan_avar(raw, record.rate_hz, record.m);
+        let (clean, _) = cleaner.apply(raw);
         let after = allan_avar(clean, record.rate_hz, record.m);
         before.iter().zip(after).map(|(b, a)| b - a).collect()
     };
@@ -285,6 +360,51 @@ mod tests {
             );
             assert!(*e > 0.0, "m {}: {e}", m[j]);
         }
+    }
+
+    /// The unit flicker kept from one removal's loss gives the next removal the loss it
+    /// would measure on series synthesised for it alone.
+    #[test]
+    fn kept_unit_flicker_measures_what_fresh_series_do() {
+        let (rate_hz, len) = (10.0, 6000);
+        let m = [1, 10, 100, 1000];
+        let losses = Losses::default();
+        let record = Record {
+            len,
+            rate_hz,
+            m: &m,
+            temperature: None,
+            known: &losses,
+        };
+        let ramp = Removal {
+            ramp: true,
+            ..Removal::default()
+        };
+        let tone = Removal {
+            tones: vec![crate::model::clean::Tone {
+                freq_hz: 0.013,
+                guard_hz: 0.005,
+            }],
+            ..Removal::default()
+        };
+        let first = losses.of(&ramp, &record).expect("a ramp takes something");
+        let second = losses.of(&tone, &record).expect("a tone takes something");
+        assert!(losses.unit_flicker(&record).is_some());
+        // Equal but for the order in which the parallel sum adds the 16 pairs.
+        let same = |a: &Loss, b: &Loss| {
+            let close = |x: &[f64], y: &[f64]| {
+                x.len() == y.len()
+                    && x.iter()
+                        .zip(y)
+                        .all(|(x, y)| (x - y).abs() <= 1e-12 * x.abs().max(y.abs()))
+            };
+            close(&a.k, &b.k) && close(&a.b, &b.b)
+        };
+        for (removal, kept) in [(&ramp, &first), (&tone, &second)] {
+            let fresh = loss_on(removal, &record, None).expect("the same removal");
+            assert!(same(kept, &fresh), "{kept:?} against {fresh:?}");
+        }
+        assert!(second.b.iter().any(|&b| b > 0.0), "{second:?}");
     }
 
     /// A random walk's Allan variance after detrending: the measured loss grows as tau^2 with
