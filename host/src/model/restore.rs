@@ -67,7 +67,7 @@ pub struct Record<'a> {
 /// model and the candidates' refits ask for the same removal's loss round after round, and
 /// each costs [`LOSS_REALISATIONS`] simulated flicker series as long as the record. The
 /// series themselves do not depend on the removal, so they are kept too, with their Allan
-/// variances before it (up to [`KEPT_LOSS_SAMPLES`]).
+/// variances before it (up to 256 MiB of samples).
 #[derive(Default)]
 pub struct Losses {
     measured: Mutex<Vec<(String, Option<Loss>)>>,
@@ -155,13 +155,20 @@ fn unit_flicker(record: &Record, i: usize) -> Vec<f64> {
 /// The removal's loss on unit noise of `record`'s shape; `None` when it removes no regressor
 /// (a constant and narrow notches take nothing that matters).
 pub fn loss(removal: &Removal, record: &Record) -> Option<Loss> {
+    if takes_nothing(removal) {
+        return None;
+    }
     loss_on(removal, record, record.known.unit_flicker(record))
+}
+
+fn takes_nothing(removal: &Removal) -> bool {
+    !(removal.ramp || removal.temperature || !removal.tones.is_empty())
 }
 
 /// [`loss`] with the unit flicker `kept` from an earlier removal, or synthesised here when
 /// `None`.
 fn loss_on(removal: &Removal, record: &Record, kept: Option<Arc<UnitFlicker>>) -> Option<Loss> {
-    if !(removal.ramp || removal.temperature || !removal.tones.is_empty()) {
+    if takes_nothing(removal) {
         return None;
     }
     let tau0 = 1.0 / record.rate_hz;
