@@ -165,29 +165,26 @@ fn takes_nothing(removal: &Removal) -> bool {
     !(removal.ramp || removal.temperature || !removal.tones.is_empty())
 }
 
-/// [`loss`] with the unit flicker `kept` from an earlier removal, or synthesised here when
-/// `None`.
+/// [`loss`] of a removal that takes something, with the unit flicker `kept` from an
+/// earlier removal, or synthesised here when `None`.
 fn loss_on(removal: &Removal, record: &Record, kept: Option<Arc<UnitFlicker>>) -> Option<Loss> {
-    if takes_nothing(removal) {
-        return None;
-    }
     let tau0 = 1.0 / record.rate_hz;
     let cleaner = Cleaner::new(removal, record.len, record.rate_hz, record.temperature);
     let k = random_walk_loss(&cleaner, tau0, record.m);
     // Flicker's loss by paired simulation: each series' Allan variance before and after the
     // same removal, so the scatter of the series themselves cancels.
     let one = |i: usize| -> Vec<f64> {
-        let made;
-        let (raw, before) = match &kept {
-            Some(f) => (&f.pairs[i].0, &f.pairs[i].1),
+        let (clean, before) = match &kept {
+            Some(f) => {
+                let (raw, before) = &f.pairs[i];
+                (cleaner.apply(raw).0, before.clone())
+            }
             None => {
                 let raw = unit_flicker(record, i);
-                let before = allan_avar(raw.clone(), record.rate_hz, record.m);
-                made = (raw, before);
-                (&made.0, &made.1)
+                let clean = cleaner.apply(&raw).0;
+                (clean, allan_avar(raw, record.rate_hz, record.m))
             }
         };
-        let (clean, _) = cleaner.apply(raw);
         let after = allan_avar(clean, record.rate_hz, record.m);
         before.iter().zip(after).map(|(b, a)| b - a).collect()
     };
