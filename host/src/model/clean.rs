@@ -64,6 +64,25 @@ impl Temperature {
     }
 }
 
+impl Temperature {
+    /// The regressors as means of blocks of `block` samples: the columns of a series read
+    /// at a reduced rate ([`super::slow_view`]).
+    pub fn block_means(&self, block: usize) -> Temperature {
+        Temperature {
+            centred: block_means(&self.centred, block),
+            derivative: block_means(&self.derivative, block),
+        }
+    }
+}
+
+/// The means of consecutive blocks of `block` values of `x` (a last, partial block left out).
+pub fn block_means(x: &[f64], block: usize) -> Vec<f64> {
+    let block = block.max(1);
+    x.chunks_exact(block)
+        .map(|c| c.iter().sum::<f64>() / block as f64)
+        .collect()
+}
+
 /// Centred moving average over `2 half + 1` samples (shorter at the ends).
 fn moving_average(x: &[f64], half: usize) -> Vec<f64> {
     let mut prefix = Vec::with_capacity(x.len() + 1);

@@ -21,7 +21,6 @@
 
 use super::clean::{Cleaner, Removal, Temperature};
 use super::refit::{self, Column, Curve, WhiteShape};
-use super::spectrum;
 use super::{Effect, Line};
 use crate::analysis::low_pass::{self, Detection, LowPass, LowPassError, Outside};
 use crate::analysis::{Estimator, allan, into_phase, lines};
@@ -284,25 +283,14 @@ pub fn statistics(
                     None => (0.0, None),
                 }
             }
-            Probe::SlowLine => {
-                let f_hi = spectrum::highest_hz(ctx.rate_hz, ctx.low_pass);
-                let pgram = spectrum::periodogram(&clean, ctx.rate_hz, f_hi);
-                let banded = spectrum::Banded::new(&pgram, ctx.low_pass);
-                match spectrum::slow_line(&banded, &|f| ctx.cleaner.removal().near_removed(f)) {
-                    Some((ratio, freq_hz)) => {
-                        let fitted = effects
-                            .then(|| lines::tone_near(&clean, ctx.rate_hz, freq_hz))
-                            .flatten();
-                        let effect = fitted.map(|(freq_hz, amplitude)| Effect::Sinusoid {
-                            freq_hz,
-                            amplitude,
-                            width_hz: 0.0,
-                        });
-                        (ratio, effect)
-                    }
-                    None => (0.0, None),
-                }
-            }
+            Probe::SlowLine => super::slow_view::statistic_of(
+                series,
+                ctx.rate_hz,
+                ctx.cleaner.removal(),
+                ctx.temperature,
+                ctx.low_pass,
+                effects,
+            ),
             Probe::RollOff => {
                 // Any roll-off the detection fits, whether or not it clears the detector's
                 // own threshold: here the realisations judge the statistic, as in every

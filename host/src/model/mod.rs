@@ -81,6 +81,7 @@ pub mod report;
 pub mod restore;
 mod simulate;
 pub mod sinusoid_errors;
+pub mod slow_view;
 use simulate::{Round, simulate_round};
 pub mod spectrum;
 

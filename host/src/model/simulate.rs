@@ -5,6 +5,7 @@
 use super::candidates::{open_noise, probes};
 use super::clean::{self, Removal};
 use super::evidence::{self, Context, Evidence, Probe, View};
+use super::slow_view::SlowView;
 use super::{
     Band, Comparison, Data, Effect, GAUSS_MARKOV_MIN_SAMPLES, Line, MONTE_CARLO_EXCEEDANCES, Model,
     REFINE, REGRESSION_DRAWS, Range, UNSURE_ABOVE, UNSURE_BELOW, Z_DISAGREE, cosine, gls, refit,
@@ -60,13 +61,10 @@ pub(super) fn realise(
     i: usize,
 ) -> Vec<f64> {
     let n = data.rate.len();
-    let mut rng = ChaCha8Rng::seed_from_u64(data.settings.seed.wrapping_add(i as u64));
-    let duration = n as f64 / data.rate_hz;
+    let (mut rng, duration, noise) = seeded_noise(data, terms, i);
     let stochastic = NoiseTerms {
-        r: 0.0,
-        sinusoid: None,
         n: if low_pass.is_some() { 0.0 } else { terms.n },
-        ..*terms
+        ..noise
     };
     let mut generator = AxisNoise::new(stochastic, data.rate_hz, duration, &mut rng);
     let mut y = generator.take(n, &mut rng);
@@ -85,6 +83,45 @@ pub(super) fn realise(
         );
     }
     y
+}
+
+/// Realisation `i` of the stochastic `terms` through `low_pass` as [`realise`] makes it
+/// without lines, read as means of blocks of `block` samples and synthesised as such
+/// ([`AxisNoise::block_means`], [`LowPass::white_through_block_means`]): what the slow-line
+/// view reads ([`super::slow_view`]).
+fn realise_block_means(
+    data: &Data,
+    terms: &NoiseTerms,
+    low_pass: Option<&LowPass>,
+    block: usize,
+    i: usize,
+) -> Vec<f64> {
+    let (mut rng, duration, noise) = seeded_noise(data, terms, i);
+    let stochastic = NoiseTerms {
+        n: if low_pass.is_some() { 0.0 } else { terms.n },
+        ..noise
+    };
+    let samples = data.rate.len() / block.max(1);
+    let mut generator = AxisNoise::block_means(stochastic, data.rate_hz, duration, block, &mut rng);
+    let mut y = generator.take(samples, &mut rng);
+    if let Some(lp) = low_pass {
+        let white = lp.white_through_block_means(terms.n, block, samples, &mut rng);
+        y.iter_mut().zip(white).for_each(|(a, b)| *a += b);
+    }
+    y
+}
+
+/// Realisation `i`'s generator of random numbers, the record's duration (s) and the random
+/// part of `terms` (no ramp, no sinusoid: the deterministic effects are the record's own).
+fn seeded_noise(data: &Data, terms: &NoiseTerms, i: usize) -> (ChaCha8Rng, f64, NoiseTerms) {
+    let rng = ChaCha8Rng::seed_from_u64(data.settings.seed.wrapping_add(i as u64));
+    let duration = data.rate.len() as f64 / data.rate_hz;
+    let noise = NoiseTerms {
+        r: 0.0,
+        sinusoid: None,
+        ..*terms
+    };
+    (rng, duration, noise)
 }
 
 /// How a round realises a model: its noise with the named lines, carrying the deterministic
@@ -126,6 +163,18 @@ impl<'a> Realisations<'a> {
     fn series(&self, terms: &NoiseTerms, i: usize) -> Vec<f64> {
         let low_pass = self.model.low_pass.as_ref();
         realise(self.data, terms, low_pass, &self.lines, i)
+    }
+
+    /// Realisation `i` of the stochastic `terms` as `view` reads it: synthesised as block
+    /// means where the model has no lines and the view notches nothing, else synthesised at
+    /// the record's rate and reduced.
+    fn reduced(&self, terms: &NoiseTerms, i: usize, view: &SlowView) -> Vec<f64> {
+        if self.lines.is_empty() && !view.notches() {
+            let low_pass = self.model.low_pass.as_ref();
+            realise_block_means(self.data, terms, low_pass, view.block(), i)
+        } else {
+            view.reduce(&self.series(terms, i))
+        }
     }
 
     /// The ln ADEV of realisations `0..r` with the deterministic effects added, on the
@@ -303,12 +352,17 @@ fn simulate(
     // the open noise model: a temperature cycle is not a slow line, and neither effect's
     // power, absorbed into the baseline's K, widens the spread the other is judged against.
     let regressors_out = regressors_out(data, removal);
-    let open_cleaner = clean::Cleaner::new(&regressors_out, n, data.rate_hz, temperature);
-    let open_ctx = Context {
-        cleaner: &open_cleaner,
-        ..ctx
-    };
-    let slow = evidence::statistics(data.rate, &[Probe::SlowLine], &open_ctx, true)[0];
+    let slow_block = spectrum::view_block(data.rate_hz, n, ctx.low_pass);
+    let slow_temperature = temperature.map(|t| t.block_means(slow_block));
+    let slow_view = SlowView::new(
+        &regressors_out,
+        n,
+        data.rate_hz,
+        slow_block,
+        slow_temperature.as_ref(),
+        ctx.low_pass,
+    );
+    let slow = slow_view.statistic(&slow_view.reduce(data.rate), true);
     let slow_hz = match slow.1 {
         Some(Effect::Sinusoid { freq_hz, .. }) => Some(freq_hz),
         _ => None,
@@ -319,7 +373,9 @@ fn simulate(
         seeds
             .into_par_iter()
             .map(|i| {
-                evidence::statistics(&realise(&open, i), &[Probe::SlowLine], &open_ctx, false)[0].0
+                slow_view
+                    .statistic(&realisations.reduced(&open, i, &slow_view), false)
+                    .0
             })
             .collect()
     };

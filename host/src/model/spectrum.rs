@@ -14,6 +14,12 @@
 //! expectation is about a standard exponential (Percival & Walden, *Spectral Analysis for
 //! Physical Applications*, 1993, sec. 6.6).
 //!
+//! **Reduced rate.** The view's highest frequency is the low-frequency band's top
+//! ([`highest_hz`]: a twentieth of the rate, a quarter of a known filter's cutoff) but at
+//! most [`VIEW_OCTAVES`] octaves above the single bins ([`view_top_hz`]), so the view reads
+//! the means of blocks of samples ([`view_block`], [`super::slow_view`]), on the record and
+//! on its realisations alike.
+//!
 //! **Background fit (Whittle).** Bins from [`FIRST_BIN`] to the view's highest frequency
 //! are grouped into bands: one bin per band below [`SINGLE_BINS`], then
 //! [`BANDS_PER_OCTAVE`] per octave. The background `S(f) = sum_c theta_c phi_c(f)`,
@@ -25,7 +31,9 @@
 //! smoothing", JRSS B 19, 1957), found by iteratively reweighted non-negative least squares
 //! with weights `m_j / S_j^2` (Fisher scoring of a gamma model with identity link; McCullagh
 //! & Nelder, *Generalized Linear Models*, 1989, sec. 2.5). Its deviance is
-//! `2 sum_j m_j (P_j / S_j - ln(P_j / S_j) - 1)`.
+//! `2 sum_j m_j (P_j / S_j - ln(P_j / S_j) - 1)`. The scoring only accepts steps that lower
+//! it, so a fit with a few bands left out is also started from the weights of the fit
+//! beside it and the lower deviance kept ([`Banded::fit_near`]).
 //!
 //! **Statistic.** The largest `P_k / S_k` over the single bins from [`LINE_FIRST_BIN`] up,
 //! each of the strongest [`LEAVE_OUT_CANDIDATES`] judged against the background refitted
@@ -62,9 +70,19 @@ pub const OUTLIER_RATIO: f64 = 6.0;
 /// How many of the strongest bins under the first fit are judged against a background
 /// fitted without them.
 pub const LEAVE_OUT_CANDIDATES: usize = 8;
-/// The view reaches up to `rate / VIEW_RATE_DIVISOR` (and a quarter of a known filter's
-/// cutoff), below the tones and roll-offs that other views judge.
+/// The low-frequency band reaches up to `rate / VIEW_RATE_DIVISOR` (and a quarter of a
+/// known filter's cutoff), below the tones and roll-offs that other views judge.
 pub const VIEW_RATE_DIVISOR: f64 = 20.0;
+/// The view's bands reach at most this many octaves above its single bins (bin
+/// `SINGLE_BINS * 2^VIEW_OCTAVES`): 96 bands that fix the white level and the quantization
+/// above the slow shapes, and a top low enough to read the view at a reduced rate
+/// ([`super::slow_view`]).
+pub const VIEW_OCTAVES: u32 = 6;
+/// The view's reduced rate is at least this many times its highest frequency: there a
+/// block's mean still passes 95 % of the power (`sinc^2(pi / 8)`), and the block-mean
+/// synthesis's approximations, near the reduced Nyquist frequency, lie above the view
+/// ([`crate::sim::noise`]).
+pub const VIEW_OVERSAMPLING: f64 = 8.0;
 /// Euler-Mascheroni constant: the mean of a standard Gumbel variable.
 const EULER_GAMMA: f64 = 0.577_215_664_901_532_9;
 
@@ -77,11 +95,26 @@ pub struct Periodogram {
     pub power: Vec<f64>,
 }
 
-/// The view's highest frequency for a record at `rate_hz` with the sensor filter
-/// `low_pass`, Hz.
+/// The top of the low-frequency band for a record at `rate_hz` with the sensor filter
+/// `low_pass`, Hz: a pure line below it is a slow tone.
 pub fn highest_hz(rate_hz: f64, low_pass: Option<&LowPass>) -> f64 {
     let top = rate_hz / VIEW_RATE_DIVISOR;
     low_pass.map_or(top, |lp| top.min(lp.cutoff_hz / 4.0))
+}
+
+/// The view's highest frequency for a record of `len` samples at `rate_hz` with the sensor
+/// filter `low_pass`, Hz: the low-frequency band, up to [`VIEW_OCTAVES`] octaves above the
+/// single bins.
+pub fn view_top_hz(rate_hz: f64, len: usize, low_pass: Option<&LowPass>) -> f64 {
+    let octaves = (SINGLE_BINS << VIEW_OCTAVES) as f64 * rate_hz / len.max(1) as f64;
+    highest_hz(rate_hz, low_pass).min(octaves)
+}
+
+/// How many samples the view averages into one: the most that keep the reduced rate at
+/// least [`VIEW_OVERSAMPLING`] times the view's highest frequency (1 when none do).
+pub fn view_block(rate_hz: f64, len: usize, low_pass: Option<&LowPass>) -> usize {
+    let top = view_top_hz(rate_hz, len, low_pass);
+    ((rate_hz / (VIEW_OVERSAMPLING * top)).floor() as usize).max(1)
 }
 
 /// The Hann periodogram of `series` minus its least-squares line, up to `f_hi` Hz.
@@ -220,6 +253,24 @@ impl<'a> Banded<'a> {
 
     /// The Whittle fit of `shapes` to the bands not `left_out`.
     pub fn fit(&self, shapes: &[Shape], left_out: &[bool]) -> Background {
+        self.fit_from(shapes, left_out, None)
+    }
+
+    /// [`Banded::fit`], also started from `near` (a fit of the same shapes to other bands)
+    /// and the better of the two kept: the scoring iterations move only downhill from their
+    /// first step, and a first step weighted by the bands' own relative errors can land
+    /// far from the optimum when a few bands are left out (a fit of quantization alone,
+    /// its deviance 10^5 times the fit it started beside, was seen on one realisation).
+    pub fn fit_near(&self, shapes: &[Shape], left_out: &[bool], near: &Background) -> Background {
+        self.fit_from(shapes, left_out, Some(near))
+    }
+
+    fn fit_from(
+        &self,
+        shapes: &[Shape],
+        left_out: &[bool],
+        near: Option<&Background>,
+    ) -> Background {
         let columns: Vec<Vec<f64>> = shapes
             .iter()
             .map(|&s| {
@@ -232,8 +283,46 @@ impl<'a> Banded<'a> {
         let keep: Vec<usize> = (0..self.bands.len())
             .filter(|&j| !left_out.get(j).copied().unwrap_or(false) && self.mean[j] > 0.0)
             .collect();
+        let (mut theta, mut best) = self.scoring(&columns, &keep, None);
+        if let Some(near) = near.filter(|b| b.shapes == shapes) {
+            let (warm, deviance) = self.scoring(&columns, &keep, Some(&near.theta));
+            if deviance < best {
+                (theta, best) = (warm, deviance);
+            }
+        }
+        Background {
+            shapes: shapes.to_vec(),
+            theta,
+            deviance: best,
+        }
+    }
+
+    /// Fisher scoring of the Whittle likelihood over the bands `keep`, its first weights
+    /// those of the background `start` (`m_j / S_j^2`), or without one each band's relative
+    /// error (`m_j / P_j^2`): the coefficients and their deviance.
+    fn scoring(
+        &self,
+        columns: &[Vec<f64>],
+        keep: &[usize],
+        start: Option<&[f64]>,
+    ) -> (Vec<f64>, f64) {
         let expect = |theta: &[f64], j: usize| -> f64 {
             columns.iter().zip(theta).map(|(c, t)| c[j] * t).sum()
+        };
+        let weights_of = |theta: &[f64]| -> Vec<f64> {
+            keep.iter()
+                .map(|&j| {
+                    let s = expect(theta, j).max(f64::MIN_POSITIVE);
+                    self.bands[j].1 as f64 / (s * s)
+                })
+                .collect()
+        };
+        let mut weight: Vec<f64> = match start {
+            Some(theta) => weights_of(theta),
+            None => keep
+                .iter()
+                .map(|&j| self.bands[j].1 as f64 / (self.mean[j] * self.mean[j]))
+                .collect(),
         };
         let deviance = |theta: &[f64]| -> f64 {
             keep.iter()
@@ -244,12 +333,7 @@ impl<'a> Banded<'a> {
                 })
                 .sum()
         };
-        // Start from weights that make every band count by its relative error.
-        let mut weight: Vec<f64> = keep
-            .iter()
-            .map(|&j| self.bands[j].1 as f64 / (self.mean[j] * self.mean[j]))
-            .collect();
-        let mut theta = vec![0.0; shapes.len()];
+        let mut theta = vec![0.0; columns.len()];
         let mut best = f64::INFINITY;
         for _ in 0..40 {
             let g: Vec<Vec<f64>> = keep
@@ -275,19 +359,9 @@ impl<'a> Banded<'a> {
             if settled {
                 break;
             }
-            weight = keep
-                .iter()
-                .map(|&j| {
-                    let s = expect(&theta, j).max(f64::MIN_POSITIVE);
-                    self.bands[j].1 as f64 / (s * s)
-                })
-                .collect();
+            weight = weights_of(&theta);
         }
-        Background {
-            shapes: shapes.to_vec(),
-            theta,
-            deviance: best,
-        }
+        (theta, best)
     }
 
     /// The fitted background's expectation at bin k.
@@ -346,7 +420,7 @@ pub fn slow_line(banded: &Banded, skip: &dyn Fn(f64) -> bool) -> Option<(f64, f6
             out[j.saturating_sub(2)..end]
                 .iter_mut()
                 .for_each(|o| *o = true);
-            let bg = banded.fit(&NOISE, &out);
+            let bg = banded.fit_near(&NOISE, &out, &first);
             (ratio(&bg, j), banded.bands[j].0 as f64 * banded.pgram.df)
         })
         .max_by(|a, b| a.0.total_cmp(&b.0))

@@ -397,47 +397,42 @@ impl LowPass {
     /// [`OVERSAMPLE`] for the generic shapes), which dominated the simulations of a model
     /// with a filter.
     pub fn white_through(&self, n_density: f64, samples: usize, rng: &mut impl Rng) -> Vec<f64> {
-        if samples == 0 {
-            return Vec::new();
+        circulant(&self.autocov, n_density, samples, rng)
+    }
+
+    /// `samples` means of blocks of `block` consecutive samples of
+    /// [`LowPass::white_through`]'s series, drawn directly by the same circulant embedding
+    /// with the block means' autocovariance
+    /// `r_B(l) = (1 / D^2) sum_(|d| < D) (D - |d|) r(l D + d)` (the covariance of two
+    /// D-sample means l blocks apart, summed over the pairs of samples by their offset).
+    pub fn white_through_block_means(
+        &self,
+        n_density: f64,
+        block: usize,
+        samples: usize,
+        rng: &mut impl Rng,
+    ) -> Vec<f64> {
+        let d = block.max(1);
+        if d == 1 {
+            return self.white_through(n_density, samples, rng);
         }
-        let lags = self.autocov.len();
-        let m = fft_friendly_len(samples.max(lags) + lags);
-        // The wrapped autocovariance is even, so its DFT is real: the folded spectrum.
-        let mut wrapped = vec![0.0; m];
-        wrapped[0] = self.autocov[0];
-        for (l, &r) in self.autocov.iter().enumerate().skip(1) {
-            wrapped[l] = r;
-            wrapped[m - l] = r;
-        }
-        let forward = shared_plans::forward(m);
-        let mut spectrum = forward.make_output_vec();
-        forward
-            .process(&mut wrapped, &mut spectrum)
-            .expect("buffers of the plan's sizes");
-        let last = spectrum.len() - 1;
-        let scale = n_density * (m as f64).sqrt();
-        for (k, z) in spectrum.iter_mut().enumerate() {
-            let amplitude = scale * z.re.max(0.0).sqrt();
-            // A real series' DC bin, and its Nyquist bin when M is even, are real.
-            *z = if k == 0 || (k == last && m.is_multiple_of(2)) {
-                Complex::new(amplitude * rng.sample::<f64, _>(StandardNormal), 0.0)
-            } else {
-                let sd = amplitude * std::f64::consts::FRAC_1_SQRT_2;
-                Complex::new(
-                    sd * rng.sample::<f64, _>(StandardNormal),
-                    sd * rng.sample::<f64, _>(StandardNormal),
-                )
-            };
-        }
-        let inverse = shared_plans::inverse(m);
-        let mut series = inverse.make_output_vec();
-        inverse
-            .process(&mut spectrum, &mut series)
-            .expect("buffers of the plan's sizes");
-        series.truncate(samples);
-        // realfft's inverse is unnormalised.
-        series.iter_mut().for_each(|v| *v /= m as f64);
-        series
+        let r = |lag: i64| {
+            self.autocov
+                .get(lag.unsigned_abs() as usize)
+                .copied()
+                .unwrap_or(0.0)
+        };
+        let span = d as i64 - 1;
+        let lags = self.autocov.len().div_ceil(d) + 1;
+        let autocov: Vec<f64> = (0..lags as i64)
+            .map(|l| {
+                (-span..=span)
+                    .map(|o| (d as i64 - o.abs()) as f64 * r(l * d as i64 + o))
+                    .sum::<f64>()
+                    / (d * d) as f64
+            })
+            .collect();
+        circulant(&autocov, n_density, samples, rng)
     }
 
     /// The same filter with a fitted cutoff and its interval.
@@ -1230,6 +1225,53 @@ fn crossing(g: &impl Fn(f64) -> f64, from: f64, to: f64) -> f64 {
     to
 }
 
+/// `samples` values of the stationary Gaussian series of autocovariance
+/// `n_density^2 autocov(l)` (zero beyond its lags), by circulant embedding
+/// ([`LowPass::white_through`]).
+fn circulant(autocov: &[f64], n_density: f64, samples: usize, rng: &mut impl Rng) -> Vec<f64> {
+    if samples == 0 || autocov.is_empty() {
+        return Vec::new();
+    }
+    let lags = autocov.len();
+    let m = fft_friendly_len(samples.max(lags) + lags);
+    // The wrapped autocovariance is even, so its DFT is real: the folded spectrum.
+    let mut wrapped = vec![0.0; m];
+    wrapped[0] = autocov[0];
+    for (l, &r) in autocov.iter().enumerate().skip(1) {
+        wrapped[l] = r;
+        wrapped[m - l] = r;
+    }
+    let forward = shared_plans::forward(m);
+    let mut spectrum = forward.make_output_vec();
+    forward
+        .process(&mut wrapped, &mut spectrum)
+        .expect("buffers of the plan's sizes");
+    let last = spectrum.len() - 1;
+    let scale = n_density * (m as f64).sqrt();
+    for (k, z) in spectrum.iter_mut().enumerate() {
+        let amplitude = scale * z.re.max(0.0).sqrt();
+        // A real series' DC bin, and its Nyquist bin when M is even, are real.
+        *z = if k == 0 || (k == last && m.is_multiple_of(2)) {
+            Complex::new(amplitude * rng.sample::<f64, _>(StandardNormal), 0.0)
+        } else {
+            let sd = amplitude * std::f64::consts::FRAC_1_SQRT_2;
+            Complex::new(
+                sd * rng.sample::<f64, _>(StandardNormal),
+                sd * rng.sample::<f64, _>(StandardNormal),
+            )
+        };
+    }
+    let inverse = shared_plans::inverse(m);
+    let mut series = inverse.make_output_vec();
+    inverse
+        .process(&mut spectrum, &mut series)
+        .expect("buffers of the plan's sizes");
+    series.truncate(samples);
+    // realfft's inverse is unnormalised.
+    series.iter_mut().for_each(|v| *v /= m as f64);
+    series
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -1430,7 +1472,9 @@ pub(crate) mod tests {
     }
 
     /// `white_through` has the density asked for and the modelled shape: the same check as
-    /// above on its output, for a DLPF chain and the generic two-pole.
+    /// above on its output, for a DLPF chain and the generic two-pole. Its block means
+    /// (`white_through_block_means`) have the Allan variance of the samples they average: at
+    /// m blocks of D samples, `N^2` times the filter's white Allan variance at `m D` samples.
     #[test]
     fn white_through_has_the_modelled_avar() {
         let n = 2e-3;
@@ -1440,19 +1484,24 @@ pub(crate) mod tests {
             LowPass::mpu6050(&settings, Sensor::Gyro).unwrap(),
             LowPass::two_pole(12.0, 100.0).unwrap(),
         ] {
-            let got = measured(
-                |seed| lp.white_through(n, 20_000, &mut ChaCha8Rng::seed_from_u64(seed)),
-                100.0,
-                &ms,
-                8,
-            );
-            for (&m, (mean, se)) in ms.iter().zip(got) {
-                let predicted = n * n * lp.white_avar(m as f64 / 100.0);
-                assert!(
-                    (mean - predicted).abs() <= 4.0 * se,
-                    "{} m {m}: {mean:e} +- {se:e} vs {predicted:e}",
-                    lp.filter
+            for block in [1usize, 3, 16] {
+                let got = measured(
+                    |seed| {
+                        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                        lp.white_through_block_means(n, block, 20_000, &mut rng)
+                    },
+                    100.0 / block as f64,
+                    &ms,
+                    8,
                 );
+                for (&m, (mean, se)) in ms.iter().zip(got) {
+                    let predicted = n * n * lp.white_avar((m * block) as f64 / 100.0);
+                    assert!(
+                        (mean - predicted).abs() <= 4.0 * se,
+                        "{} block {block} m {m}: {mean:e} +- {se:e} vs {predicted:e}",
+                        lp.filter
+                    );
+                }
             }
         }
     }
