@@ -61,12 +61,8 @@ pub(super) fn realise(
     i: usize,
 ) -> Vec<f64> {
     let n = data.rate.len();
-    let (mut rng, duration, noise) = seeded_noise(data, terms, i);
-    let stochastic = NoiseTerms {
-        n: if low_pass.is_some() { 0.0 } else { terms.n },
-        ..noise
-    };
-    let mut generator = AxisNoise::new(stochastic, data.rate_hz, duration, &mut rng);
+    let (mut rng, duration, noise) = seeded_noise(data, terms, low_pass, i);
+    let mut generator = AxisNoise::new(noise, data.rate_hz, duration, &mut rng);
     let mut y = generator.take(n, &mut rng);
     if let Some(lp) = low_pass {
         let white = lp.white_through(terms.n, n, &mut rng);
@@ -96,13 +92,9 @@ fn realise_block_means(
     block: usize,
     i: usize,
 ) -> Vec<f64> {
-    let (mut rng, duration, noise) = seeded_noise(data, terms, i);
-    let stochastic = NoiseTerms {
-        n: if low_pass.is_some() { 0.0 } else { terms.n },
-        ..noise
-    };
+    let (mut rng, duration, noise) = seeded_noise(data, terms, low_pass, i);
     let samples = data.rate.len() / block.max(1);
-    let mut generator = AxisNoise::block_means(stochastic, data.rate_hz, duration, block, &mut rng);
+    let mut generator = AxisNoise::block_means(noise, data.rate_hz, duration, block, &mut rng);
     let mut y = generator.take(samples, &mut rng);
     if let Some(lp) = low_pass {
         let white = lp.white_through_block_means(terms.n, block, samples, &mut rng);
@@ -111,14 +103,22 @@ fn realise_block_means(
     y
 }
 
-/// Realisation `i`'s generator of random numbers, the record's duration (s) and the random
-/// part of `terms` (no ramp, no sinusoid: the deterministic effects are the record's own).
-fn seeded_noise(data: &Data, terms: &NoiseTerms, i: usize) -> (ChaCha8Rng, f64, NoiseTerms) {
+/// Realisation `i`'s generator of random numbers, the record's duration (s) and the part
+/// of `terms` the noise generator makes: no ramp and no sinusoid (the deterministic effects
+/// are the record's own), and no white noise where `low_pass` filters it (drawn through the
+/// filter instead).
+fn seeded_noise(
+    data: &Data,
+    terms: &NoiseTerms,
+    low_pass: Option<&LowPass>,
+    i: usize,
+) -> (ChaCha8Rng, f64, NoiseTerms) {
     let rng = ChaCha8Rng::seed_from_u64(data.settings.seed.wrapping_add(i as u64));
     let duration = data.rate.len() as f64 / data.rate_hz;
     let noise = NoiseTerms {
         r: 0.0,
         sinusoid: None,
+        n: if low_pass.is_some() { 0.0 } else { terms.n },
         ..*terms
     };
     (rng, duration, noise)
