@@ -62,9 +62,7 @@ impl Temperature {
             derivative,
         }
     }
-}
 
-impl Temperature {
     /// The regressors as means of blocks of `block` samples: the columns of a series read
     /// at a reduced rate ([`super::slow_view`]).
     pub fn block_means(&self, block: usize) -> Temperature {

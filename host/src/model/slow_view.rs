@@ -37,6 +37,8 @@ pub struct SlowView<'a> {
     removal: Removal,
     rate_hz: f64,
     block: usize,
+    /// `rate_hz / block`.
+    reduced_hz: f64,
     top_hz: f64,
     low_pass: Option<&'a LowPass>,
     /// The removal's regressors at the reduced rate (its notches act before averaging).
@@ -65,6 +67,7 @@ impl<'a> SlowView<'a> {
             removal: removal.clone(),
             rate_hz,
             block,
+            reduced_hz,
             top_hz: spectrum::view_top_hz(rate_hz, len, low_pass),
             low_pass,
             cleaner: Cleaner::new(&regressors, len / block, reduced_hz, temperature),
@@ -97,7 +100,7 @@ impl<'a> SlowView<'a> {
     /// ratio of a single bin to the background fitted without it, with, when `effects`,
     /// the least-squares tone at its frequency.
     pub fn statistic(&self, reduced: &[f64], effects: bool) -> (f64, Option<Effect>) {
-        let reduced_hz = self.rate_hz / self.block as f64;
+        let reduced_hz = self.reduced_hz;
         let (clean, _) = self.cleaner.apply(reduced);
         let pgram = spectrum::periodogram(&clean, reduced_hz, self.top_hz);
         let banded = spectrum::Banded::new(&pgram, self.low_pass);

@@ -956,10 +956,7 @@ mod tests {
         let n = block * blocks;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut g = AxisNoise::new(terms, RATE, n as f64 / RATE, &mut rng);
-        g.take(n, &mut rng)
-            .chunks_exact(block)
-            .map(|c| c.iter().sum::<f64>() / block as f64)
-            .collect()
+        crate::model::clean::block_means(&g.take(n, &mut rng), block)
     }
 
     /// The ramp and the sinusoid, read as block means, are the means of their samples.
