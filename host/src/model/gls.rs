@@ -176,17 +176,17 @@ impl Whitener {
     pub fn new(s: &[f64], n: usize) -> Option<Whitener> {
         let mut l = s.to_vec();
         for j in 0..n {
-            let prefix: Vec<f64> = l[j * n..j * n + j].to_vec();
-            let d = l[j * n + j] - prefix.iter().map(|v| v * v).sum::<f64>();
+            // Rows above j are final; row j's first j entries are L's.
+            let (done, below) = l.split_at_mut((j + 1) * n);
+            let (prefix, diagonal) = done[j * n..j * n + j + 1].split_at_mut(j);
+            let d = diagonal[0] - dot(prefix, prefix);
             if d.is_nan() || d <= 0.0 {
                 return None;
             }
             let pivot = d.sqrt();
-            l[j * n + j] = pivot;
-            for i in j + 1..n {
-                let row = &mut l[i * n..i * n + j + 1];
-                let dot: f64 = row[..j].iter().zip(&prefix).map(|(a, b)| a * b).sum();
-                row[j] = (row[j] - dot) / pivot;
+            diagonal[0] = pivot;
+            for row in below.chunks_exact_mut(n) {
+                row[j] = (row[j] - dot(&row[..j], prefix)) / pivot;
             }
         }
         Some(Whitener { n, l })
@@ -196,13 +196,7 @@ impl Whitener {
     pub fn colour(&self, z: &[f64]) -> Vec<f64> {
         let n = self.n;
         (0..n)
-            .map(|i| {
-                self.l[i * n..i * n + i + 1]
-                    .iter()
-                    .zip(z)
-                    .map(|(a, b)| a * b)
-                    .sum()
-            })
+            .map(|i| dot(&self.l[i * n..i * n + i + 1], z))
             .collect()
     }
 
@@ -212,9 +206,7 @@ impl Whitener {
         let n = self.n;
         let mut out = vec![0.0; n];
         for i in 0..n.min(v.len()) {
-            let row = &self.l[i * n..i * n + i];
-            let dot: f64 = row.iter().zip(&out).map(|(a, b)| a * b).sum();
-            out[i] = (v[i] - dot) / self.l[i * n + i];
+            out[i] = (v[i] - dot(&self.l[i * n..i * n + i], &out)) / self.l[i * n + i];
         }
         out
     }

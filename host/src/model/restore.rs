@@ -288,8 +288,8 @@ fn random_walk_loss(cleaner: &Cleaner, tau0: f64, m: &[usize]) -> Vec<f64> {
                 }
                 for j in 0..p {
                     for k in 0..p {
-                        utu[j][k] += sum_of_products(&u[j][..len], &u[k][..len]);
-                        wtu[j][k] += sum_of_products(&w[j][..len], &u[k][..len]);
+                        utu[j][k] += numerics::dot(&u[j][..len], &u[k][..len]);
+                        wtu[j][k] += numerics::dot(&w[j][..len], &u[k][..len]);
                     }
                 }
             }
@@ -300,20 +300,6 @@ fn random_walk_loss(cleaner: &Cleaner, tau0: f64, m: &[usize]) -> Vec<f64> {
             (tau0 * c * (2.0 * term1 - term2)).max(0.0)
         })
         .collect()
-}
-
-/// `sum_i a_i b_i` in four interleaved partial sums, which the processor keeps in one
-/// vector register (a single running sum would serialise every addition).
-fn sum_of_products(a: &[f64], b: &[f64]) -> f64 {
-    let mut lanes = [0.0; 4];
-    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = numerics::dot(a4.remainder(), b4.remainder());
-    for (x, y) in a4.zip(b4) {
-        for k in 0..4 {
-            lanes[k] += x[k] * y[k];
-        }
-    }
-    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) + tail
 }
 
 #[cfg(test)]
