@@ -7,7 +7,7 @@ const env = process.env;
 export const defaults = {
   elf:
     env.IMUNOISE_EMU_ELF ??
-    path.join(repoRoot, 'target/emu/thumbv6m-none-eabi/release/imunoise-board'),
+    path.join(repoRoot, 'target/emu/imunoise-board'),
   imunoise: env.IMUNOISE_BIN ?? path.join(repoRoot, 'target/debug/imunoise'),
   defmtPrint: env.DEFMT_PRINT ?? 'defmt-print',
 };
