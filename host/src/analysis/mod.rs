@@ -11,6 +11,7 @@
 
 pub mod allan;
 pub mod bounded;
+pub mod brent;
 pub mod ci;
 pub mod compare;
 pub mod filter;

@@ -50,10 +50,12 @@
 //! rad/s/sqrt(Hz)), so the Allan model leaves it out. In a stopband it is what remains, so
 //! [`detect`]'s fit of the spectrum has a column for it.
 
+mod grid_gains;
 pub mod shape;
 
 pub use shape::Shape;
 
+use crate::analysis::brent::brent_min;
 use crate::analysis::numerics;
 use crate::analysis::psd::{self, WelchOptions, Window};
 use crate::analysis::{shared_plans, square_fft};
@@ -619,12 +621,13 @@ const MIN_SEGMENTS: usize = 8;
 const MIN_BINS: usize = 16;
 /// Points per decade of the cutoff grid before refinement.
 const GRID_PER_DECADE: f64 = 12.0;
-/// Golden-section steps refining a cutoff from the two grid steps around the grid's best:
-/// `0.618^20` of their 0.38 in ln f is 2.5e-5, so the cutoff lies within 1.3e-5 of the
-/// misfit's minimum, below the four digits it is shown with. The narrowest intervals are a
-/// boxcar's on long records (+-0.03 % from 33 min at 200 Hz): 0.04 of that, where the misfit
-/// is within 0.002 of its minimum against the 1 that ends the interval.
-const CUTOFF_GOLDEN_STEPS: usize = 20;
+/// Tolerance in ln f of the cutoff refined by Brent's method ([`brent_min`]) from the two
+/// grid steps around the grid's best: the cutoff lies within 1e-5 of the misfit's minimum,
+/// below the four digits it is shown with. The narrowest intervals are a boxcar's on long
+/// records (+-0.03 % from 33 min at 200 Hz): 0.03 of that, where the misfit is within 0.001
+/// of its minimum against the 1 that ends the interval. Golden section needed 22 misfits for
+/// that precision; Brent's parabolas, on the misfit's smooth minimum, about half as many.
+const CUTOFF_LN_TOLERANCE: f64 = 5e-6;
 /// Bisections of a cutoff interval's end from one scan step (7 % of the cutoff): 2^-20 of
 /// it is 7e-8.
 const CROSSING_BISECTIONS: usize = 20;
@@ -678,7 +681,7 @@ pub struct Detection {
 /// 0.1 % of the variance added as white noise after it, and 0.1-0.9 % (up to four
 /// half-widths) with flicker and a random walk added after it. chi2(f_c) is profiled over a
 /// log grid from f_s / 64 to 2 f_s and
-/// refined by golden section, for every shape of [`Shape::ALL`]; the two-pole is taken
+/// refined by Brent's method, for every shape of [`Shape::ALL`]; the two-pole is taken
 /// unless another shape lowers the misfit by [`SHAPE_EVIDENCE`] in the units of `Delta`
 /// below (a shape that does not match the filter leaves a residual roll-off that
 /// quantization or a short Gauss-Markov process would otherwise take). The shapes whose fit
@@ -860,7 +863,10 @@ fn search(spectrum: &DetectionPsd, rate_hz: f64) -> Search<'_> {
             let chi2 = |f: f64| spectrum.chi2(Some((shape, f)));
             let max_cutoff = rate_hz * shape.max_cutoff_per_rate();
             let grid: Vec<f64> = grid.iter().copied().filter(|&f| f <= max_cutoff).collect();
-            let profile: Vec<f64> = grid.par_iter().map(|&f| chi2(f)).collect();
+            let profile: Vec<f64> = grid
+                .par_iter()
+                .map(|&f| spectrum.chi2_on_grid(shape, f))
+                .collect();
             let best = (0..grid.len())
                 .min_by(|&a, &b| profile[a].total_cmp(&profile[b]))
                 .unwrap_or(0);
@@ -868,21 +874,20 @@ fn search(spectrum: &DetectionPsd, rate_hz: f64) -> Search<'_> {
                 grid[best.saturating_sub(1)],
                 grid[(best + 1).min(grid.len() - 1)],
             );
-            let golden = golden_min(chi2, a, b, CUTOFF_GOLDEN_STEPS);
-            let (cutoff, chi2_best) = match chi2(golden) {
-                c if c <= profile[best] => (golden, c),
+            let in_ln = |misfit: &dyn Fn(f64) -> f64, lo: f64, hi: f64| {
+                let (ln_f, value) =
+                    brent_min(|u| misfit(u.exp()), lo.ln(), hi.ln(), CUTOFF_LN_TOLERANCE);
+                (ln_f.exp(), value)
+            };
+            let (cutoff, chi2_best) = match in_ln(&chi2, a, b) {
+                (f, c) if c <= profile[best] => (f, c),
                 _ => (grid[best], profile[best]),
             };
             // The fit of the shape alone at its own cutoff, searched a grid step either side
             // of the one with the unshaped columns.
             let alone = |f: f64| spectrum.misfit(Some((shape, f)), false);
-            let near = golden_min(
-                alone,
-                cutoff / step,
-                (cutoff * step).min(max_cutoff),
-                CUTOFF_GOLDEN_STEPS,
-            );
-            let shape_alone = alone(near).min(alone(cutoff));
+            let (_, near) = in_ln(&alone, cutoff / step, (cutoff * step).min(max_cutoff));
+            let shape_alone = near.min(alone(cutoff));
             (shape, cutoff, chi2_best, shape_alone)
         })
         .collect();
@@ -961,6 +966,8 @@ struct DetectionPsd {
     /// these same frequencies.
     aliases: Vec<Aliases>,
     dc_aliases: Aliases,
+    /// The bins' fingerprint ([`grid_gains::fingerprint`]).
+    bins_key: u64,
     /// The lowest cutoff searched on it, in multiples of the rate.
     min_cutoff_per_rate: f64,
 }
@@ -1011,6 +1018,7 @@ impl DetectionPsd {
             .map(|&f| 4.0 * (PI * f / rate_hz).sin().powi(2))
             .collect();
         let aliases = freq.iter().map(|&f| Aliases::new(f, rate_hz)).collect();
+        let bins_key = grid_gains::fingerprint(&freq);
         Some(DetectionPsd {
             rate_hz,
             freq,
@@ -1021,6 +1029,7 @@ impl DetectionPsd {
             dof: HANN_DOF_PER_SEGMENT * p.segments as f64,
             aliases,
             dc_aliases: Aliases::new(0.0, rate_hz),
+            bins_key,
             min_cutoff_per_rate,
         })
     }
@@ -1070,6 +1079,7 @@ impl DetectionPsd {
         let keep = |v: &[f64]| v[..end].to_vec();
         Some(DetectionPsd {
             rate_hz: self.rate_hz,
+            bins_key: grid_gains::fingerprint(&self.freq[..end]),
             freq: keep(&self.freq),
             density: keep(&self.density),
             known: keep(&self.known),
@@ -1092,26 +1102,49 @@ impl DetectionPsd {
         self.misfit(filter, true)
     }
 
-    /// [`DetectionPsd::chi2`], with q, u and v held at 0 unless `unshaped`. The known PSD's
-    /// scale is a column of its own where there is one ([`Outside::known`]).
+    /// [`DetectionPsd::chi2`] at a cutoff of the search grid, whose gains every detection on
+    /// these bins shares ([`grid_gains`]).
+    fn chi2_on_grid(&self, shape: Shape, cutoff_hz: f64) -> f64 {
+        let gains = grid_gains::gains(shape, cutoff_hz, self.rate_hz, self.bins_key, || {
+            self.gains(shape, cutoff_hz)
+        });
+        self.misfit_with(Some(&gains), true)
+    }
+
+    /// The filter's folded power at each bin relative to DC: `folded_power`'s sums, from
+    /// the phasors computed once.
+    fn gains(&self, shape: Shape, cutoff_hz: f64) -> Vec<f64> {
+        let c = generic_cascade(shape, cutoff_hz, self.rate_hz);
+        let dc = c.folded_power_at(&self.dc_aliases);
+        self.aliases
+            .iter()
+            .map(|at| c.folded_power_at(at) / dc)
+            .collect()
+    }
+
+    /// [`DetectionPsd::chi2`], with q, u and v held at 0 unless `unshaped`.
     fn misfit(&self, filter: Option<(Shape, f64)>, unshaped: bool) -> f64 {
-        let cascade = filter.map(|(shape, f)| generic_cascade(shape, f, self.rate_hz));
-        // folded_power's sums, from the phasors computed once.
-        let power = |c: &Cascade, at: &Aliases| c.folded_power_at(at);
-        let dc = cascade.as_ref().map_or(1.0, |c| power(c, &self.dc_aliases));
+        let gains = filter.map(|(shape, f)| self.gains(shape, f));
+        self.misfit_with(gains.as_deref(), unshaped)
+    }
+
+    /// [`DetectionPsd::misfit`] with the filter's `gains` at each bin (`None`: no filter).
+    /// The known PSD's scale is a column of its own where there is one
+    /// ([`Outside::known`]).
+    fn misfit_with(&self, gains: Option<&[f64]>, unshaped: bool) -> f64 {
         let rows: Vec<[f64; COLUMNS]> = self
             .freq
             .iter()
-            .zip(&self.aliases)
+            .enumerate()
             .zip(&self.known)
             .zip(&self.quantization)
-            .map(|(((&f, at), &known), &q)| {
-                let g = cascade.as_ref().map_or(1.0, |c| power(c, at) / dc);
+            .map(|(((i, &f), &known), &q)| {
+                let g = gains.map_or(1.0, |g| g[i]);
                 [g, g / f, g / (f * f), q, known, 1.0, 1.0 / f]
             })
             .collect();
         // Without a filter u and v repeat w and b.
-        let after_filter = if unshaped && cascade.is_some() {
+        let after_filter = if unshaped && gains.is_some() {
             5..7
         } else {
             0..0
@@ -1624,7 +1657,7 @@ pub(crate) mod tests {
         assert!(covered >= 4, "covered {covered} of 10");
     }
 
-    /// The golden-section refinement ([`CUTOFF_GOLDEN_STEPS`]) leaves the cutoff at the
+    /// The refinement by Brent's method ([`CUTOFF_LN_TOLERANCE`]) leaves the cutoff at the
     /// misfit's minimum: on a long record of each shape (200 Hz, 400 000 samples, intervals
     /// of 0.03 to 0.7 %), the minimum on a grid of a hundredth of the 68.3 % interval's
     /// half-width lies within 0.15 half-widths of the cutoff, and the misfit there is within

@@ -47,7 +47,7 @@ use serde::Serialize;
 use std::f64::consts::PI;
 
 /// A shape of the generic low-pass family (module documentation).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Shape {
     OnePole,
