@@ -93,12 +93,11 @@ impl Blocks {
         }
     }
 
-    /// The block means of `x`.
+    /// The means of `x`'s first [`Blocks::count`] blocks.
     pub fn means(&self, x: &[f64]) -> Vec<f64> {
-        x.chunks_exact(self.len)
-            .take(self.count)
-            .map(|c| c.iter().sum::<f64>() / self.len as f64)
-            .collect()
+        let mut means = super::clean::block_means(x, self.len);
+        means.truncate(self.count);
+        means
     }
 }
 
