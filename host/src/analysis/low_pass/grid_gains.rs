@@ -16,7 +16,7 @@ use std::sync::{Arc, LazyLock, Mutex, MutexGuard};
 
 /// Most gains kept (64 MB): the cache is emptied when an insertion would pass it. A model
 /// run of 3 h at 100 Hz keeps about 1.3 million (the whole band's 27 cutoffs by 8 shapes
-/// over about 500 bins, and the knee's 37 by 8 over up to 4096).
+/// over about 500 bins, and the knee's 38 by 8 over up to 4096).
 const MAX_VALUES: usize = 1 << 23;
 
 /// Which gains: the shape, the bits of the cutoff and of the rate, and the bins'
