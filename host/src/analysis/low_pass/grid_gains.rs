@@ -6,8 +6,8 @@
 //! lowest cutoff searched). The grid's gains, `sum_j |H(f + j f_s)|^2 / sum_j |H(j f_s)|^2`
 //! at every bin for every shape and grid cutoff, are then the same numbers in every
 //! detection: computed once, they are looked up, bit for bit what computing them gives. The
-//! cutoffs the golden-section refinement visits differ from one record to the next and are
-//! computed each time.
+//! cutoffs the refinement visits (Brent's method, from the grid's best) differ from one
+//! record to the next and are computed each time.
 
 use super::shape::Shape;
 use std::collections::HashMap;
