@@ -8,7 +8,7 @@
 //! | slow line | low-frequency periodogram ([`super::spectrum`]) | the largest bin over the fitted background |
 //! | rate ramp | regression on time | likelihood ratio of the block means with and without the slope ([`super::regression`]) |
 //! | temperature | regression on temperature and its derivative | likelihood ratio with and without both coefficients |
-//! | Gauss-Markov | nested fit of the Allan curve, and the likelihood of the record's cosine transform ([`super::cosine`]); the stronger, its p doubled ([`stronger_of_two`]) | misfit(model') - misfit(model' + term), model' the model with B and K free, both refitted; the likelihood ratio with and without the term, B and K searched on both sides |
+//! | Gauss-Markov | nested fit of the Allan curve, and the likelihood of the record's cosine transform ([`super::cosine`]); the stronger, the two p-values combined by Simes' test ([`stronger_of_two`]) | misfit(model') - misfit(model' + term), model' the model with B and K free, both refitted; the likelihood ratio with and without the term, B and K searched on both sides |
 //! | B, K, Q | nested fit of the Allan curve | misfit(model) - misfit(model + term), both refitted |
 //! | the sensor's low-pass | PSD roll-off ([`crate::analysis::low_pass::detect_outside`]) | likelihood ratio of a filter against none, the removed lines' bands left out |
 //!
@@ -568,10 +568,11 @@ impl Evidence {
     }
 }
 
-/// Whether `e` passes as one of two views' evidence ([`stronger_of_two`], its p-value
-/// doubled). The candidate then passes whatever the other view shows: were the other's
-/// p-value smaller, it would be below the same threshold, and a verdict near the line is
-/// refined only when its statistic lies above every simulation's, as [`super::names`] asks.
+/// Whether `e` passes as one of two views' evidence with its p-value doubled, the most
+/// [`stronger_of_two`] can ask of it. The candidate then passes whatever the other view
+/// shows: were the other's p-value smaller, it would be below the same threshold, and a
+/// verdict near the line is refined only when its statistic lies above every
+/// simulation's, as [`super::names`] asks.
 pub fn passes_as_one_of_two(e: &Evidence) -> bool {
     super::names(
         e.statistic,
@@ -581,12 +582,22 @@ pub fn passes_as_one_of_two(e: &Evidence) -> bool {
     ) && e.effect.is_some()
 }
 
-/// The stronger of two views' evidence for one candidate, its p-value doubled (Bonferroni
-/// over the two views): a candidate judged in two views must not pass twice as often on
-/// pure noise.
+/// The stronger of two views' evidence for one candidate, with the two views' p-values
+/// combined by Simes' test, `min(2 p_(1), p_(2))` (Simes, "An improved Bonferroni procedure
+/// for multiple tests of significance", Biometrika 73, 1986): a candidate judged in two
+/// views must not pass more often than one view's test on pure noise. Simes' test holds its
+/// level when the two statistics are positively dependent (Sarkar, "Some probability
+/// inequalities for ordered MTP2 random variables", Ann. Statist. 26, 1998), as two
+/// measures of one excess of power are; where both views see the term, it asks less of the
+/// stronger than doubling its p-value (Bonferroni), which is exact only for views that
+/// never agree.
 pub fn stronger_of_two(a: Evidence, b: Evidence) -> Evidence {
-    let chosen = if b.p_value < a.p_value { b } else { a };
-    let p_value = (2.0 * chosen.p_value).min(1.0);
+    let (chosen, other) = if b.p_value < a.p_value {
+        (b, a)
+    } else {
+        (a, b)
+    };
+    let p_value = (2.0 * chosen.p_value).min(other.p_value).min(1.0);
     Evidence {
         z: standard_quantile(p_value),
         passes: super::names(chosen.statistic, p_value, chosen.p_needed, chosen.sim_max)
@@ -645,6 +656,40 @@ mod tests {
             statistic: 0.0,
             p_value: 1.0,
         }
+    }
+
+    /// Two views of one candidate combine by Simes' test: the stronger's p doubled unless
+    /// the weaker's is smaller still, the statistic and the rest the stronger's, and the
+    /// verdict taken on the combined p.
+    #[test]
+    fn two_views_combine_by_simes() {
+        let sims: Vec<f64> = (0..24).map(|i| f64::from(i) / 24.0).collect();
+        let effect = Some(Effect::GaussMarkov {
+            tau_c: 100.0,
+            sigma: 1e-5,
+        });
+        let view = |p: f64, statistic: f64, v: View| {
+            Evidence::with_p("gauss_markov", v, (statistic, effect), &sims, p, 7)
+        };
+        let needed = super::super::p_needed(7);
+        let combined = |a: f64, b: f64| {
+            stronger_of_two(
+                view(a, 5.0, View::NestedFit),
+                view(b, 6.0, View::CosineLikelihood),
+            )
+        };
+        // Both views see it: the weaker's p rules where it is below twice the stronger's.
+        let both = combined(0.006, 0.004);
+        assert_eq!(both.p_value, 0.006);
+        assert_eq!(both.view, View::CosineLikelihood);
+        assert_eq!(both.statistic, 6.0);
+        assert!(both.passes, "{needed}");
+        // One view alone: its p doubled, as Bonferroni's.
+        let alone = combined(0.5, 0.004);
+        assert_eq!(alone.p_value, 0.008);
+        assert!(!alone.passes);
+        assert_eq!(combined(0.3, 0.2).p_value, 0.3);
+        assert_eq!(combined(0.9, 0.8).p_value, 0.9);
     }
 
     /// The line view's p-value: the detector's own where no realisation found a line, the
