@@ -58,8 +58,9 @@
 //! records of such a process made outside the project (`scripts/foreign_records.py --kinds
 //! gm --seeds 41-48`) two were named a sinusoid. Non-negative mixtures of Lorentzians are
 //! smooth and fall monotonically, so they follow any such knee (and sums of processes) but
-//! cannot raise one bin above its neighbours. On 200 records without an effect (4 h, 50 Hz,
-//! the families' baseline) the statistic's quantiles stayed where they were (median 5.58 to
+//! cannot raise one bin above its neighbours. Screened under the first fit alone, on 200
+//! records without an effect (4 h, 50 Hz, the families' baseline) the statistic's
+//! quantiles stayed where they were (median 5.58 to
 //! 5.44, 99 % 10.3 to 9.8); on 100 of the families' Gauss-Markov records its mean fell from
 //! 6.32 to 6.10 (the null's 5.84 to 5.73), and on 100 slow-sinusoid records its lowest
 //! tenth rose from 19.8 to 23.6: the fewer degrees of freedom the power laws leave to a
