@@ -500,9 +500,9 @@ fn simulate(
         let allan = evidence[j].clone();
         // The cosine view's unsure verdict is refined only where it can decide the
         // candidate: not when the Allan view passes on its own.
-        let refined = !signal_named && !evidence::passes_as_one_of_two(&allan);
+        let refined = !signal_named && !evidence::allan_passes_alone(&allan);
         if let Some(cosine) = cosine_evidence(data, model, removal, candidates, refined) {
-            evidence[j] = evidence::stronger_of_two(allan, cosine);
+            evidence[j] = evidence::gauss_markov_of_two(allan, cosine);
         }
     }
     Round {

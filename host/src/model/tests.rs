@@ -361,7 +361,7 @@ fn a_filter_beside_a_wide_line_above_it_is_named_after_the_line() {
 /// ([`super::naming`]): here the process, and nothing else.
 #[test]
 fn of_random_terms_passing_together_the_one_closest_to_the_record_is_named() {
-    let (got, o, _) = named(Kind::GaussMarkov, CI_SHAPE, 3);
+    let (got, o, _) = named(Kind::GaussMarkov, CI_SHAPE, 13);
     assert_eq!(got, Kind::GaussMarkov.expected(), "{}", report::table(&o));
     let first = &o.steps[0];
     let by_p = first
