@@ -576,6 +576,8 @@ impl Evidence {
 /// the curve's spread (its misfit drop 2.3 to 8.2 times the simulations' largest), where a
 /// quarter of the level still passes it and the cosine view passed too.
 pub const COSINE_SHARE: f64 = 0.75;
+/// The Allan view's share of a Gauss-Markov candidate's level: the rest.
+pub const ALLAN_SHARE: f64 = 1.0 - COSINE_SHARE;
 
 /// Whether the Allan view's evidence `e` passes on its own share of the level, the most
 /// [`gauss_markov_of_two`] can ask of it. The candidate then passes whatever the cosine
@@ -585,7 +587,7 @@ pub const COSINE_SHARE: f64 = 0.75;
 pub fn allan_passes_alone(e: &Evidence) -> bool {
     super::names(
         e.statistic,
-        (e.p_value / (1.0 - COSINE_SHARE)).min(1.0),
+        (e.p_value / ALLAN_SHARE).min(1.0),
         e.p_needed,
         e.sim_max,
     ) && e.effect.is_some()
@@ -605,7 +607,7 @@ pub fn allan_passes_alone(e: &Evidence) -> bool {
 /// power are. With equal shares it is Simes' test, `min(2 p_(1), p_(2))`.
 pub fn gauss_markov_of_two(allan: Evidence, cosine: Evidence) -> Evidence {
     let weighted_cosine = cosine.p_value / COSINE_SHARE;
-    let weighted_allan = allan.p_value / (1.0 - COSINE_SHARE);
+    let weighted_allan = allan.p_value / ALLAN_SHARE;
     let both = cosine.p_value.max(allan.p_value);
     let chosen = if weighted_allan < weighted_cosine {
         allan
@@ -707,7 +709,7 @@ mod tests {
         assert!(cosine.passes && 2.0 * 0.005 > needed, "{needed}");
         // The Allan view alone: its p over the quarter left to it.
         let allan = combined(0.001, 0.5);
-        assert!(close(allan.p_value, 0.001 / (1.0 - COSINE_SHARE)));
+        assert!(close(allan.p_value, 0.001 / ALLAN_SHARE));
         assert_eq!(allan.view, View::NestedFit);
         assert_eq!(allan.statistic, 5.0);
         assert!(allan.passes);

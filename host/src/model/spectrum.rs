@@ -76,6 +76,7 @@
 use crate::analysis::low_pass::LowPass;
 use crate::analysis::shared_plans;
 use crate::analysis::{lines, numerics};
+use std::borrow::Cow;
 use std::f64::consts::PI;
 
 /// Bins 1 and 2 share their power with the removed line (and the window's DC lobe).
@@ -322,13 +323,14 @@ impl<'a> Banded<'a> {
         left_out: &[bool],
         near: Option<&Background>,
     ) -> Background {
-        let columns: Vec<Vec<f64>> = shapes
+        // The cached columns are borrowed: every leave-out fit of every realisation reads them.
+        let columns: Vec<Cow<[f64]>> = shapes
             .iter()
             .map(|&s| {
-                self.columns
-                    .iter()
-                    .find(|(c, _)| *c == s)
-                    .map_or_else(|| self.column(s), |(_, v)| v.clone())
+                self.columns.iter().find(|(c, _)| *c == s).map_or_else(
+                    || Cow::Owned(self.column(s)),
+                    |(_, v)| Cow::Borrowed(&v[..]),
+                )
             })
             .collect();
         let keep: Vec<usize> = (0..self.bands.len())
@@ -353,7 +355,7 @@ impl<'a> Banded<'a> {
     /// error (`m_j / P_j^2`): the coefficients and their deviance.
     fn scoring(
         &self,
-        columns: &[Vec<f64>],
+        columns: &[Cow<[f64]>],
         keep: &[usize],
         start: Option<&[f64]>,
     ) -> (Vec<f64>, f64) {
