@@ -447,9 +447,13 @@ fn analyze_channel(
             Cow::Borrowed(r) => Cow::Owned(phase_from_rate(r, tau0)),
         },
     };
+    // The noise terms, from the Allan curve and from the spectrum alike, are fitted to the
+    // record without its lines; the curves and the spectrum shown are the record's own.
+    let clean_phase = line_free.map(|rate| super::into_phase(rate, tau0));
+    let fitted = clean_phase.as_deref();
     // The spectrum and its fit run beside the Allan stage, both reading the phase.
     let ((deviations, fit_curve, fit, readouts), (psd, psd_terms)) = rayon::join(
-        || allan_stage(&phase, rate_hz, line_free, low_pass.clone(), options, tick),
+        || allan_stage(&phase, rate_hz, fitted, low_pass.clone(), options, tick),
         || {
             let samples = psd::Samples::of_phase(&phase, tau0);
             let segment = options
@@ -465,11 +469,14 @@ fn analyze_channel(
                 confidence: options.confidence,
                 low_pass: low_pass.clone(),
             };
-            // The spectrum is the PSD fit's finest level: the same Welch estimate, window
-            // and plan.
-            let welch = psd.as_ref().ok().map(|(p, _)| p);
+            // Without lines the spectrum is the PSD fit's finest level: the same Welch
+            // estimate, window and plan.
+            let (fit_samples, welch) = match fitted {
+                Some(clean) => (psd::Samples::of_phase(clean, tau0), None),
+                None => (samples, psd.as_ref().ok().map(|(p, _)| p)),
+            };
             let given = (welch, transform.as_ref());
-            let psd_terms = fit::psd::fit_psd_with(samples, rate_hz, &psd_options, given);
+            let psd_terms = fit::psd::fit_psd_with(fit_samples, rate_hz, &psd_options, given);
             tick();
             (psd, psd_terms)
         },
@@ -493,13 +500,13 @@ fn analyze_channel(
 }
 
 /// The Allan curves of `options.estimators` on `phase` with their intervals, the curve the
-/// noise terms are fitted to (the oadev of `line_free`, the rate record without its lines,
-/// when there is one; else the record's own) with its intervals, and the fit with its slope
-/// read-outs.
+/// noise terms are fitted to (the oadev of `line_free`, the phase of the record without its
+/// lines, when there is one; else the record's own) with its intervals, and the fit with its
+/// slope read-outs.
 fn allan_stage(
     phase: &[f64],
     rate_hz: f64,
-    line_free: Option<Vec<f64>>,
+    line_free: Option<&[f64]>,
     low_pass: Option<LowPass>,
     options: &Options,
     tick: &(dyn Fn() + Sync),
@@ -512,13 +519,12 @@ fn allan_stage(
     let tau0 = 1.0 / rate_hz;
     let lines_removed = line_free.is_some();
     // The fit's curve from the record without its lines, on the same taus.
-    let clean_deviation = line_free.map(|rate| {
-        let clean = super::into_phase(rate, tau0);
+    let clean_deviation = line_free.map(|clean| {
         let factors = taus::factors(
             options.taus,
             allan::max_factor(Estimator::Oadev, clean.len()),
         );
-        allan::deviation(Estimator::Oadev, &clean, tau0, &factors)
+        allan::deviation(Estimator::Oadev, clean, tau0, &factors)
     });
     let curve = |est: Estimator| {
         let factors = taus::factors(options.taus, allan::max_factor(est, phase.len()));

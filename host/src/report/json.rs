@@ -228,6 +228,7 @@ pub struct PsdNoise {
     pub f_max: f64,
     pub points: usize,
     pub reduced_chi2: f64,
+    pub birge_ratio: f64,
     pub segment_len: usize,
     #[serde(rename = "N")]
     pub n: PsdTerm,
@@ -418,12 +419,13 @@ fn psd_noise(p: &PsdNoiseTerms, kind: SensorKind) -> PsdNoise {
         bins: x.bins,
     };
     PsdNoise {
-        method: "weighted non-negative least squares of 2 N^2 + 2 B^2/(2 pi f) + 2 K^2/(2 pi f)^2 on the multi-resolution one-sided PSD; chi-squared intervals",
+        method: "weighted non-negative least squares of 2 N^2 + 2 B^2/(2 pi f) + 2 K^2/(2 pi f)^2 on the multi-resolution one-sided PSD of the record without its spectral lines; chi-squared intervals, each standard deviation multiplied by birge_ratio = sqrt(max(1, reduced_chi2))",
         confidence: p.confidence,
         f_min: p.f_min,
         f_max: p.f_max,
         points: p.points,
         reduced_chi2: p.reduced_chi2,
+        birge_ratio: p.birge_ratio,
         segment_len: p.segment_len,
         n: one(NoiseTerm::N, &p.n),
         b: one(NoiseTerm::B, &p.b),

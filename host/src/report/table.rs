@@ -60,7 +60,8 @@ pub fn render(record: &Record, options: &Options, results: &[ChannelResult]) -> 
     let _ = writeln!(
         out,
         "\nPSD read-outs (SI): 2 N^2 + 2 B^2/(2 pi f) + 2 K^2/(2 pi f)^2 fitted to the \
-         multi-resolution one-sided PSD over the band shown, value [{} % interval]; \
+         multi-resolution one-sided PSD of the record without its lines over the band shown, \
+         value [{} % interval, widened by sqrt(chi2/dof) where above 1]; \
          \"< x\": not resolved, upper bound",
         sig(options.confidence * 100.0, 3)
     );

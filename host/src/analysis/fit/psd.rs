@@ -183,6 +183,9 @@ pub struct PsdNoiseTerms {
     /// `sum_a (S_a - m_a)^2 / Var_a` over the points minus the free terms: about 1 when the
     /// model describes the spectrum (correlated neighbours make it scatter more).
     pub reduced_chi2: f64,
+    /// `sqrt(max(1, reduced_chi2))`: every term's standard deviation was multiplied by it
+    /// before its interval (R. T. Birge, Phys. Rev. 40, 207, 1932), as in the Allan fit.
+    pub birge_ratio: f64,
     /// Samples per segment at every level.
     pub segment_len: usize,
     /// The whole spectrum, every level, in increasing frequency (the fitted band and above).
@@ -527,13 +530,25 @@ pub fn fit_psd_with(
     let support: Vec<usize> = (0..3).filter(|&t| theta[t] > 0.0).collect();
     let z = Normal::standard().inverse_cdf(0.5 + opts.confidence / 2.0);
     let model: Vec<f64> = rows.iter().map(|r| dot(r, &theta)).collect();
+    let residual: f64 = y
+        .iter()
+        .zip(&model)
+        .zip(&sigma)
+        .map(|((y, m), s)| ((y - m) / s).powi(2))
+        .sum();
+    let dof = (pts.len() as f64 - support.len() as f64).max(1.0);
+    let reduced_chi2 = residual / dof;
+    // Lack of fit widens every interval by the Birge ratio, as in the Allan fit
+    // (`super::allan`): the residuals' sum has the expected value `dof` whatever the
+    // points' correlation, which only widens its spread.
+    let birge_ratio = reduced_chi2.max(1.0).sqrt();
     let readout = |t: usize| {
         let mut cols = support.clone();
         if !cols.contains(&t) {
             cols.push(t);
             cols.sort_unstable();
         }
-        let sd = sandwich_sd(&rows, &sigma, &corr, &cols, t);
+        let sd = birge_ratio * sandwich_sd(&rows, &sigma, &corr, &cols, t);
         let mut r = interval(theta[t], sd, z, opts.confidence);
         let dominant: Vec<f64> = pts
             .iter()
@@ -547,13 +562,6 @@ pub fn fit_psd_with(
         r.f_max = dominant.last().copied().unwrap_or(0.0);
         r
     };
-    let residual: f64 = y
-        .iter()
-        .zip(&model)
-        .zip(&sigma)
-        .map(|((y, m), s)| ((y - m) / s).powi(2))
-        .sum();
-    let dof = (pts.len() as f64 - support.len() as f64).max(1.0);
     Ok(PsdNoiseTerms {
         n: readout(0),
         b: readout(1),
@@ -562,7 +570,8 @@ pub fn fit_psd_with(
         f_min: pts[0].public.freq,
         f_max: pts[pts.len() - 1].public.freq,
         points: pts.len(),
-        reduced_chi2: residual / dof,
+        reduced_chi2,
+        birge_ratio,
         segment_len: match opts.segment_len {
             0 => psd::segment_len_for(samples.len()),
             l => l,

@@ -226,3 +226,42 @@ fn a_known_filter_is_modelled_so_n_is_the_white_level() {
         "the flat band alone: {worst_plain:.1} half-widths"
     );
 }
+
+/// A spectrum the three terms cannot describe (a Gauss-Markov process of 2 s, sixteen times
+/// the white PSD below its corner, flat where flicker and the random walk rise) has a reduced
+/// chi-square well above 1, and every interval is widened by its square root: each term's
+/// degrees of freedom `2 theta^2 / sd^2` shrink by the squared ratio against those of the
+/// same noise without the process. On a spectrum they describe, the ratio is 1.
+#[test]
+fn lack_of_fit_widens_the_intervals_by_the_birge_ratio() {
+    use crate::sim::noise::GaussMarkov;
+    let white = NoiseTerms {
+        n: 1e-3,
+        ..NoiseTerms::default()
+    };
+    let bump = NoiseTerms {
+        gauss_markov: Some(GaussMarkov {
+            sigma: 2e-3,
+            tau_c: 2.0,
+        }),
+        ..white
+    };
+    let len = 3600 * 100;
+    let plain = fit_psd(&series(white, len, 7), RATE, &PsdFitOptions::default()).unwrap();
+    let poor = fit_psd(&series(bump, len, 7), RATE, &PsdFitOptions::default()).unwrap();
+    assert_eq!(plain.birge_ratio, plain.reduced_chi2.max(1.0).sqrt());
+    assert!(plain.birge_ratio < 1.3, "{}", plain.reduced_chi2);
+    assert!(poor.reduced_chi2 > 4.0, "{}", poor.reduced_chi2);
+    assert_eq!(poor.birge_ratio, poor.reduced_chi2.sqrt());
+    assert!(poor.n.resolved(), "{:?}", poor.n);
+    // N's own degrees of freedom: its band is the white one in both records, so without the
+    // widening they would be alike; with it, the poor fit's fall by the squared ratio.
+    let shrink = plain.n.dof / poor.n.dof;
+    let expected = (poor.birge_ratio / plain.birge_ratio).powi(2);
+    assert!(
+        shrink > 0.5 * expected && shrink < 2.0 * expected,
+        "dof {} against {}: x{shrink:.2}, expected about x{expected:.2}",
+        plain.n.dof,
+        poor.n.dof
+    );
+}
