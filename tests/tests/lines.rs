@@ -8,7 +8,7 @@ use imunoise::input::{CountScale, LoadOptions};
 use imunoise::record::{Channel, Record};
 use imunoise::sim::imu::Imu;
 use imunoise::sim::model_file;
-use imunoise::sim::noise::{AxisNoise, NoiseTerms};
+use imunoise::sim::noise::{AxisNoise, NoiseTerms, add_line};
 use protocol::SensorSettings;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -147,23 +147,12 @@ fn a_tone_does_not_become_quantization() {
         .enumerate()
         .map(|(t, v)| v + amplitude * (2.0 * PI * 31.0 * t as f64 / rate + 0.3).sin())
         .collect();
-    let fit = |values: &[f64], search: bool| {
-        let record = Record {
-            source: "tone".into(),
-            rate_hz: rate,
-            channels: vec![Channel::named("gx", values.to_vec())],
-        };
-        let options = Options {
-            lines: search.then(LineOptions::default),
-            ..Options::default()
-        };
-        let result = pipeline::analyze(&record, &options, &|| {})
-            .unwrap()
-            .remove(0);
+    let fit = |values: Vec<f64>| {
+        let result = analysed("gx", values, rate);
         (result.fit.unwrap(), result.lines)
     };
-    let (clean, clean_lines) = fit(&noise, true);
-    let (cleaned, found) = fit(&with_tone, true);
+    let (clean, clean_lines) = fit(noise);
+    let (cleaned, found) = fit(with_tone);
     assert!(clean_lines.is_empty(), "{clean_lines:?}");
     assert_eq!(found.len(), 1, "{found:?}");
     assert!(
@@ -200,26 +189,20 @@ fn lines_do_not_bias_the_psd_read_outs() {
     let mut rng = ChaCha8Rng::seed_from_u64(405);
     let noise = AxisNoise::new(terms, rate, n as f64 / rate, &mut rng).take(n, &mut rng);
     let mut with_lines = noise.clone();
-    for (freq, width, amplitude) in [
-        (0.4625, 0.0, 1.5e-3),
-        (0.564, 0.0, 9e-3),
-        (0.6653, 0.0, 1.5e-3),
-        (1.5893, 0.0, 1.5e-3),
-        (1.6905, 0.0, 2.5e-3),
-        (1.7918, 0.0, 1.2e-3),
+    // The comb as pure tones (width 0): the real lines are under 0.01 Hz wide.
+    for (freq, amplitude) in [
+        (0.4625, 1.5e-3),
+        (0.564, 9e-3),
+        (0.6653, 1.5e-3),
+        (1.5893, 1.5e-3),
+        (1.6905, 2.5e-3),
+        (1.7918, 1.2e-3),
     ] {
-        imunoise::sim::noise::add_line(&mut with_lines, rate, freq, width, amplitude, &mut rng);
+        add_line(&mut with_lines, rate, freq, 0.0, amplitude, &mut rng);
     }
     let read_outs = |values: Vec<f64>| {
-        let record = Record {
-            source: "lines".into(),
-            rate_hz: rate,
-            channels: vec![Channel::named("ax", values)],
-        };
-        let mut result = pipeline::analyze(&record, &Options::default(), &|| {})
-            .unwrap()
-            .remove(0);
-        (result.psd_terms.unwrap(), std::mem::take(&mut result.lines))
+        let result = analysed("ax", values, rate);
+        (result.psd_terms.unwrap(), result.lines)
     };
     let (clean, none) = read_outs(noise);
     let (cleaned, found) = read_outs(with_lines);
@@ -239,4 +222,17 @@ fn lines_do_not_bias_the_psd_read_outs() {
         cleaned.reduced_chi2,
         clean.reduced_chi2
     );
+}
+
+/// `values` at `rate` Hz as a one-channel record named `name`, analysed with the default
+/// options (the line search on).
+fn analysed(name: &str, values: Vec<f64>, rate: f64) -> pipeline::ChannelResult {
+    let record = Record {
+        source: name.into(),
+        rate_hz: rate,
+        channels: vec![Channel::named(name, values)],
+    };
+    pipeline::analyze(&record, &Options::default(), &|| {})
+        .unwrap()
+        .remove(0)
 }
