@@ -138,7 +138,7 @@ const WING_EXPLAINS: f64 = 4.0;
 /// band), summed with the same share of its images that sampling at `rate_hz` folds in (about
 /// Nyquist, centre `rate - f0`, and about zero, `-f0`); a pure tone has no band and is never
 /// explained so.
-fn in_named_wings(found: &Line, named: &[Line], rate_hz: f64) -> bool {
+pub(super) fn in_named_wings(found: &Line, named: &[Line], rate_hz: f64) -> bool {
     if found.width_hz <= 0.0 {
         return false;
     }
@@ -176,6 +176,11 @@ pub const LEAST_P: f64 = 1e-300;
 /// simulations' under the current model; the larger holds under either. Without it a line
 /// found at the detector's 1 % level in the record and in none of 24 realisations had p = 0.
 pub fn line_p_value(surprise: f64, simulated: &[f64]) -> f64 {
+    line_p_of_tail(surprise, scaled_chi_square_p(surprise, simulated))
+}
+
+/// [`line_p_value`] from the simulations' tail at `surprise`, `simulated_tail`.
+fn line_p_of_tail(surprise: f64, simulated_tail: f64) -> f64 {
     // The floor exactly where the surprise was clamped (exp(-ln x) need not return x).
     let detector = if surprise <= 0.0 {
         1.0
@@ -184,7 +189,7 @@ pub fn line_p_value(surprise: f64, simulated: &[f64]) -> f64 {
     } else {
         (-surprise).exp()
     };
-    scaled_chi_square_p(surprise, simulated).max(detector)
+    simulated_tail.max(detector)
 }
 
 /// Everything a statistic needs besides the series.
@@ -530,6 +535,30 @@ impl Evidence {
         }
     }
 
+    /// The line view's evidence for another line its search found beside the round's
+    /// strongest, judged against the same simulations as this (the line view's own)
+    /// evidence. Those hold the largest surprise of any false line in each realisation, a
+    /// null at least as large as any one line's, so every line that passes against it
+    /// passes at the round's level together with the strongest (the single-step maxT
+    /// procedure: Westfall & Young, *Resampling-Based Multiple Testing*, 1993, sec. 2.6).
+    pub fn of_another_line(&self, line: &Line) -> Evidence {
+        let statistic = line_surprise(line);
+        let tail = scaled_chi_square_tail(statistic, self.sim_mean.max(0.0), self.sim_sd.powi(2));
+        let p_value = line_p_of_tail(statistic, tail);
+        Evidence {
+            effect: Some(Effect::from_line(line)),
+            statistic,
+            p_value,
+            z: standard_quantile(p_value),
+            passes: super::names(statistic, p_value, self.p_needed, self.sim_max),
+            standard_errors: BTreeMap::new(),
+            intervals: BTreeMap::new(),
+            monte_carlo: false,
+            tail_p: p_value,
+            ..self.clone()
+        }
+    }
+
     /// Evidence with a p-value computed by the view itself.
     pub fn with_p(
         candidate: &'static str,
@@ -647,6 +676,12 @@ pub fn scaled_chi_square_p(statistic: f64, simulated: &[f64]) -> f64 {
     let mean = clamped.iter().sum::<f64>() / r;
     let var =
         clamped.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (clamped.len().max(2) - 1) as f64;
+    scaled_chi_square_tail(statistic, mean, var)
+}
+
+/// The upper tail at `statistic` of the scaled chi-square with the given mean and
+/// variance ([`scaled_chi_square_p`], whose values are at least 0).
+fn scaled_chi_square_tail(statistic: f64, mean: f64, var: f64) -> f64 {
     if mean > 0.0 && var > 0.0 {
         let k = 2.0 * mean * mean / var;
         let scale = var / (2.0 * mean);
@@ -673,6 +708,47 @@ mod tests {
             statistic: 0.0,
             p_value: 1.0,
         }
+    }
+
+    /// A further line the search found is judged against the simulations of the round's
+    /// strongest false line exactly as that line's own evidence would be from the same
+    /// simulated values: the same p-value, verdict and threshold, its own effect.
+    #[test]
+    fn another_line_is_judged_on_the_same_simulations() {
+        // Surprises of the strongest false line in 24 realisations: a few at 0 (none found).
+        let sims: Vec<f64> = (0..24).map(|i| f64::from(i % 6) * 1.3).collect();
+        let found = |freq_hz: f64, p_value: f64| Line {
+            p_value,
+            ..line(freq_hz, 1e-6, 0.0)
+        };
+        let judged = |l: &Line| {
+            let surprise = line_surprise(l);
+            Evidence::with_p(
+                "sinusoid",
+                View::Lines,
+                (surprise, Some(Effect::from_line(l))),
+                &sims,
+                line_p_value(surprise, &sims),
+                7,
+            )
+        };
+        let strongest = judged(&found(12.5, 1e-40));
+        assert!(strongest.passes);
+        for (freq_hz, p_value) in [(3.25, 1e-12), (7.5, 1e-4), (9.0, 1e-3), (11.0, 0.2)] {
+            let other = found(freq_hz, p_value);
+            let beside = strongest.of_another_line(&other);
+            let own = judged(&other);
+            let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1e-300);
+            assert!(close(beside.p_value, own.p_value), "{beside:?} {own:?}");
+            assert!(close(beside.statistic, own.statistic));
+            assert_eq!(
+                (beside.passes, beside.effect, beside.p_needed),
+                (own.passes, own.effect, own.p_needed)
+            );
+        }
+        // Far beyond every simulation it passes; within their spread it does not.
+        assert!(strongest.of_another_line(&found(3.25, 1e-12)).passes);
+        assert!(!strongest.of_another_line(&found(11.0, 0.2)).passes);
     }
 
     /// Two views of one candidate combine by the weighted Simes test: each p over its

@@ -62,6 +62,12 @@ pub enum Kind {
     GaussMarkovAndTone,
     /// A low-pass filter as [`Kind::LowPass`] and a ramp as [`Kind::Ramp`].
     LowPassAndRamp,
+    /// A low-pass filter as [`Kind::LowPass`] and two to four narrow lines where it passes
+    /// at least a tenth of the power, as in [`Kind::LowPassAndTone`], each 0.002-0.05 Hz
+    /// wide (or a pure tone), 20-100x the filtered white PSD and apart from the others by
+    /// forty widths: a sensor with its own filter and a comb of vibration lines (the
+    /// ADIS16405's accelerometers carry lines 1-4 mHz wide, 0.1 Hz apart).
+    LowPassAndLines,
     /// A temperature coupling as [`Kind::Temperature`] plus one to the temperature's rate of
     /// change (a thermal gradient across the sensor), each raising the Allan deviation on
     /// its own: the rate term peaks during the warm-up and is a quarter-cycle out of phase
@@ -82,6 +88,8 @@ impl Kind {
             Kind::SlowSinusoidAndTemperature => vec!["sinusoid", "temperature"],
             Kind::LowPass => vec!["low_pass"],
             Kind::LowPassAndTone => vec!["low_pass", "sinusoid"],
+            // One sinusoid per line drawn: `Hidden::expected`.
+            Kind::LowPassAndLines => vec!["low_pass"],
             Kind::RampAndTemperature => vec!["rate_ramp", "temperature"],
             Kind::GaussMarkovAndTone => vec!["gauss_markov", "sinusoid"],
             Kind::LowPassAndRamp => vec!["low_pass", "rate_ramp"],
@@ -155,8 +163,8 @@ pub struct Hidden {
     pub temp_rate_coeff: Option<f64>,
     /// The slow sinusoid, for the slow-sinusoid kinds.
     pub sinusoid: Option<Sinusoid>,
-    /// The line `(freq_hz, width_hz, power u^2)`, for the tone kinds.
-    pub tone: Option<(f64, f64, f64)>,
+    /// The lines `(freq_hz, width_hz, power u^2)`, for the tone kinds.
+    pub tones: Vec<(f64, f64, f64)>,
     /// The low-pass filter's -3 dB cutoff, Hz, for the low-pass kinds.
     pub cutoff_hz: Option<f64>,
 }
@@ -177,7 +185,7 @@ impl Hidden {
         if let Some(s) = self.sinusoid {
             parts.push(format!("sinusoid {:.5} Hz, {:.3e}", s.freq_hz, s.amplitude));
         }
-        if let Some((f, w, p)) = self.tone {
+        for &(f, w, p) in &self.tones {
             parts.push(format!(
                 "line {f:.3} Hz, {w:.3} Hz wide, amplitude {:.3e}",
                 (2.0 * p).sqrt()
@@ -190,6 +198,17 @@ impl Hidden {
             parts.push(format!("low-pass {c:.2} Hz"));
         }
         parts.join("; ")
+    }
+
+    /// The effect kinds the workflow should name for the record of `kind`, sorted: one
+    /// sinusoid per line drawn.
+    pub fn expected(&self, kind: Kind) -> Vec<&'static str> {
+        let mut v = kind.expected();
+        if kind == Kind::LowPassAndLines {
+            v.extend(self.tones.iter().map(|_| "sinusoid"));
+            v.sort_unstable();
+        }
+        v
     }
 }
 
@@ -245,17 +264,19 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
     }
     let cutoff_hz = matches!(
         kind,
-        Kind::LowPass | Kind::LowPassAndTone | Kind::LowPassAndRamp
+        Kind::LowPass | Kind::LowPassAndTone | Kind::LowPassAndLines | Kind::LowPassAndRamp
     )
     .then(|| shape.rate_hz * log_uniform(&mut rng, 0.03, 0.3));
     let low_pass =
         cutoff_hz.map(|c| LowPass::two_pole(c, shape.rate_hz).expect("a cutoff below Nyquist"));
-    let mut tone: Option<(f64, f64, f64)> = None;
-    if matches!(
-        kind,
-        Kind::Tone | Kind::ToneAndRamp | Kind::LowPassAndTone | Kind::GaussMarkovAndTone
-    ) {
-        let passes = |f: f64| low_pass.as_ref().map_or(1.0, |lp| lp.power_gain(f));
+    let passes = |f: f64| low_pass.as_ref().map_or(1.0, |lp| lp.power_gain(f));
+    let count = match kind {
+        Kind::Tone | Kind::ToneAndRamp | Kind::LowPassAndTone | Kind::GaussMarkovAndTone => 1,
+        Kind::LowPassAndLines => rng.random_range(2..=4),
+        _ => 0,
+    };
+    let mut tones: Vec<(f64, f64, f64)> = Vec::new();
+    for _ in 0..count {
         // Where the filter passes a tenth of the power: a low cutoff moves the lines' band
         // below a tenth of the rate.
         let mut top = 0.45 * shape.rate_hz;
@@ -263,18 +284,42 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
             top *= 0.99;
         }
         let bottom = (0.1 * shape.rate_hz).min(0.5 * top);
-        let freq_hz = uniform(&mut rng, bottom, top);
-        let width_hz = if rng.random::<f64>() < 0.3 {
-            0.0
-        } else {
-            uniform(&mut rng, 0.05, 1.0)
+        // A comb's lines apart by forty of their widths and twenty bins: a Lorentzian 50
+        // times the background at its peak still stands 3 % above it 20 widths out, and the
+        // detector's bands follow such wings until they reach the next line, which then
+        // reads as one wide line (measured on widths of 0.04-0.17 Hz 1-2 Hz apart).
+        let apart = |f: f64, w: f64| {
+            tones
+                .iter()
+                .all(|&(g, v, _)| (f - g).abs() > 40.0 * (w + v) + 20.0 / t_rec)
         };
-        let rho = log_uniform(&mut rng, 10.0, 50.0);
+        let comb = kind == Kind::LowPassAndLines;
+        let drawn = (0..1000).find_map(|_| {
+            let freq_hz = uniform(&mut rng, bottom, top);
+            let width_hz = if rng.random::<f64>() < 0.3 {
+                0.0
+            } else if comb {
+                log_uniform(&mut rng, 0.002, 0.05)
+            } else {
+                uniform(&mut rng, 0.05, 1.0)
+            };
+            apart(freq_hz, width_hz).then_some((freq_hz, width_hz))
+        });
+        let Some((freq_hz, width_hz)) = drawn else {
+            break;
+        };
+        // A comb's lines stand clear of the single line's detection limit (the tone kinds
+        // measure that), so that the family measures naming several lines together.
+        let rho = if comb {
+            log_uniform(&mut rng, 20.0, 100.0)
+        } else {
+            log_uniform(&mut rng, 10.0, 50.0)
+        };
         // Excess one-sided PSD rho x 2 N^2 (times the filter's gain) over the line's width (at least one bin); a
         // Lorentzian of FWHM w has peak 2 P / (pi w) for power P.
         let effective = width_hz.max(1.0 / t_rec);
         let power = rho * 2.0 * n_density * n_density * passes(freq_hz) * PI * effective / 2.0;
-        tone = Some((freq_hz, width_hz, power));
+        tones.push((freq_hz, width_hz, power));
     }
     let mut ramp_slope = None;
     if matches!(
@@ -367,7 +412,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         let t = i as f64 * tau0;
         *v += extra.iter().map(|f| f(t)).sum::<f64>();
     }
-    if let Some((freq_hz, width_hz, power)) = tone {
+    for &(freq_hz, width_hz, power) in &tones {
         add_line(
             &mut values,
             shape.rate_hz,
@@ -392,7 +437,7 @@ pub fn generate(kind: Kind, shape: Shape, seed: u64) -> Hidden {
         temp_coeff,
         temp_rate_coeff,
         sinusoid: slow,
-        tone,
+        tones,
         cutoff_hz,
     }
 }

@@ -44,7 +44,8 @@
 //! (the least Allan gap, see `naming.rs`): a bump one term explains makes others pass
 //! beside it, sometimes with a smaller p. Then the model takes
 //! the effect, its stochastic terms are refitted to the cleaned record, and the loop repeats
-//! (at most [`MAX_STEPS`] effects), so a record with two effects gets both. A stochastic
+//! (at most [`MAX_STEPS`] rounds that name effects; the lines that pass together are named
+//! in one, `naming::lines_beside`), so a record with two effects gets both. A stochastic
 //! term or a sensor filter after which the Allan gap does not shrink is taken back and the round's next passing
 //! candidate tried: several random terms can pass one round (a Gauss-Markov bump moves the
 //! fitted N, so quantization passes too), and only one of them is the missing effect.
@@ -129,7 +130,8 @@ pub const UNSURE_ABOVE: f64 = 3.0;
 /// "the statistic above every draw" would hold such a test at the level `1 / (draws + 1)`
 /// instead of the threshold: with 192 draws and a threshold of 8.3e-3, 5.2e-3.
 pub const MONTE_CARLO_EXCEEDANCES: f64 = 10.0;
-/// Most effects named.
+/// Most rounds that name effects: each names one effect, or every line its line view
+/// passes together (`naming::lines_beside`).
 pub const MAX_STEPS: usize = 4;
 /// |z| above this marks a disagreeing tau of the Allan curve.
 pub const Z_DISAGREE: f64 = 2.0;
@@ -322,6 +324,35 @@ fn described(effect: &Effect, evidence: &Evidence, unit: &str) -> String {
     words
 }
 
+/// The step `named` makes in `round`, the `naming_round`-th round that named effects, and
+/// the removal with its effect added.
+fn step_of(
+    named: naming::Named,
+    round: &Round,
+    unit: &str,
+    naming_round: usize,
+) -> (Step, Removal) {
+    let chosen = named.index;
+    let evidence = named.evidence;
+    let step = Step {
+        description: described(&named.effect, &evidence[chosen], unit)
+            + &weighed_words(&named.weighed, named.stands_in),
+        effect: named.effect,
+        at_naming: named.effect,
+        standard_errors: evidence[chosen].standard_errors.clone(),
+        view: evidence[chosen].view,
+        round: naming_round,
+        gap_before: round.comparison.gap,
+        gap_after: f64::NAN,
+        evidence,
+        rivals: named.weighed,
+        stands_in: named.stands_in,
+        model: named.model,
+        comparison: round.comparison.clone(),
+    };
+    (step, named.removal)
+}
+
 /// How a step was chosen among rivals, in words: each one's Allan gap with it added, and
 /// whether the step stands in for a random term that passed (empty when none were weighed).
 pub(super) fn weighed_words(weighed: &[naming::Weighed], stands_in: bool) -> String {
@@ -427,6 +458,10 @@ pub struct Step {
     /// The effect in words, with its parameters' standard errors where known.
     pub description: String,
     pub view: View,
+    /// The round that named it, counted over the rounds that named effects (1 for the
+    /// first): lines passing together are named in one round (`naming::lines_beside`).
+    pub round: usize,
+    /// The Allan gap of the round that named it, and of the round after it.
     pub gap_before: f64,
     pub gap_after: f64,
     /// Every candidate's evidence at this step (the named one among them).
@@ -458,7 +493,7 @@ impl Step {
 pub enum Stop {
     /// No candidate passed the naming rule; the strongest is given.
     NothingStandsOut { best: Option<Evidence> },
-    /// [`MAX_STEPS`] effects were named.
+    /// [`MAX_STEPS`] rounds named effects.
     MaxSteps,
     /// The stochastic terms that passed their tests did not bring the simulations closer to
     /// the record (the Allan gap did not shrink), so they were taken back; the last is given.
@@ -483,7 +518,7 @@ impl std::fmt::Display for Stop {
                 },
             ),
             Stop::NothingStandsOut { best: None } => write!(f, "no candidate effect applies"),
-            Stop::MaxSteps => write!(f, "stopped after {MAX_STEPS} effects"),
+            Stop::MaxSteps => write!(f, "stopped after {MAX_STEPS} rounds that named effects"),
             Stop::NoCloser { undone } => write!(
                 f,
                 "{} passed its test but did not bring the simulations closer to the record (Allan gap did not shrink), so it was taken back",
@@ -718,9 +753,13 @@ pub fn run(
                 (model, removal) = (m, r);
                 before
             }
-            Some(s) => {
-                s.gap_after = round.comparison.gap;
-                s.comparison = round.comparison.clone();
+            Some(last) => {
+                // Every step the last naming round named (lines found together) closes here.
+                let named_last = last.round;
+                for s in steps.iter_mut().filter(|s| s.round == named_last) {
+                    s.gap_after = round.comparison.gap;
+                    s.comparison = round.comparison.clone();
+                }
                 taken_back.clear();
                 round
             }
@@ -741,30 +780,34 @@ pub fn run(
             let best = strongest(&round.evidence);
             break (round, Stop::NothingStandsOut { best });
         };
-        if steps.len() == MAX_STEPS {
+        let naming_round = steps.last().map_or(0, |s| s.round) + 1;
+        if naming_round > MAX_STEPS {
             break (round, Stop::MaxSteps);
         }
-        let named = naming::name(&data, &model, &removal, &round, chosen, &taken_back);
-        let (chosen, effect, evidence) = (named.index, named.effect, named.evidence);
-        named_band = named.band;
-        let probe = round.probes[chosen];
+        let mut named = naming::name(&data, &model, &removal, &round, chosen, &taken_back);
+        named_band = named.band.take();
+        let probe = round.probes[named.index];
+        let beside = if probe == Probe::Line {
+            naming::lines_beside(&data, &named, &round)
+        } else {
+            Vec::new()
+        };
         let before = (model, removal);
-        (model, removal) = (named.model, named.removal);
-        steps.push(Step {
-            description: described(&effect, &evidence[chosen], channel.unit())
-                + &weighed_words(&named.weighed, named.stands_in),
-            effect,
-            at_naming: effect,
-            standard_errors: evidence[chosen].standard_errors.clone(),
-            view: evidence[chosen].view,
-            gap_before: round.comparison.gap,
-            gap_after: f64::NAN,
-            evidence,
-            rivals: named.weighed,
-            stands_in: named.stands_in,
-            model: model.clone(),
-            comparison: round.comparison.clone(),
-        });
+        let beside_words = match named.effect {
+            Effect::Sinusoid { freq_hz, .. } => format!(
+                "; found beside the line at {} Hz, in the same round",
+                crate::report::sig(freq_hz, 5)
+            ),
+            _ => String::new(),
+        };
+        let (mut step, mut after) = step_of(named, &round, channel.unit(), naming_round);
+        for named in beside {
+            steps.push(step);
+            (step, after) = step_of(named, &round, channel.unit(), naming_round);
+            step.description += &beside_words;
+        }
+        (model, removal) = (step.model.clone(), after);
+        steps.push(step);
         chosen_in = Some((round, before.0, before.1, probe));
     };
     let (initial, initial_evidence) = initial.expect("the first round always runs");

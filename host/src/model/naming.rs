@@ -39,7 +39,7 @@
 
 use super::candidates::{self, add};
 use super::clean::Removal;
-use super::evidence::{Evidence, Probe};
+use super::evidence::{self, Evidence, Probe};
 use super::simulate::{self, Realised, Round};
 use super::{Data, Effect, Model, sinusoid_errors};
 use serde::Serialize;
@@ -132,11 +132,73 @@ pub(super) fn name(
     named
 }
 
+/// The further lines the round's line view passes beside the one `named` (candidate
+/// `named.index` of `round`, a line), each added to the model in turn, strongest first.
+///
+/// **Why in one round.** A comb of lines (the ADIS16405's accelerometers carry six to ten)
+/// would otherwise take a round each, and the search's [`super::MAX_STEPS`] rounds would
+/// end with lines left and the filter never judged. The line search is run once more on the
+/// record with the named line removed, and each line it finds is judged against the round's
+/// own simulations of the strongest false line ([`Evidence::of_another_line`]); the rounds
+/// after are simulated with every line named, as they would be one line at a time. A line
+/// within a removed line's notch or guard, or one a named wide line's wings explain, is not
+/// a line of its own (the view's own rule), and the lines are taken strongest first, so a
+/// wide line is in the model before its wings are weighed.
+pub(super) fn lines_beside(data: &Data, named: &Named, round: &Round) -> Vec<Named> {
+    let judged = &round.evidence[named.index];
+    let (clean, _) = named
+        .removal
+        .apply(data.rate, data.rate_hz, data.temperature.as_ref());
+    let mut found = (data.lines)(&clean, data.rate_hz);
+    found.sort_by(|a, b| evidence::line_surprise(b).total_cmp(&evidence::line_surprise(a)));
+    let mut out: Vec<Named> = Vec::new();
+    for line in found {
+        let last = out.last().unwrap_or(named);
+        if last.removal.near_removed(line.freq_hz)
+            || evidence::in_named_wings(&line, &last.model.lines, data.rate_hz)
+        {
+            continue;
+        }
+        let judged = judged.of_another_line(&line);
+        if !judged.passes {
+            // The rest are weaker: their surprise no larger, their p-value no smaller.
+            break;
+        }
+        let mut evidence = round.evidence.clone();
+        evidence[named.index] = judged;
+        let next = made_of(
+            data,
+            (&last.model, &last.removal),
+            round,
+            named.index,
+            evidence,
+        );
+        out.push(next);
+    }
+    out
+}
+
 /// Candidate `chosen` of `round` added to `model`: its effect with the errors the round's
 /// evidence lacks, and the model refitted with it.
 fn made(data: &Data, model: &Model, removal: &Removal, round: &Round, chosen: usize) -> Named {
+    made_of(
+        data,
+        (model, removal),
+        round,
+        chosen,
+        round.evidence.clone(),
+    )
+}
+
+/// [`made`] with the round's `evidence` given (a further line's in the chosen slot).
+fn made_of(
+    data: &Data,
+    (model, removal): (&Model, &Removal),
+    round: &Round,
+    chosen: usize,
+    mut evidence: Vec<Evidence>,
+) -> Named {
     let probe = round.probes[chosen];
-    let mut evidence = round.evidence.clone();
     let Some(mut effect) = evidence[chosen].effect else {
         unreachable!("a passing candidate has an effect")
     };

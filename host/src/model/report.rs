@@ -185,6 +185,7 @@ pub fn document(o: &Outcome) -> Value {
                 "standard_errors": s.standard_errors,
                 "description": s.description,
                 "view": s.view,
+                "round": s.round,
                 "gap_before": s.gap_before,
                 "gap_after": s.gap_after,
                 "evidence": s.evidence,
@@ -202,7 +203,7 @@ pub fn document(o: &Outcome) -> Value {
         "realisations": o.realisations,
         "temperature_channel": o.temperature,
         "temperature_note": o.temperature_note,
-        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance; for a spectral line, at least the line detector's own family-wise p-value) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; of stochastic terms passing together, and of a passing Gauss-Markov process and the slow line found beside it whatever its own p-value, the one whose model brings the simulations closest to the record (the least Allan gap; steps[].rivals) is named, and a step standing for a stochastic term is taken back unless it shrinks the gap; after the search, each effect named before a later effect of the other kind (deterministic or stochastic) is tested again against the final model without it and dropped when no candidate, itself included, passes there (rechecked[]); a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations); a ramp or temperature candidate with such a p-value, above every draw or not, is decided by the Monte Carlo p-value (1 + draws at or beyond its statistic) / (draws + 1) of enough bootstrap draws that the threshold lies {MONTE_CARLO_EXCEEDANCES} draws deep in their tail"),
+        "rule": format!("an effect is named when the p-value of its statistic against the simulated realisations of the current model (a scaled chi-square matched to their mean and variance; for a spectral line, at least the line detector's own family-wise p-value) is below {FAMILY_ALPHA} / (candidates in the round) and the measured statistic exceeds every simulated one; deterministic effects (lines, ramp, temperature) are judged before stochastic terms; a round that names a spectral line names with it every further line the line search finds on the record without it whose statistic passes against the same simulations (steps[].round); of stochastic terms passing together, and of a passing Gauss-Markov process and the slow line found beside it whatever its own p-value, the one whose model brings the simulations closest to the record (the least Allan gap; steps[].rivals) is named, and a step standing for a stochastic term is taken back unless it shrinks the gap; after the search, each effect named before a later effect of the other kind (deterministic or stochastic) is tested again against the final model without it and dropped when no candidate, itself included, passes there (rechecked[]); a candidate whose statistic exceeds every simulated one with a p-value from {UNSURE_BELOW:e} times below to {UNSURE_ABOVE} times above the threshold is judged again on {REFINE} times as many simulations (evidence[].simulations); a ramp or temperature candidate with such a p-value, above every draw or not, is decided by the Monte Carlo p-value (1 + draws at or beyond its statistic) / (draws + 1) of enough bootstrap draws that the threshold lies {MONTE_CARLO_EXCEEDANCES} draws deep in their tail"),
         "gap_definition": "gap = RMS over the measured oadev taus of z, z = (ln ADEV_measured - mean ln ADEV_simulated) / std ln ADEV_simulated; |z| > 2 marks a disagreeing tau",
         "measured": {"tau": o.measured.tau, "adev": o.measured.dev},
         "baseline": model_keys(&o.baseline),
@@ -372,7 +373,7 @@ pub fn table(o: &Outcome) -> String {
     disagreeing(&mut s, &o.initial);
     let _ = writeln!(
         s,
-        "rule: name a candidate whose p-value against the simulations is below {FAMILY_ALPHA} / (candidates) and whose statistic exceeds every simulated one (lines, ramp, temperature first; of random terms passing together, and of a passing Gauss-Markov process and the slow line beside it, the one closest to the record by the Allan gap; an effect named before one of the other kind is dropped when, tested again without it, nothing passes); a verdict near that line is simulated again {REFINE} times as often (a ramp or temperature one decided by the Monte Carlo p-value of enough bootstrap draws)"
+        "rule: name a candidate whose p-value against the simulations is below {FAMILY_ALPHA} / (candidates) and whose statistic exceeds every simulated one (lines, ramp, temperature first, the lines passing in a round named together; of random terms passing together, and of a passing Gauss-Markov process and the slow line beside it, the one closest to the record by the Allan gap; an effect named before one of the other kind is dropped when, tested again without it, nothing passes); a verdict near that line is simulated again {REFINE} times as often (a ramp or temperature one decided by the Monte Carlo p-value of enough bootstrap draws)"
     );
     for (i, st) in o.steps.iter().enumerate() {
         let _ = writeln!(
@@ -529,6 +530,13 @@ pub fn html(o: &Outcome) -> Result<String, plot::PlotError> {
             st.view.describe()
         );
         evidence_html(&mut page, &st.evidence, Some(st), u);
+        // Lines named in one round share the comparison after it: one figure, after the last.
+        if o.steps
+            .get(i + 1)
+            .is_some_and(|next| next.round == st.round)
+        {
+            continue;
+        }
         figure(
             &mut page,
             panel(
