@@ -13,7 +13,12 @@ script builds the families' kinds with numpy and scipy only, by other methods:
 - rate random walk K: the running sum of white increments of variance K^2 / f_s;
 - a Gauss-Markov process: the exact first-order autoregression (scipy.signal.lfilter);
 - a low-pass filter: scipy.signal.butter's second-order Butterworth (bilinear, -3 dB at the
-  cutoff) on the white noise only, so that flicker and the random walk reach the stopband.
+  cutoff) on the white noise only, so that flicker and the random walk reach the stopband;
+- a comb of two to four lines (`comb`, after `lowpass` in a kind such as `lowpass+comb`):
+  pure sinusoids of random phase, or resonances 2-50 mHz wide made as second-order
+  autoregressions driven by white noise (pole radius exp(-pi w / f_s) for a full width w at
+  half maximum), each 20-100 times the (filtered) white PSD at its peak, where the filter
+  passes a tenth of the power or more, and forty widths apart.
 
 Levels and effect strengths are drawn from the families' ranges: N log-uniform 5e-5..5e-4,
 B = N x 0.03..0.12, the random walk crossing N at 0.1..0.3 of the record; the Gauss-Markov
@@ -47,7 +52,7 @@ import subprocess
 
 import numpy as np
 from scipy.fft import dct
-from scipy.signal import butter, lfilter
+from scipy.signal import butter, freqz, lfilter
 
 EXPECTED = {
     "none": [],
@@ -57,12 +62,50 @@ EXPECTED = {
     "ramp": ["rate_ramp"],
     "temp": ["temperature"],
     "lowpass": ["low_pass"],
+    # One sinusoid per line drawn: `expected` reads the count from the record's truth.
+    "comb": [],
 }
 
 
-def expected(kind):
+def expected(kind, truth):
     """The effect kinds `model` should name in a record of `kind` ("gm", "gm+sin", ...)."""
-    return sorted(e for part in kind.split("+") for e in EXPECTED[part])
+    lines = ["sinusoid"] * int(truth.get("lines", 0))
+    return sorted([e for part in kind.split("+") for e in EXPECTED[part]] + lines)
+
+
+def comb(rng, n, rate, white_psd, gain):
+    """Two to four lines of a comb (module documentation): their sum and their count."""
+    tau0 = 1.0 / rate
+    t_rec = n * tau0
+    top = 0.45 * rate
+    while gain(top) < 0.1:
+        top *= 0.99
+    bottom = min(0.1 * rate, 0.5 * top)
+    drawn = []
+    for _ in range(rng.integers(2, 5)):
+        for _ in range(1000):
+            freq = rng.uniform(bottom, top)
+            width = 0.0 if rng.uniform() < 0.3 else log_uniform(rng, 0.002, 0.05)
+            if all(abs(freq - g) > 40 * (width + v) + 20 / t_rec for g, v in drawn):
+                drawn.append((freq, width))
+                break
+    total = np.zeros(n)
+    t = np.arange(n) * tau0
+    for freq, width in drawn:
+        peak = log_uniform(rng, 20.0, 100.0) * white_psd * gain(freq)
+        if width == 0.0:
+            # A sinusoid's power A^2 / 2 in one bin of width 1 / T.
+            amplitude = np.sqrt(2 * peak / t_rec)
+            total += amplitude * np.sin(2 * np.pi * freq * t + rng.uniform(0, 2 * np.pi))
+        else:
+            r = np.exp(-np.pi * width * tau0)
+            a = [1.0, -2 * r * np.cos(2 * np.pi * freq * tau0), r * r]
+            # One-sided PSD 2 s^2 tau0 / |A(e^iw)|^2 at the line's own frequency.
+            z = np.exp(-2j * np.pi * freq * tau0)
+            denominator = abs(a[0] + a[1] * z + a[2] * z * z) ** 2
+            drive = np.sqrt(peak * denominator / (2 * tau0))
+            total += lfilter([1.0], a, drive * rng.standard_normal(n))
+    return total, len(drawn)
 
 
 def log_uniform(rng, lo, hi):
@@ -112,6 +155,7 @@ def record(kind, seed, rate, hours):
     temp = None
     signals = {}
     gauss_markov = None
+    filter_gain = lambda f: 1.0
     # A pair such as "gm+sin" draws each effect's strength against the baseline alone, so
     # either could be named on its own; together one may hide behind the other.
     for effect in kind.split("+"):
@@ -160,6 +204,11 @@ def record(kind, seed, rate, hours):
             b, a = butter(2, cutoff / (rate / 2))
             y += lfilter(b, a, white) - white
             truth.update(cutoff_hz=cutoff)
+            filter_gain = lambda f, b=b, a=a: float(abs(freqz(b, a, [f], fs=rate)[1][0]) ** 2)
+        elif effect == "comb":
+            lines, count = comb(rng, n, rate, 2 * big_n**2, filter_gain)
+            y += lines
+            truth.update(lines=count)
         elif effect != "none":
             raise SystemExit(f"unknown effect {effect!r} in kind {kind!r}")
 
@@ -239,7 +288,7 @@ def main():
             steps = json.loads(result.read_text())["steps"]
             named = sorted(s["effect"]["kind"] for s in steps
                            if s["effect"]["kind"] not in ("bias_instability", "rate_random_walk"))
-            right += named == expected(kind)
+            right += named == expected(kind, truth)
             hidden = ", ".join(f"{k} {float(v):.4g}" for k, v in truth.items())
             line = f"{kind} seed {seed}: named {named}; hidden {hidden}"
             if evidence:
