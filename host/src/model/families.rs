@@ -66,7 +66,7 @@ pub enum Kind {
     /// at least a tenth of the power, as in [`Kind::LowPassAndTone`], each 0.002-0.05 Hz
     /// wide (or a pure tone), 20-100x the filtered white PSD and apart from the others by
     /// forty widths: a sensor with its own filter and a comb of vibration lines (the
-    /// ADIS16405's accelerometers carry lines 1-4 mHz wide, 0.1 Hz apart).
+    /// ADIS16405's accelerometers carry lines 0.6-17 mHz wide, 0.1 Hz apart).
     LowPassAndLines,
     /// A temperature coupling as [`Kind::Temperature`] plus one to the temperature's rate of
     /// change (a thermal gradient across the sensor), each raising the Allan deviation on
