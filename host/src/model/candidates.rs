@@ -298,7 +298,40 @@ pub(super) fn without(
     sd_ln: &[f64],
     unnamed: Option<&LowPass>,
 ) -> Option<(Model, Removal)> {
+    without_each(data, (model, removal), &[(probe, effect)], sd_ln, unnamed)
+}
+
+/// [`without`] for several effects at once, the random terms refitted once without them
+/// all. None when one of them is a filter or a line the model does not hold.
+pub(super) fn without_each(
+    data: &Data,
+    (model, removal): (&Model, &Removal),
+    effects: &[(Probe, Effect)],
+    sd_ln: &[f64],
+    unnamed: Option<&LowPass>,
+) -> Option<(Model, Removal)> {
     let (mut out, mut removal) = (model.clone(), removal.clone());
+    for &(probe, effect) in effects {
+        take_out(&mut out, &mut removal, (probe, effect))?;
+    }
+    let mut columns = refit::columns_of(&out.stochastic());
+    if effects
+        .iter()
+        .any(|&(p, _)| p.view().is_deterministic() || p == Probe::GaussMarkov)
+    {
+        columns = evidence::with_random_walks(&columns);
+    }
+    let out = refitted(data, out, &removal, &columns, sd_ln, unnamed);
+    Some((out, removal))
+}
+
+/// `effect` taken out of `out` and `removal` (see [`without`]); None for a filter or a line
+/// the model does not hold.
+fn take_out(
+    out: &mut Model,
+    removal: &mut Removal,
+    (probe, effect): (Probe, Effect),
+) -> Option<()> {
     match (probe, effect) {
         (Probe::GaussMarkov, _) => out.terms.gauss_markov = None,
         (Probe::Term(Column::Q), _) => out.terms.q = 0.0,
@@ -328,12 +361,7 @@ pub(super) fn without(
         }
         _ => return None,
     }
-    let mut columns = refit::columns_of(&out.stochastic());
-    if probe.view().is_deterministic() || probe == Probe::GaussMarkov {
-        columns = evidence::with_random_walks(&columns);
-    }
-    let out = refitted(data, out, &removal, &columns, sd_ln, unnamed);
-    Some((out, removal))
+    Some(())
 }
 
 /// `out` with its deterministic coefficients estimated jointly on the record under

@@ -417,6 +417,48 @@ fn a_comb_of_lines_is_named_in_one_round_beside_the_filter() {
     }
 }
 
+/// Three tones named in one round, then a Gauss-Markov process: the tones, named before an
+/// effect of the other kind, are tested again, together as they were named
+/// ([`recheck::named_before`]): one model without all three, and each still passes there.
+#[test]
+fn lines_named_together_are_tested_again_together() {
+    use rand::SeedableRng;
+    let mut hidden = families::generate(Kind::GaussMarkov, CI_SHAPE, 13);
+    let rate_hz = CI_SHAPE.rate_hz;
+    // Each tone 200 times the white PSD (one-sided 2 N^2) in its bin of the whole record.
+    let amplitude = (2.0 * 200.0 * 2.0 * hidden.terms.n.powi(2) / CI_SHAPE.duration_s).sqrt();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    for share in [0.11, 0.23, 0.37] {
+        let freq_hz = share * rate_hz;
+        crate::sim::noise::add_line(
+            &mut hidden.record.channels[0].values,
+            rate_hz,
+            freq_hz,
+            0.0,
+            amplitude,
+            &mut rng,
+        );
+        hidden
+            .tones
+            .push((freq_hz, 0.0, amplitude * amplitude / 2.0));
+    }
+    let (got, o, _) = named_record(hidden);
+    assert_eq!(
+        got,
+        ["gauss_markov", "sinusoid", "sinusoid", "sinusoid"],
+        "{}",
+        report::table(&o)
+    );
+    assert_eq!(o.rechecked.len(), 3, "{:?}", o.rechecked);
+    for r in &o.rechecked {
+        assert_eq!(r.together, 3, "{r:?}");
+        assert!(r.passes && !r.dropped && r.p_value < r.p_needed, "{r:?}");
+        assert_eq!(r.gap_without, o.rechecked[0].gap_without);
+    }
+    let json = report::document(&o);
+    assert_eq!(json["rechecked"][2]["together"], 3);
+}
+
 /// A Gauss-Markov bump the baseline took into its white and flicker terms makes
 /// quantization pass beside the process, with the smaller p: named by p, quantization came
 /// first and stayed (it shrank the gap a little), and the process was named after it. Of
