@@ -23,7 +23,7 @@
 //! regressors are estimated jointly (`super::joint`) and random terms passing together are
 //! weighed by the Allan gap (`super::naming`).
 //!
-//! **Lines named together are tested again together** ([`together`]), as they were named
+//! **Lines named together are tested again together** (`together`), as they were named
 //! (`super::naming::lines_beside`): the final model without all of them, one simulated round
 //! of the line view, and each judged against the strongest false line of each realisation.
 //! A line that still passes there passes at the level its own round would name it at, so it
@@ -61,7 +61,7 @@ pub struct Rechecked {
     /// Whether it was dropped from the model.
     pub dropped: bool,
     /// How many lines of one naming round were taken out together for the test, this one
-    /// included ([`together`]); 1 when it was tested alone.
+    /// included (module documentation); 1 when it was tested alone.
     pub together: usize,
 }
 

@@ -76,7 +76,9 @@ pub fn model_keys(model: &Model) -> Value {
 /// ([`LowPass::input_density`](crate::analysis::low_pass::LowPass::input_density),
 /// [`LowPass::line_power_gain`](crate::analysis::low_pass::LowPass::line_power_gain)),
 /// because `imunoise simulate` puts everything through the DLPF its `--bandwidth` selects;
-/// the filter itself is a comment. Every named line is in `lines` (the first is also the
+/// the filter itself is a comment, and so is the white noise a fitted filter has after it
+/// ([`LowPass::unshaped_share`](crate::analysis::low_pass::LowPass::unshaped_share)), which
+/// the input density leaves out. Every named line is in `lines` (the first is also the
 /// JSON's `sinusoid`, left out here so that it is not simulated twice). A temperature
 /// coupling is written as `temperature = { bias_coeff, rate_coeff }`; the simulator then needs
 /// a `[temperature]` profile, which this workflow does not estimate (it used the record's
@@ -134,7 +136,8 @@ pub fn model_toml(quantity: Quantity, model: &Model) -> String {
             out,
             "# The sensor's low-pass filter: {}; -3 dB at {} Hz. It is not a key:\n\
              # `imunoise simulate` applies the DLPF its --bandwidth selects. noise_density and\n\
-             # the lines' amplitudes are at the filter's input; at its output N = {} (the model's).",
+             # the lines' amplitudes are at the filter's input; at its output, with any white noise\n\
+             # after it, N = {} (the model's).",
             lp.filter,
             sig(lp.cutoff_hz, 4),
             sig(t.n, 4)

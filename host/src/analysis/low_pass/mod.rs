@@ -70,6 +70,14 @@ use shape::{Aliases, Cascade, Phasor};
 use statrs::distribution::{ContinuousCDF, Normal};
 use std::f64::consts::PI;
 
+/// Largest share of the output's white power [`LowPass::with_unshaped_share`] puts after
+/// the filter: beyond it the record is white noise with a trace of a filter.
+pub const MAX_UNSHAPED_SHARE: f64 = 0.5;
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
 /// Internal rate of the generic shapes, in multiples of the output rate.
 pub const OVERSAMPLE: usize = 16;
 /// Highest cutoff of the generic family, in multiples of the output rate (the bilinear
@@ -139,6 +147,11 @@ pub struct LowPass {
     /// the filter lowers the white Allan variance by [`APPROXIMATE_SHAPE_SHARE`].
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub shape_approximate: bool,
+    /// For a fitted filter, the share of the output's long-tau white power (N^2) that did
+    /// not pass through it ([`LowPass::with_unshaped_share`]): the rounding of the output
+    /// to its LSB, white and unfiltered; 0 for a filter from the settings.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub unshaped_share: f64,
     #[serde(skip)]
     chain: Chain,
     #[serde(skip)]
@@ -301,7 +314,34 @@ impl LowPass {
             dc_folded_power,
             comparable: Vec::new(),
             shape_approximate: false,
+            unshaped_share: 0.0,
         })
+    }
+
+    /// The same filter with a share `share` (0 ..= [`MAX_UNSHAPED_SHARE`]) of the output's
+    /// white power added after it, unfiltered, at the same long-tau N: the autocovariance
+    /// becomes `(1 - s) r(l) + s delta(l) / tau0` and the power gain `(1 - s) G(f) + s`. A
+    /// sensor that rounds its output to an LSB near its noise adds such a floor (variance
+    /// `lsb^2 / 12` per sample, Widrow & Kollar, *Quantization Noise*, 2008, ch. 4): the
+    /// ADIS16405's accelerometers, whose samples spread over 1.0-1.4 LSB (3.27e-2 m/s^2),
+    /// hold 5-9 % of their variance so, and in the stopband, where the filter took the white
+    /// noise down by decades, that floor is what the shortest taus measure.
+    pub fn with_unshaped_share(mut self, share: f64) -> LowPass {
+        let s = share.clamp(0.0, MAX_UNSHAPED_SHARE);
+        // The filtered part, any share set before taken out: r = (r' - s0 delta / tau0) / (1 - s0).
+        let (s0, tau0) = (self.unshaped_share, 1.0 / self.rate_hz);
+        self.autocov[0] -= s0 / tau0;
+        let scale = (1.0 - s) / (1.0 - s0);
+        self.autocov.iter_mut().for_each(|r| *r *= scale);
+        self.autocov[0] += s / tau0;
+        if s > 0.0 && s0 == 0.0 {
+            self.filter += &format!(
+                ", with {} % of the white power after it, unfiltered",
+                crate::report::sig(100.0 * s, 2)
+            );
+        }
+        self.unshaped_share = s;
+        self
     }
 
     /// The Allan variance, at `tau` (s), of white rate noise with unit long-tau N (1
@@ -361,7 +401,8 @@ impl LowPass {
     /// output PSD of white input is N^2 times this (two-sided), the aliases of the internal
     /// rate folded in.
     pub fn power_gain(&self, freq_hz: f64) -> f64 {
-        folded_power(&self.chain, self.decimation, freq_hz) / self.dc_folded_power
+        let filtered = folded_power(&self.chain, self.decimation, freq_hz) / self.dc_folded_power;
+        (1.0 - self.unshaped_share) * filtered + self.unshaped_share
     }
 
     /// The power gain of the filter alone at `freq_hz`, relative to DC: what a spectral line
@@ -377,7 +418,7 @@ impl LowPass {
     /// folding of [`crate::sim::chain`] undone. Per-sample sigma `sigma = N_in sqrt(f_i)` at
     /// the internal rate f_i gives output N `sigma * gain`, so `N_in = N / (gain sqrt(f_i))`.
     pub fn input_density(&self, n_density: f64) -> f64 {
-        n_density / (self.gain * self.chain.rate_hz().sqrt())
+        (1.0 - self.unshaped_share).sqrt() * n_density / (self.gain * self.chain.rate_hz().sqrt())
     }
 
     /// `samples` output samples of white rate noise whose long-tau Allan coefficient is
@@ -809,7 +850,15 @@ pub fn detect_outside(
     let rise = |f: f64| (found.spectrum.chi2(Some((shape, f))) - chi2_best) / scale - z * z;
     let lo_end = crossing(&rise, cutoff, found.lo);
     let hi_end = crossing(&rise, cutoff, rate_hz * shape.max_cutoff_per_rate());
-    let mut low_pass = LowPass::generic(shape, cutoff, rate_hz)?.fitted(lo_end, hi_end);
+    // A knee's bins stop short of the stopband, where the floor after the filter shows.
+    let share = if approximate {
+        0.0
+    } else {
+        found.spectrum.unshaped_share((shape, cutoff))
+    };
+    let mut low_pass = LowPass::generic(shape, cutoff, rate_hz)?
+        .fitted(lo_end, hi_end)
+        .with_unshaped_share(share);
     low_pass.shape_approximate = approximate;
     low_pass.comparable = found
         .fitted
@@ -1133,6 +1182,20 @@ impl DetectionPsd {
     /// The known PSD's scale is a column of its own where there is one
     /// ([`Outside::known`]).
     fn misfit_with(&self, gains: Option<&[f64]>, unshaped: bool) -> f64 {
+        self.fit_with(gains, unshaped).0
+    }
+
+    /// The share of the white power at DC that the fit with a shape and cutoff, the
+    /// unshaped columns free, puts after the filter: `u / (w + u)`.
+    fn unshaped_share(&self, filter: (Shape, f64)) -> f64 {
+        let gains = self.gains(filter.0, filter.1);
+        let (_, coef) = self.fit_with(Some(&gains), true);
+        let total = coef[0] + coef[5];
+        if total > 0.0 { coef[5] / total } else { 0.0 }
+    }
+
+    /// [`DetectionPsd::misfit_with`] and the fitted coefficients of its columns.
+    fn fit_with(&self, gains: Option<&[f64]>, unshaped: bool) -> (f64, [f64; COLUMNS]) {
         let rows: Vec<[f64; COLUMNS]> = self
             .freq
             .iter()
@@ -1158,8 +1221,9 @@ impl DetectionPsd {
         let spread = (2.0 / self.dof).sqrt();
         let mut sigma: Vec<f64> = self.density.iter().map(|s| s * spread).collect();
         let mut chi2 = f64::INFINITY;
+        let mut coef = [0.0; COLUMNS];
         for _ in 0..3 {
-            let coef = weighted_nnls(&rows, &columns, &self.density, &sigma);
+            coef = weighted_nnls(&rows, &columns, &self.density, &sigma);
             let model: Vec<f64> = rows
                 .iter()
                 .map(|r| r.iter().zip(&coef).map(|(a, c)| a * c).sum::<f64>())
@@ -1176,7 +1240,7 @@ impl DetectionPsd {
                 .map(|(m, s)| m.max(1e-3 * s) * spread)
                 .collect();
         }
-        chi2
+        (chi2, coef)
     }
 }
 
@@ -1734,6 +1798,78 @@ pub(crate) mod tests {
         let mean = errors.iter().sum::<f64>() / errors.len() as f64;
         let held = errors.iter().filter(|e| e.abs() <= 1.0).count();
         assert!(mean.abs() < 1.2 && held >= 3, "{errors:?}");
+    }
+
+    /// A share set after the filter adds white noise of that share at the same long-tau N:
+    /// the Allan variance and the power gain are the filter's scaled by `1 - s` plus `s`
+    /// times white noise's, and setting a share again replaces the first.
+    #[test]
+    fn an_unshaped_share_adds_white_noise_after_the_filter() {
+        let (rate, s) = (100.0, 0.2);
+        let lp = LowPass::generic(Shape::Bartlett, 28.0, rate).unwrap();
+        let floored = lp.clone().with_unshaped_share(s);
+        for m in [1usize, 2, 3, 5, 10, 100] {
+            let tau = m as f64 / rate;
+            let want = (1.0 - s) * lp.white_avar(tau) + s / tau;
+            assert!(
+                (floored.white_avar(tau) / want - 1.0).abs() < 1e-12,
+                "m = {m}"
+            );
+        }
+        for f in [0.0, 10.0, 28.0, 49.0] {
+            let want = (1.0 - s) * lp.power_gain(f) + s;
+            assert!(
+                (floored.power_gain(f) / want - 1.0).abs() < 1e-12,
+                "f = {f}"
+            );
+        }
+        let again = lp.clone().with_unshaped_share(0.05).with_unshaped_share(s);
+        assert!((again.white_avar(0.01) / floored.white_avar(0.01) - 1.0).abs() < 1e-12);
+        assert!(
+            (floored.input_density(1.0) / lp.input_density(1.0) - (1.0 - s).sqrt()).abs() < 1e-12
+        );
+    }
+
+    /// White noise through a Bartlett filter and rounded to an LSB as large as its standard
+    /// deviation, as the ADIS16405's accelerometers round theirs: the rounding adds white
+    /// noise of `lsb^2 / 12` per sample after the filter (4.7 % of the long-tau white power
+    /// here). With the share the detection measures, the fitted filter's Allan variance at
+    /// tau0, where the stopband weighs most, matches the record's (100 Hz, 400 000 samples,
+    /// eight seeds; the measured AVAR's own relative spread there is about 0.3 %): the
+    /// median error is below 1 %, where the same filter without the share is more than 5 %
+    /// low. Measured: 0.17 % with it (one seed 5.3 %, where the quantization column took the
+    /// floor and the share is 0), 8.9 % without; a share found on six of the eight.
+    #[test]
+    fn the_rounding_after_the_filter_is_its_unshaped_share() {
+        let (rate, n_density, tau0) = (100.0, 1e-3, 0.01);
+        let lp = LowPass::generic(Shape::Bartlett, 28.0, rate).unwrap();
+        let (mut with, mut without, mut shared) = (Vec::new(), Vec::new(), 0);
+        for seed in 0..8 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut y = lp.white_through(n_density, 400_000, &mut rng);
+            let lsb = (y.iter().map(|v| v * v).sum::<f64>() / y.len() as f64).sqrt();
+            y.iter_mut().for_each(|v| *v = (*v / lsb).round() * lsb);
+            let n2 = n_density * n_density + tau0 * lsb * lsb / 12.0;
+            let found = detect(&y, rate, 0.683)
+                .unwrap()
+                .low_pass
+                .expect("a roll-off");
+            let plain = LowPass::generic(found.shape.unwrap(), found.cutoff_hz, rate).unwrap();
+            let phase = phase_from_rate(&y, tau0);
+            let measured = allan::deviation(Estimator::Oadev, &phase, tau0, &[1]).dev[0].powi(2);
+            with.push((n2 * found.white_avar(tau0) / measured - 1.0).abs());
+            without.push((n2 * plain.white_avar(tau0) / measured - 1.0).abs());
+            shared += usize::from(found.unshaped_share > 0.0);
+        }
+        let median = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            0.5 * (v[3] + v[4])
+        };
+        let (with, without) = (median(&mut with), median(&mut without));
+        assert!(
+            with < 0.01 && without > 0.05 && shared >= 5,
+            "{with} {without} {shared}"
+        );
     }
 
     /// Each generic shape is told from the others on its own records: white noise through
