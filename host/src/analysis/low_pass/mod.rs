@@ -72,7 +72,7 @@ use std::f64::consts::PI;
 
 /// Largest share of the output's white power [`LowPass::with_unshaped_share`] puts after
 /// the filter: beyond it the record is white noise with a trace of a filter.
-pub const MAX_UNSHAPED_SHARE: f64 = 0.5;
+pub const MAX_UNSHAPED_SHARE: f64 = 0.95;
 
 fn is_zero(x: &f64) -> bool {
     *x == 0.0
@@ -334,9 +334,15 @@ impl LowPass {
         let scale = (1.0 - s) / (1.0 - s0);
         self.autocov.iter_mut().for_each(|r| *r *= scale);
         self.autocov[0] += s / tau0;
-        if s > 0.0 && s0 == 0.0 {
+        const AFTER: &str = ", with ";
+        if s0 > 0.0
+            && let Some(at) = self.filter.rfind(AFTER)
+        {
+            self.filter.truncate(at);
+        }
+        if s > 0.0 {
             self.filter += &format!(
-                ", with {} % of the white power after it, unfiltered",
+                "{AFTER}{} % of the white power after it, unfiltered",
                 crate::report::sig(100.0 * s, 2)
             );
         }
@@ -1825,6 +1831,12 @@ pub(crate) mod tests {
         }
         let again = lp.clone().with_unshaped_share(0.05).with_unshaped_share(s);
         assert!((again.white_avar(0.01) / floored.white_avar(0.01) - 1.0).abs() < 1e-12);
+        assert_eq!(again.filter, floored.filter);
+        assert!(
+            floored
+                .filter
+                .ends_with("with 20 % of the white power after it, unfiltered")
+        );
         assert!(
             (floored.input_density(1.0) / lp.input_density(1.0) - (1.0 - s).sqrt()).abs() < 1e-12
         );
