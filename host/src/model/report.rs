@@ -65,7 +65,7 @@ pub fn model_keys(model: &Model) -> Value {
     if let Some(lp) = &model.low_pass {
         m.insert(
             "low_pass".into(),
-            json!({"cutoff_hz": lp.cutoff_hz, "shape": lp.shape, "source": lp.source, "filter": lp.filter}),
+            json!({"cutoff_hz": lp.cutoff_hz, "shape": lp.shape, "source": lp.source, "filter": lp.filter, "unshaped_share": lp.unshaped_share}),
         );
     }
     Value::Object(m)

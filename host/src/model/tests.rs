@@ -402,6 +402,12 @@ fn a_comb_of_lines_is_named_in_one_round_beside_the_filter() {
         .collect();
     let own: Vec<u64> = o.steps.iter().map(|s| s.round as u64).collect();
     assert_eq!(rounds, own);
+    // The final filter's share of white noise after it, in the model's keys.
+    let share = json["model"]["low_pass"]["unshaped_share"].as_f64();
+    assert!(
+        share.is_some_and(|s| (0.0..=crate::analysis::low_pass::MAX_UNSHAPED_SHARE).contains(&s)),
+        "{share:?}"
+    );
     for &(freq_hz, _, _) in &hidden.tones {
         let step = lines
             .iter()

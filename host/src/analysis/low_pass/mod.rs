@@ -1871,7 +1871,11 @@ pub(crate) mod tests {
             let measured = allan::deviation(Estimator::Oadev, &phase, tau0, &[1]).dev[0].powi(2);
             with.push((n2 * found.white_avar(tau0) / measured - 1.0).abs());
             without.push((n2 * plain.white_avar(tau0) / measured - 1.0).abs());
-            shared += usize::from(found.unshaped_share > 0.0);
+            if found.unshaped_share > 0.0 {
+                shared += 1;
+                let json = serde_json::to_value(&found).unwrap();
+                assert_eq!(json["unshaped_share"].as_f64(), Some(found.unshaped_share));
+            }
         }
         let median = |v: &mut Vec<f64>| {
             v.sort_by(f64::total_cmp);
