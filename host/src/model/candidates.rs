@@ -343,17 +343,7 @@ fn take_out(
         }
         (Probe::Temperature, _) => removal.temperature = false,
         (Probe::Line | Probe::SlowLine, Effect::Sinusoid { freq_hz, .. }) => {
-            let nearest = out
-                .lines
-                .iter()
-                .enumerate()
-                .min_by(|a, b| {
-                    (a.1.freq_hz - freq_hz)
-                        .abs()
-                        .total_cmp(&(b.1.freq_hz - freq_hz).abs())
-                })
-                .map(|(i, _)| i)?;
-            let line = out.lines.remove(nearest);
+            let line = out.lines.remove(nearest_line(&out.lines, freq_hz)?);
             removal.tones.retain(|t| t.freq_hz != line.freq_hz);
             removal
                 .notches
@@ -362,6 +352,19 @@ fn take_out(
         _ => return None,
     }
     Some(())
+}
+
+/// The index of the line of `lines` nearest to `freq_hz`; none when there are none.
+pub(super) fn nearest_line(lines: &[Line], freq_hz: f64) -> Option<usize> {
+    lines
+        .iter()
+        .enumerate()
+        .min_by(|a, b| {
+            (a.1.freq_hz - freq_hz)
+                .abs()
+                .total_cmp(&(b.1.freq_hz - freq_hz).abs())
+        })
+        .map(|(i, _)| i)
 }
 
 /// `out` with its deterministic coefficients estimated jointly on the record under

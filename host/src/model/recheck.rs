@@ -70,13 +70,19 @@ impl Rechecked {
     pub fn describe(&self, u: &str) -> String {
         use super::report::p_text;
         use crate::report::sig;
-        let (without, gap_with) = match self.together {
-            0 | 1 => ("without it".to_string(), "with it"),
+        // The words for what the test left out, and for the Allan gap without and with it.
+        let (without, gap_without, gap_with) = match self.together {
+            0 | 1 => (
+                "without it".to_string(),
+                "without it".to_string(),
+                "with it",
+            ),
             n => (
                 format!(
                     "without it and the {} other lines named in its round",
                     n - 1
                 ),
+                format!("without the {n} lines"),
                 "with them",
             ),
         };
@@ -86,10 +92,6 @@ impl Rechecked {
             "kept: its test still passes with the effects named after it in the model"
         } else {
             "kept: its test no longer passes, but without it another candidate does"
-        };
-        let gap_without = match self.together {
-            0 | 1 => "without it".to_string(),
-            n => format!("without the {n} lines"),
         };
         format!(
             "{} tested again {without}: p = {} (needs < {}); Allan gap {} {gap_without}, {} {gap_with}; {verdict}",
@@ -308,12 +310,7 @@ fn found_again(found: &[Line], effect: Effect, bin_hz: f64) -> Option<&Line> {
     else {
         return None;
     };
-    found
-        .iter()
-        .min_by(|a, b| {
-            (a.freq_hz - freq_hz)
-                .abs()
-                .total_cmp(&(b.freq_hz - freq_hz).abs())
-        })
-        .filter(|l| (l.freq_hz - freq_hz).abs() <= 0.5 * l.width_hz.max(width_hz) + 2.0 * bin_hz)
+    let line = &found[candidates::nearest_line(found, freq_hz)?];
+    let near = (line.freq_hz - freq_hz).abs() <= 0.5 * line.width_hz.max(width_hz) + 2.0 * bin_hz;
+    near.then_some(line)
 }
