@@ -815,6 +815,7 @@ pub fn detect_outside(
     };
     let mut knee = None;
     let mut found = search(&full, rate_hz);
+    let full_scale = found.scale;
     // A roll-off low in the band, or one no shape describes, is fitted again on its knee
     // alone ([`DetectionPsd::knee`]), from a longer segment that reaches lower cutoffs.
     let mut approximate = false;
@@ -856,9 +857,10 @@ pub fn detect_outside(
     let rise = |f: f64| (found.spectrum.chi2(Some((shape, f))) - chi2_best) / scale - z * z;
     let lo_end = crossing(&rise, cutoff, found.lo);
     let hi_end = crossing(&rise, cutoff, rate_hz * shape.max_cutoff_per_rate());
-    // A knee's bins stop short of the stopband, where the floor after the filter shows.
+    // The floor after the filter shows in the stopband, which a knee's bins stop short of:
+    // a knee's shape and cutoff are weighed on the whole band's spectrum for it.
     let share = if approximate {
-        0.0
+        full.unshaped_share((shape, cutoff), full_scale)
     } else {
         found.spectrum.unshaped_share((shape, cutoff), scale)
     };
@@ -1687,7 +1689,8 @@ pub(crate) mod tests {
     /// filter, nothing below f_s / 64 for the 5 Hz one). And the accelerometer's 260 Hz row,
     /// which peaks, fitted by no shape. Fitted on its knee, the cutoff is the filter's, and
     /// the Allan fit from the approximate shape's first tau finds N within its interval's
-    /// reach (3 of its standard deviations, from the 68.3 % half-width).
+    /// reach (3 of its standard deviations, from the 68.3 % half-width). No white noise
+    /// follows these filters, and the share read for them on the whole band is 0.
     #[test]
     fn a_roll_off_low_in_the_band_is_fitted_on_its_knee() {
         use crate::analysis::fit::{FitOptions, fit_deviation};
@@ -1712,7 +1715,12 @@ pub(crate) mod tests {
                 .unwrap()
                 .low_pass
                 .expect("a roll-off");
-            assert!(found.shape_approximate, "{cfg:?} {sensor:?}: {found:?}");
+            // The share is read on the whole band with the knee's shape and cutoff: no white
+            // noise follows this filter, and none is put after it (measured: 0 on all four).
+            assert!(
+                found.shape_approximate && found.unshaped_share < 0.01,
+                "{cfg:?} {sensor:?}: {found:?}"
+            );
             assert!(
                 (found.cutoff_hz / bandwidth - 1.0).abs() < 0.3,
                 "{cfg:?} {sensor:?}: {} Hz",
